@@ -1,0 +1,5 @@
+import sys
+
+from activesplat.cli import main
+
+sys.exit(main())

@@ -1,0 +1,96 @@
+"""The ``activesplat`` command: one entry point, one subcommand per job.
+
+Every subcommand turns bad input (an :class:`~activesplat.errors.ActiveSplatError`) into a one-line
+``activesplat: error: ...`` message on stderr and exit code 2, never a traceback. Heavy modules are
+imported inside the command functions so that ``activesplat --help`` stays fast.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Callable, Sequence
+
+from activesplat.errors import ActiveSplatError
+
+Handler = Callable[[argparse.Namespace], int | None]
+
+
+# --------------------------------------------------------------------------- scenes
+def _cmd_scenes_list(args: argparse.Namespace) -> int:
+    from activesplat.sim import describe_builtin_scenes
+
+    print(describe_builtin_scenes())
+    return 0
+
+
+def _cmd_scenes_export(args: argparse.Namespace) -> int:
+    from activesplat.sim import load_scene
+
+    scene = load_scene(args.name, z_up=args.z_up)
+    path = scene.export(args.file)
+    print(f"wrote {path}")
+    return 0
+
+
+# --------------------------------------------------------------------------- explore
+def _cmd_explore(args: argparse.Namespace) -> int:
+    from activesplat.explore import explore_from_args
+
+    return explore_from_args(args)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="activesplat",
+        description="Autonomous exploration that builds a 3D Gaussian-splatting map "
+        "(ActiveSplat, RA-L 2025).",
+    )
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub.required = True
+
+    # scenes
+    p_scenes = sub.add_parser("scenes", help="list built-in scenes or export one as a mesh")
+    scenes_sub = p_scenes.add_subparsers(dest="scenes_command", metavar="ACTION")
+    scenes_sub.required = True
+    p_list = scenes_sub.add_parser("list", help="list the built-in procedural houses")
+    p_list.set_defaults(func=_cmd_scenes_list)
+    p_export = scenes_sub.add_parser(
+        "export", help="write the exact mesh the simulator uses (world frame, y up) as .glb"
+    )
+    p_export.add_argument("name", help="built-in name (small-0, medium-3, ...) or a mesh file")
+    p_export.add_argument("file", help="output file (.glb)")
+    p_export.add_argument("--z-up", action="store_true", help="the input mesh file is z-up")
+    p_export.set_defaults(func=_cmd_scenes_export)
+
+    # explore
+    p_explore = sub.add_parser("explore", help="explore a scene and write an episode folder")
+    p_explore.add_argument("--scene", default="small-0", help="built-in name or mesh file")
+    p_explore.add_argument("--steps", type=int, default=None,
+                           help="step budget (default: 1000 for small scenes, 2000 for medium)")
+    p_explore.add_argument("--policy", default="activesplat", help="exploration policy")
+    p_explore.add_argument("--seed", type=int, default=0, help="seed of the random start")
+    p_explore.add_argument("--out", default=None, help="episode folder (default: runs/SCENE-sSEED)")
+    p_explore.add_argument("--overwrite", action="store_true",
+                           help="replace an existing complete episode in --out")
+    p_explore.add_argument("--z-up", action="store_true", help="the scene mesh file is z-up")
+    p_explore.set_defaults(func=_cmd_explore)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        code = args.func(args)
+    except ActiveSplatError as exc:
+        print(f"activesplat: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("activesplat: interrupted", file=sys.stderr)
+        return 130
+    return int(code or 0)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

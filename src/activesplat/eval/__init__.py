@@ -1,0 +1,1 @@
+"""Evaluation: completion metrics by replay, rendering metrics, timing (paper sec. IV)."""

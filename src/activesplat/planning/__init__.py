@@ -1,0 +1,1 @@
+"""Viewpoint selection and hierarchical planning (paper sec. III-B, III-C)."""

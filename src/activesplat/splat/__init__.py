@@ -1,0 +1,1 @@
+"""Gaussian map: parameters, rasterizer backends, online mapper (paper sec. III-A)."""
