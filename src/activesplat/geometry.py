@@ -1,0 +1,56 @@
+"""Camera geometry shared by every part of the loop.
+
+Conventions (DESIGN.md): world y up, metres; camera poses are 4x4 camera-to-world with OpenCV axes
+(x right, y down, z forward). Yaw is measured about world +y: a heading of yaw `t` looks along
+(sin t, 0, cos t), so increasing yaw turns the view counter-clockwise seen from above (a left turn).
+Pitch is positive when looking up.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+WORLD_UP = np.array([0.0, 1.0, 0.0])
+
+
+def intrinsics(width: int, height: int, hfov_deg: float, vfov_deg: float | None = None) -> np.ndarray:
+    """Pinhole K with the principal point at the image centre. vfov defaults to square pixels."""
+    fx = (width / 2.0) / math.tan(math.radians(hfov_deg) / 2.0)
+    fy = fx if vfov_deg is None else (height / 2.0) / math.tan(math.radians(vfov_deg) / 2.0)
+    return np.array([[fx, 0.0, width / 2.0], [0.0, fy, height / 2.0], [0.0, 0.0, 1.0]])
+
+
+def heading(yaw: float, pitch: float = 0.0) -> np.ndarray:
+    """Unit viewing direction for a yaw (about +y) and pitch (up positive), in radians."""
+    cp = math.cos(pitch)
+    return np.array([math.sin(yaw) * cp, math.sin(pitch), math.cos(yaw) * cp])
+
+
+def camera_pose(position, yaw: float, pitch: float = 0.0) -> np.ndarray:
+    """4x4 camera-to-world (OpenCV axes) of a camera at `position` looking at (yaw, pitch)."""
+    z = heading(yaw, pitch)
+    x = np.array([-math.cos(yaw), 0.0, math.sin(yaw)])  # right; horizontal for any pitch
+    y = np.cross(z, x)  # down
+    pose = np.eye(4)
+    pose[:3, 0], pose[:3, 1], pose[:3, 2], pose[:3, 3] = x, y, z, np.asarray(position, dtype=float)
+    return pose
+
+
+def yaw_pitch_of(direction) -> tuple[float, float]:
+    """(yaw, pitch) in radians of a world direction (any length > 0); inverse of `heading`."""
+    d = np.asarray(direction, dtype=float)
+    yaw = math.atan2(d[0], d[2])
+    pitch = math.atan2(d[1], math.hypot(d[0], d[2]))
+    return yaw, pitch
+
+
+def pose_yaw_pitch(pose: np.ndarray) -> tuple[float, float]:
+    """(yaw, pitch) of a camera-to-world pose's optical axis."""
+    return yaw_pitch_of(np.asarray(pose)[:3, 2])
+
+
+def wrap_angle(a):
+    """Wrap radians to [-pi, pi)."""
+    return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi

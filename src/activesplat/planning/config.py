@@ -1,0 +1,120 @@
+"""Viewpoint-selection and planning constants (paper sec. III-B, III-C; REFERENCE.md sections 4 and 5).
+
+Where the paper and the authors' release disagree, the field comment names both and says which one is the
+default here.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+
+@dataclass
+class PanoramaConfig:
+    """Panorama at a Voronoi node (paper sec. III-D2 "Panorama Rendering")."""
+
+    n_cameras: int = 3
+    """Pinhole cameras rotated 0/120/240 deg in yaw."""
+    hfov_deg: float = 120.0
+    """Horizontal field of view of each camera (paper: 120 deg)."""
+    vfov_deg: float = 150.0
+    """Vertical field of view of each camera (paper: 150 deg)."""
+    width_per_camera: int = 120
+    """Pixels per camera horizontally: 3 x 120 = 360 px, ~1 px per degree (paper: 360 x 150 panorama)."""
+    height: int = 150
+    """Panorama height in pixels (paper: 150)."""
+
+
+@dataclass
+class RotationCandidateConfig:
+    """Rotation candidates from DBSCAN over low-visibility pixels (sec. III-B2; release values)."""
+
+    invisibility_threshold: float = 0.3
+    """A pixel is low-visibility when 1 - opacity exceeds this (release: 0.3)."""
+    downsample: int = 2
+    """Cluster at half resolution (release)."""
+    dbscan_eps: float = 5.0
+    """DBSCAN neighbourhood radius in (downsampled) pixels (release: 5)."""
+    dbscan_min_samples: int = 10
+    """DBSCAN core-point size (release: 10)."""
+    min_cluster_invisibility: float = 25.0
+    """A cluster is kept when the sum of its invisibility exceeds this (release: 25)."""
+    min_offset_deg: float = 15.0
+    """A target is used only if more than this off the current heading (release: 15 deg)."""
+
+
+@dataclass
+class HullConfig:
+    """3D convex-hull volume of invisible regions (sec. III-B2, "back-projects contour pixels")."""
+
+    invisibility_threshold: float = 0.8
+    """Pixels counted as invisible for the hull (release: 0.8)."""
+    downsample: int = 2
+    """Cluster at half resolution, like the rotation candidates."""
+    dbscan_eps: float = 5.0
+    """DBSCAN radius in pixels (release: 5)."""
+    dbscan_min_samples: int = 25
+    """DBSCAN core-point size (release: 25)."""
+    dilate_px: int = 15
+    """Elliptic dilation of each cluster before taking its outer contour (release: 15 x 15)."""
+
+
+@dataclass
+class HighLossConfig:
+    """High-loss samples of eq. 10, tracked over time (sec. III-B2)."""
+
+    opacity_threshold: float = 0.8
+    """tau_o2 of eq. 10: rendered opacity above which a depth disagreement counts."""
+    depth_error_m: float = 0.3
+    """epsilon_1 of eq. 10: observed depth in front of the rendered one by more than this."""
+    grid: int = 90
+    """The mask is downsampled to grid x grid before clustering (release: 90 x 90)."""
+    min_pixels: int = 20
+    """Fewer high-loss pixels than this: no sample (release: 20)."""
+    dbscan_eps: float = 5.0
+    dbscan_min_samples: int = 10
+    min_cluster_sum: float = 25.0
+    """Clusters smaller than this are ignored (release: 25)."""
+    min_offset_deg: float = 5.0
+    """A sample becomes a rotation target only if more than this off the heading (release: 5 deg)."""
+    drop_within_deg: float = 5.0
+    """A tracked sample is dropped once the camera heading is within this of it (release: 5 deg)."""
+    max_samples: int = 32
+    """Most samples kept; the oldest are forgotten first."""
+
+
+@dataclass
+class ScoreConfig:
+    """Node score of eq. 12: S = w_o s_o + w_c s_c + w_u s_u + w_h s_h (- failed penalty).
+
+    Defaults follow the paper's weights (20/10/10/10); s_o and s_c are each node's invisible share and hull
+    volume divided by the maximum over the candidate nodes. The release instead scores
+    20*unvisited + 10*in_horizon + 2*ceil(10*inv/max) + 1*ceil(10*vol/max) - 60*failed:
+    set `preset="release"`.
+    """
+
+    w_o: float = 20.0
+    """Weight of the 2D invisible share of the node's panorama (paper eq. 12)."""
+    w_c: float = 10.0
+    """Weight of the 3D convex-hull share (paper eq. 12)."""
+    w_u: float = 10.0
+    """Weight of the unvisited flag (paper eq. 12)."""
+    w_h: float = 10.0
+    """Weight of the in-horizon flag (paper eq. 12)."""
+    failed_penalty: float = 60.0
+    """Subtracted from nodes whose goal failed before (release: 60)."""
+    unvisited_radius_m: float = 0.65
+    """A node is unvisited when farther than this from every past position (release: 10 x 0.065 m)."""
+    preset: str = "paper"
+    """"paper" (continuous shares, weights above) or "release" (the release's quantised formula)."""
+
+
+@dataclass
+class PlanningConfig:
+    """Everything the viewpoint selection needs, grouped."""
+
+    panorama: PanoramaConfig = field(default_factory=PanoramaConfig)
+    rotation: RotationCandidateConfig = field(default_factory=RotationCandidateConfig)
+    hull: HullConfig = field(default_factory=HullConfig)
+    high_loss: HighLossConfig = field(default_factory=HighLossConfig)
+    score: ScoreConfig = field(default_factory=ScoreConfig)
