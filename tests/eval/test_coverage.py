@@ -1,0 +1,66 @@
+import numpy as np
+import pytest
+
+from activesplat.eval.coverage import CoverageAccumulator, CoverageConfig, backproject
+from activesplat.geometry import camera_pose, intrinsics
+
+
+def _plane_depth(K, w, h, dist):
+    """z-depth of a fronto-parallel plane at `dist`."""
+    return np.full((h, w), dist, np.float32)
+
+
+def test_backproject_plane_lies_on_plane():
+    K = intrinsics(32, 32, 90.0)
+    pose = camera_pose([1.0, 1.25, 0.0], 0.0)  # looks along +z
+    pts = backproject(_plane_depth(K, 32, 32, 2.0), pose, K)
+    assert pts.shape == (32 * 32, 3)
+    assert np.allclose(pts[:, 2], 2.0)
+    # 90 deg fov: the plane patch spans +-2 m around the camera's x and y
+    assert pts[:, 0].min() == pytest.approx(1.0 - 2.0 + 2.0 / 32, abs=1e-6)
+    assert pts[:, 1].max() == pytest.approx(1.25 + 2.0 - 2.0 / 32, abs=1e-6)
+
+
+def test_coverage_of_a_plane_seen_partly():
+    rng = np.random.default_rng(0)
+    # GT: points on the plane z = 2, x in [-4, 4], y in [0, 2.5]; the camera sees only x in ~[-2, 2]
+    gt = np.stack([rng.uniform(-4, 4, 5000), rng.uniform(0, 2.5, 5000), np.full(5000, 2.0)], 1)
+    K = intrinsics(128, 128, 90.0)
+    acc = CoverageAccumulator(gt, CoverageConfig(batch_frames=1))
+    m0 = acc.metrics()
+    assert m0["completion_ratio_pct"] == 0 and m0["completion_cm"] == pytest.approx(100.0)
+    assert m0["completion_cm_uncapped"] is None
+    acc.add_frame(_plane_depth(K, 128, 128, 2.0), camera_pose([0.0, 1.25, 0.0], 0.0), K)
+    m = acc.metrics()
+    seen = (np.abs(gt[:, 0]) < 1.95) & (gt[:, 1] < 1.25 + 1.95)
+    expected_ratio = 100.0 * ((np.abs(gt[:, 0]) < 2.0 + 0.05) & (gt[:, 1] < 3.25 + 0.05)).mean()
+    assert m["completion_ratio_pct"] >= 100.0 * seen.mean()
+    assert m["completion_ratio_pct"] <= expected_ratio + 1e-9
+    # unseen points at |x| up to 4 m contribute their true distance when uncapped, the 1 m cap otherwise
+    assert m["completion_cm_uncapped"] > m["completion_cm"] * 0.5
+    assert m["completion_cm"] < 100.0
+
+
+def test_running_minimum_is_order_and_batch_independent():
+    rng = np.random.default_rng(1)
+    gt = rng.uniform(-3, 3, (2000, 3))
+    K = intrinsics(64, 64, 90.0)
+    frames = [(rng.uniform(1, 4, (64, 64)).astype(np.float32), camera_pose(rng.uniform(-1, 1, 3), y, 0.1))
+              for y in np.linspace(0, 6, 7)]
+    results = []
+    for batch, order in [(1, frames), (3, frames[::-1]), (100, frames)]:
+        acc = CoverageAccumulator(gt, CoverageConfig(batch_frames=batch))
+        for d, p in order:
+            acc.add_frame(d, p, K)
+        results.append(acc.metrics())
+    for r in results[1:]:
+        assert r["completion_cm"] == pytest.approx(results[0]["completion_cm"], rel=1e-12)
+        assert r["completion_ratio_pct"] == results[0]["completion_ratio_pct"]
+
+
+def test_invalid_depth_is_ignored():
+    gt = np.zeros((10, 3))
+    acc = CoverageAccumulator(gt)
+    K = intrinsics(16, 16, 90.0)
+    acc.add_frame(np.zeros((16, 16), np.float32), np.eye(4), K)
+    assert acc.metrics()["completion_cm"] == pytest.approx(100.0)
