@@ -1,0 +1,108 @@
+"""From goals to discrete actions (paper sec. III-C; REFERENCE.md section 5, "Path to actions").
+
+Turn while the heading error to the next waypoint exceeds 10 deg, otherwise move forward; a waypoint is
+reached within 1.5 forward steps. Rotation targets (yaw, pitch) become turns then tilts, pitch kept within
++-45 deg, and the camera is levelled again afterwards.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from activesplat.geometry import pose_yaw_pitch, wrap_angle
+
+
+@dataclass
+class ControllerConfig:
+    """Action geometry and the release's path-following thresholds."""
+
+    turn_deg: float = 10.0
+    """TURN_LEFT / TURN_RIGHT angle (Habitat protocol, REFERENCE.md section 1)."""
+    look_deg: float = 15.0
+    """LOOK_UP / LOOK_DOWN angle (REFERENCE.md section 1)."""
+    forward_m: float = 0.065
+    """MOVE_FORWARD distance (REFERENCE.md section 1)."""
+    heading_tolerance_deg: float = 10.0
+    """Turn while the heading error exceeds this, else move forward (release)."""
+    arrive_steps: float = 1.5
+    """A waypoint is reached within this many forward steps (~0.1 m, release)."""
+    max_pitch_deg: float = 45.0
+    """On-the-spot rotations keep the pitch within +-45 deg (paper / release)."""
+
+    @property
+    def arrive_radius(self) -> float:
+        return self.arrive_steps * self.forward_m
+
+
+def turn_toward(current_yaw: float, target_yaw: float, cfg: ControllerConfig) -> list[str]:
+    """The shortest sequence of turns that brings the heading within half a turn of `target_yaw`."""
+    err = math.degrees(float(wrap_angle(target_yaw - current_yaw)))
+    n = int(round(abs(err) / cfg.turn_deg))
+    return ["turn_left" if err > 0 else "turn_right"] * n
+
+
+def tilt_toward(current_pitch: float, target_pitch: float, cfg: ControllerConfig) -> list[str]:
+    """Tilts that bring the pitch to the multiple of `look_deg` nearest `target_pitch`, clamped to
+    +-max_pitch_deg."""
+    limit = cfg.max_pitch_deg
+    target = float(np.clip(math.degrees(target_pitch), -limit, limit))
+    n = int(round((target - math.degrees(current_pitch)) / cfg.look_deg))
+    return ["look_up" if n > 0 else "look_down"] * abs(n)
+
+
+def rotation_actions(pose: np.ndarray, target_yaw: float, target_pitch: float,
+                     cfg: ControllerConfig) -> list[str]:
+    """Turn to a rotation target, then tilt to its pitch."""
+    yaw, pitch = pose_yaw_pitch(pose)
+    return turn_toward(yaw, target_yaw, cfg) + tilt_toward(pitch, target_pitch, cfg)
+
+
+def level_actions(pose: np.ndarray, cfg: ControllerConfig) -> list[str]:
+    """Tilts back to a level camera."""
+    return tilt_toward(pose_yaw_pitch(pose)[1], 0.0, cfg)
+
+
+def floor_xz(pose: np.ndarray) -> np.ndarray:
+    """The camera's position projected on the floor plane, as (x, z)."""
+    return np.asarray(pose)[[0, 2], 3].astype(float)
+
+
+def follow_action(pose: np.ndarray, waypoint_xz: np.ndarray, cfg: ControllerConfig) -> str | None:
+    """One step of path following toward a waypoint: None once within the arrival radius."""
+    pos = floor_xz(pose)
+    delta = np.asarray(waypoint_xz, float) - pos
+    if np.hypot(*delta) <= cfg.arrive_radius:
+        return None
+    yaw, _ = pose_yaw_pitch(pose)
+    err = math.degrees(float(wrap_angle(math.atan2(delta[0], delta[1]) - yaw)))
+    if abs(err) > cfg.heading_tolerance_deg:
+        return "turn_left" if err > 0 else "turn_right"
+    return "move_forward"
+
+
+class PathFollower:
+    """Follows world-space waypoints (M, 2) in (x, z) one action at a time."""
+
+    def __init__(self, waypoints: np.ndarray, cfg: ControllerConfig | None = None):
+        self.cfg = cfg or ControllerConfig()
+        self.waypoints = [np.asarray(w, float) for w in np.asarray(waypoints, float).reshape(-1, 2)]
+
+    @property
+    def done(self) -> bool:
+        return not self.waypoints
+
+    @property
+    def remaining(self) -> np.ndarray:
+        return np.array(self.waypoints).reshape(-1, 2)
+
+    def next_action(self, pose: np.ndarray) -> str | None:
+        """The next action, or None when the last waypoint is reached."""
+        while self.waypoints:
+            action = follow_action(pose, self.waypoints[0], self.cfg)
+            if action is not None:
+                return action
+            self.waypoints.pop(0)
+        return None
