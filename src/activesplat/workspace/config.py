@@ -1,0 +1,99 @@
+"""Workspace and topology constants (paper sec. III-A "hybrid map updating", sec. III-C; REFERENCE.md
+sections 1, 3 and 5). Every field names its source; "ours" marks a value the paper and release do not fix."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from activesplat.errors import InvalidInputError
+
+
+@dataclass(frozen=True)
+class WorkspaceConfig:
+    """Top-down rendering, workspace polish, Voronoi graph, subregions and safe paths."""
+
+    # --- agent (REFERENCE sec. 1, Habitat protocol) ---
+    agent_radius: float = 0.1
+    """Agent radius in metres (REFERENCE sec. 1)."""
+    agent_height: float = 1.5
+    """Agent height in metres: top of the obstacle band (REFERENCE sec. 1 / sec. 3)."""
+
+    # --- top-down render (REFERENCE sec. 3) ---
+    resolution: float = 0.05
+    """Metres per top-down pixel. Ours: the release spans ~360 px over the map's longest side (its
+    resolution changes as the map grows); a fixed metric resolution keeps every threshold in pixels
+    stable over an episode. 0.05 m = half an agent radius."""
+    floor_margin: float = 0.1
+    """Foot margin in metres: Gaussians centred below floor + margin are ground, above are obstacles
+    (REFERENCE sec. 3, "floor (+ foot margin)"; value ours)."""
+    ground_depth: float = 0.3
+    """Gaussians centred down to this far below the floor still count as ground (ours: absorbs
+    floor noise; anything lower is ignored)."""
+    camera_height: float = 1000.0
+    """Top-down camera height above the floor in metres: orthographic in effect (REFERENCE sec. 3)."""
+    scale_modifier: float = 0.01
+    """Gaussian scales are multiplied by this for the top-down render so each covers ~1 px
+    (REFERENCE sec. 3, release)."""
+    obstacle_opacity: float = 0.4
+    """A pixel is an obstacle where the obstacle-band opacity exceeds this (REFERENCE sec. 3, release)."""
+    ground_opacity: float = 0.4
+    """A pixel is observed ground where the ground-band opacity exceeds this (ours, mirrors the
+    release's obstacle threshold; release: 'not white' on a white background)."""
+    bounds_padding: float = 0.5
+    """Metres added around the Gaussian means when growing the map bounds (ours)."""
+    max_grid_pixels: int = 2048
+    """Largest grid side in pixels; bounds beyond it are clipped around the agent (ours, guards
+    against stray far-away Gaussians)."""
+
+    # --- workspace polish (REFERENCE sec. 3, release) ---
+    open_kernel: int = 4
+    """Morphological opening kernel (px, square), release 4x4."""
+    dilate_kernel: int = 3
+    """Dilation kernel after the opening (px, square), release 3x3."""
+    polygon_epsilon: float = 0.225
+    """cv2.approxPolyDP tolerance in metres (release 0.225 m)."""
+    min_hole_area: float = 0.0
+    """Inner contours (obstacles) with a smaller area in m^2 are dropped (ours, 0 keeps all)."""
+
+    # --- Voronoi graph (REFERENCE sec. 3, release) ---
+    boundary_sample_spacing: float = 0.2
+    """Spacing in metres of the points sampled along the contour edges (ours; release samples the
+    edges of the simplified polygon)."""
+    prune_length: float = 0.5
+    """Dangling leaf chains shorter than this (metres, leaf to junction) are pruned, repeatedly
+    (ours: the release prunes dangling chains; a fixed length keeps corridors, which are chains)."""
+    merge_distance: float = 1e-3
+    """Voronoi vertices closer than this (metres) are merged (qhull duplicates on co-circular sites)."""
+
+    # --- subregions (paper sec. III-C, REFERENCE sec. 5) ---
+    subregion_cut: float = 2.0
+    """UPGMA dendrogram cut distance in metres (paper sec. III-C: 'fixed distance threshold of 2 m')."""
+    path_weight: float = 0.5
+    """Weight of the graph shortest-path length in the UPGMA distance (REFERENCE sec. 5)."""
+    euclidean_weight: float = 0.5
+    """Weight of the Euclidean distance in the UPGMA distance (REFERENCE sec. 5)."""
+
+    # --- safe paths (REFERENCE sec. 5) ---
+    path_clearance_radii: float = 2.0
+    """Line-of-sight checks require this many agent radii of clearance (REFERENCE sec. 5)."""
+    entry_candidates: int = 32
+    """Nearest graph vertices tried as path entry / exit points (ours)."""
+
+    def __post_init__(self) -> None:
+        positive = ("agent_radius", "agent_height", "resolution", "camera_height", "scale_modifier",
+                    "polygon_epsilon", "boundary_sample_spacing", "subregion_cut", "merge_distance")
+        for name in positive:
+            if not getattr(self, name) > 0:
+                raise InvalidInputError(f"WorkspaceConfig.{name} must be > 0, got {getattr(self, name)}")
+        if not 0 <= self.floor_margin < self.agent_height:
+            raise InvalidInputError(f"WorkspaceConfig.floor_margin must be in [0, agent_height), "
+                                    f"got {self.floor_margin}")
+        for name in ("obstacle_opacity", "ground_opacity"):
+            value = getattr(self, name)
+            if not 0 < value < 1:
+                raise InvalidInputError(f"WorkspaceConfig.{name} must be in (0, 1), got {value}")
+
+    @property
+    def path_clearance(self) -> float:
+        """Clearance in metres required along safe-path segments (2 agent radii)."""
+        return self.path_clearance_radii * self.agent_radius

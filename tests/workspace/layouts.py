@@ -1,0 +1,43 @@
+"""Synthetic top-down layouts with known answers (no rendering)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from activesplat.workspace.config import WorkspaceConfig
+from activesplat.workspace.topdown import GridGeometry, TopDownGrids, grids_from_alpha
+
+RES = 0.05
+
+
+def grids_from_layout(free: np.ndarray, obstacle: np.ndarray, cfg: WorkspaceConfig | None = None
+                      ) -> TopDownGrids:
+    """Grids at RES m/px with the origin at world (0, 0)."""
+    cfg = cfg or WorkspaceConfig(resolution=RES)
+    geometry = GridGeometry(origin=np.zeros(2), resolution=RES, shape=free.shape)
+    return grids_from_alpha(geometry, free.astype(np.float32), obstacle.astype(np.float32), 0.0, cfg)
+
+
+def box(shape: tuple[int, int], x0: float, x1: float, z0: float, z1: float) -> np.ndarray:
+    """Boolean mask of pixels whose centre lies in [x0, x1] x [z0, z1] (metres)."""
+    rows, cols = np.indices(shape)
+    x, z = (cols + 0.5) * RES, (rows + 0.5) * RES
+    return (x >= x0) & (x <= x1) & (z >= z0) & (z <= z1)
+
+
+def two_rooms() -> TopDownGrids:
+    """Two 3 x 3 m rooms side by side (x in [0.5, 3.5] and [3.7, 6.7], z in [0.5, 3.5]), separated by a
+    0.2 m wall at x in [3.5, 3.7] with a 0.9 m door at z in [1.55, 2.45]."""
+    shape = (80, 144)
+    walls = box(shape, 0.3, 6.9, 0.3, 3.7) & ~box(shape, 0.5, 6.7, 0.5, 3.5)
+    walls |= box(shape, 3.5, 3.7, 0.5, 3.5) & ~box(shape, 3.5, 3.7, 1.55, 2.45)
+    free = box(shape, 0.5, 6.7, 0.5, 3.5) & ~walls
+    return grids_from_layout(free, walls)
+
+
+def corridor() -> TopDownGrids:
+    """A 1 m wide, 5 m long corridor: free x in [0.5, 5.5], z in [1.0, 2.0], walls around it."""
+    shape = (60, 120)
+    free = box(shape, 0.5, 5.5, 1.0, 2.0)
+    walls = box(shape, 0.3, 5.7, 0.8, 2.2) & ~free
+    return grids_from_layout(free, walls)
