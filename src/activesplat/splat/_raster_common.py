@@ -1,0 +1,36 @@
+"""Constants of the 3DGS rasterizer shared by every backend (Kerbl et al. 2023, CUDA reference code).
+
+They are the semantics of ``activesplat.splat.rasterize``; a backend that changes one no longer
+renders the same image. Each is a float the numba kernels read as a compile-time float32 constant.
+"""
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class RasterConstants:
+    """Numbers of the 3DGS forward pass (``forward.cu`` / ``backward.cu`` of diff-gaussian-rasterization)."""
+
+    tile_size: int = 16
+    """Pixels per side of a screen tile (3DGS ``BLOCK_X`` = ``BLOCK_Y``)."""
+    low_pass: float = 0.3
+    """Added to the diagonal of the 2D covariance (EWA low-pass filter, 3DGS ``computeCov2D``)."""
+    alpha_max: float = 0.99
+    """alpha_i = min(alpha_max, o_i exp(-power))."""
+    alpha_min: float = 1.0 / 255.0
+    """Contributions with alpha below this are skipped."""
+    transmittance_min: float = 1e-4
+    """A pixel stops as soon as T * (1 - alpha) would fall below this (the Gaussian is not blended)."""
+    median_transmittance: float = 0.5
+    """Median depth = view depth of the Gaussian at which T first drops below this."""
+    near: float = 0.01
+    """Gaussians with view-space z <= near (metres) are culled."""
+    extent_sigmas: float = 3.0
+    """Screen radius = ceil(extent_sigmas sqrt(largest eigenvalue of the 2D covariance)) (tile binning)."""
+    min_eigen_gap: float = 0.1
+    """3DGS floors (mid^2 - det) at this before the square root of the eigenvalue computation."""
+    fov_clamp: float = 0.3
+    """The Jacobian is evaluated at x/z clamped to the image edge plus this fraction of tan(fov/2) (3DGS)."""
+
+
+RASTER = RasterConstants()
