@@ -1,0 +1,109 @@
+"""Configuration of the online Gaussian mapper (paper sec. III-A, REFERENCE.md sec. 2).
+
+Every number of the mapper lives here with a comment naming its source: the paper (eqs. 5-10), the
+authors' release (a ROS package on top of SplaTAM), or this project (CPU budget). Where paper and
+release disagree the field's comment says which one is the default and why.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, fields
+
+from activesplat.errors import InvalidInputError
+
+
+@dataclass(frozen=True)
+class Schedule:
+    """When to map and when to store a keyframe, counted in accepted frames (REFERENCE.md sec. 2)."""
+
+    map_every: int  # run densification + optimisation on every n-th frame
+    keyframe_every: int  # store every n-th frame in the keyframe buffer
+    iterations: int  # Adam iterations per mapped frame
+
+
+@dataclass(frozen=True)
+class LearningRates:
+    """Adam learning rates of the release (SplaTAM's mapping rates), REFERENCE.md sec. 2.
+
+    The colour parameter is stored as the 3DGS degree-0 SH coefficient f_dc = (rgb - 0.5) / C0 so
+    that PLY files round-trip bit-exactly; Adam is invariant to a constant gradient scale, so the
+    rate on f_dc is the release's RGB rate divided by C0, which gives the same RGB steps.
+    """
+
+    means: float = 1e-4
+    colors: float = 2.5e-3  # on plain RGB, converted to f_dc units by GaussianMap
+    quats: float = 1e-3
+    opacities: float = 0.05  # on the opacity logit
+    scales: float = 1e-3  # on the log-scale
+
+
+@dataclass(frozen=True)
+class MapperConfig:
+    """Online mapping: initialisation, densification (eq. 8), losses (eqs. 5-7), pruning, schedule.
+
+    Densification threshold ``densify_k`` (eq. 8): the paper uses k = 50 times the median depth error,
+    the release k = 2 (only where D_obs < 5 m). Default: the paper's 50. Reason: low opacity
+    (O < 0.98) already catches every newly seen surface; the depth test is only for geometry that
+    appears *in front of* the map (an occluder seen from a new side). With k = 2 the test fires on
+    ordinary centimetre-level errors of a still-converging map (2 x ~1 cm), adding Gaussians on top
+    of existing surfaces on every mapped frame, which on a CPU budget costs render time and memory
+    for no quality gain; the optimisation fixes small depth errors by itself.
+
+    Pixel subsampling (``pixel_stride``): the paper adds one Gaussian per valid-depth pixel. On CPU
+    the project adds one per ``pixel_stride`` x ``pixel_stride`` block (radius scaled by the
+    stride so the surface stays covered), which divides the Gaussian count by stride^2.
+    """
+
+    # --- losses, eqs. 5-7 (paper = release = SplaTAM)
+    lambda_l1: float = 0.8  # eq. 5, lambda_1
+    lambda_ssim: float = 0.2  # eq. 5, lambda_2
+    weight_color: float = 0.5  # eq. 7, w_c
+    weight_depth: float = 1.0  # eq. 7, w_d
+    ssim_window: int = 11  # pytorch-msssim default Gaussian window (sigma 1.5), as SplaTAM
+
+    # --- optimiser (release)
+    lr: LearningRates = field(default_factory=LearningRates)
+    adam_eps: float = 1e-15  # release / SplaTAM
+
+    # --- initialisation (REFERENCE.md sec. 2)
+    init_opacity: float = 0.5  # sigmoid(0)
+    pixel_stride: int = 2  # project: one Gaussian per stride x stride pixels (1 = paper)
+    init_radius_scale: float = 1.25  # project: radius = scale * stride * depth / focal (paper 1.0)
+    min_depth_m: float = 0.05  # project: depth below this is treated as invalid (sensor noise)
+
+    # --- densification, eq. 8
+    densify_opacity: float = 0.98  # tau_o1 (paper)
+    densify_k: float = 50.0  # k x median depth error (paper 50, release 2; see class docstring)
+    densify_max_depth_m: float | None = None  # release applies the depth test only below 5 m; None = off
+
+    # --- high-loss mask, eq. 10 (computed before densification, on the median depth as the release)
+    high_loss_opacity: float = 0.8  # tau_o2
+    high_loss_depth_m: float = 0.3  # epsilon_1
+
+    # --- pruning (paper: "as in 3DGS"; the release prunes nothing)
+    prune_opacity: float = 0.005  # 3DGS min_opacity
+    prune_max_scale_m: float = 0.5  # project: 3DGS uses 0.1 x scene extent; indoor extent ~5 m
+    max_gaussians: int = 300_000  # project: hard cap, lowest-opacity Gaussians dropped beyond it
+
+    # --- schedule (release): normal walking, and the denser look-around schedule
+    schedule: Schedule = field(default_factory=lambda: Schedule(map_every=5, keyframe_every=5, iterations=2))
+    dense_schedule: Schedule = field(default_factory=lambda: Schedule(map_every=2, keyframe_every=1,
+                                                                       iterations=2))
+    window_overlap: int = 10  # keyframes chosen by overlap; window = these + last keyframe + current
+    overlap_pixels: int = 1600  # release / SplaTAM: pixels sampled for the overlap test
+    overlap_border_px: int = 20  # release / SplaTAM: projections this close to the border do not count
+    current_frame_first: bool = True  # project: iteration 0 always trains the current (densified) frame
+
+    seed: int = 0  # numpy generator for overlap sampling and window picks
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if isinstance(value, (int, float)) and not isinstance(value, bool) and value < 0:
+                raise InvalidInputError(f"MapperConfig.{f.name} must be >= 0, got {value}")
+        for name in ("schedule", "dense_schedule"):
+            s = getattr(self, name)
+            if s.map_every < 1 or s.keyframe_every < 1 or s.iterations < 0:
+                raise InvalidInputError(f"MapperConfig.{name} needs map_every, keyframe_every >= 1, got {s}")
+        if self.pixel_stride < 1:
+            raise InvalidInputError(f"MapperConfig.pixel_stride must be >= 1, got {self.pixel_stride}")

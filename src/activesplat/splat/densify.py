@@ -1,0 +1,77 @@
+"""Per-frame mapping rules: new Gaussians from pixels, eq. 8 (densification), eq. 10 (high-loss
+samples) and pruning.
+
+All masks are computed from a render of the current view *before* the map is changed.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+from activesplat.splat.config import MapperConfig
+from activesplat.splat.gaussians import GaussianMap
+from activesplat.splat.keyframes import backproject
+
+
+def densification_mask(alpha: torch.Tensor, depth: torch.Tensor, obs_depth: torch.Tensor,
+                       cfg: MapperConfig) -> torch.Tensor:
+    """Eq. 8: M_k = (O < tau_o1) or (D_obs < D_render and |D_obs - D_render| > k * median error),
+    only where the observed depth is valid. ``depth`` is the alpha-blended render (as SplaTAM)."""
+    valid = obs_depth > 0
+    error = (obs_depth - depth).abs()
+    median_error = error[valid].median() if bool(valid.any()) else error.new_zeros(())
+    in_front = (obs_depth < depth) & (error > cfg.densify_k * median_error)
+    if cfg.densify_max_depth_m is not None:
+        in_front &= obs_depth < cfg.densify_max_depth_m
+    return valid & ((alpha < cfg.densify_opacity) | in_front)
+
+
+def high_loss_mask(alpha: torch.Tensor, median_depth: torch.Tensor, obs_depth: torch.Tensor,
+                   cfg: MapperConfig) -> torch.Tensor:
+    """Eq. 10: M_h = (O > tau_o2) and (D_obs < D_render) and |D_obs - D_render| > epsilon_1, with the
+    median depth as the release, on valid observed depth."""
+    valid = obs_depth > 0
+    closer = obs_depth < median_depth
+    far_off = (obs_depth - median_depth).abs() > cfg.high_loss_depth_m
+    return valid & (alpha > cfg.high_loss_opacity) & closer & far_off
+
+
+def stride_mask(mask: torch.Tensor, stride: int) -> torch.Tensor:
+    """Keep only the pixels on a ``stride`` grid (one candidate per stride x stride block)."""
+    if stride == 1:
+        return mask
+    grid = torch.zeros_like(mask)
+    grid[stride // 2::stride, stride // 2::stride] = True
+    return mask & grid
+
+
+def gaussians_from_pixels(mask: torch.Tensor, rgb: torch.Tensor, depth: torch.Tensor, pose: np.ndarray,
+                          K: np.ndarray, cfg: MapperConfig) -> dict[str, torch.Tensor]:
+    """Raw parameters of one Gaussian per masked pixel on the ``pixel_stride`` grid: back-projected
+    centre, radius = init_radius_scale * stride * depth / focal (projective scale), opacity 0.5,
+    identity rotation, colour = the pixel's colour (REFERENCE.md sec. 2, initialisation)."""
+    pick = stride_mask(mask, cfg.pixel_stride)
+    v, u = (t.cpu().numpy() for t in torch.nonzero(pick, as_tuple=True))
+    depth_np = depth.detach().cpu().numpy()
+    points = torch.from_numpy(backproject(depth_np, pose, K, v, u).astype(np.float32))
+    z = torch.from_numpy(depth_np[v, u])
+    focal = 0.5 * (float(K[0, 0]) + float(K[1, 1]))
+    radii = cfg.init_radius_scale * cfg.pixel_stride * z / focal
+    colors = rgb[torch.from_numpy(v), torch.from_numpy(u)]
+    raw = GaussianMap.raw_from_points(points, colors, radii, cfg.init_opacity)
+    return {k: t.to(rgb.device) for k, t in raw.items()}
+
+
+def prune_mask(gmap: GaussianMap, cfg: MapperConfig) -> torch.Tensor:
+    """Gaussians to keep: drop near-transparent (opacity < prune_opacity) and oversized (largest
+    scale > prune_max_scale_m) ones as 3DGS; then, above ``max_gaussians``, the least opaque."""
+    with torch.no_grad():
+        opacity = gmap.opacities
+        keep = (opacity >= cfg.prune_opacity) & (gmap.scales.max(dim=1).values <= cfg.prune_max_scale_m)
+        excess = int(keep.sum()) - cfg.max_gaussians
+        if excess > 0:
+            ranked = torch.where(keep, opacity, torch.full_like(opacity, float("inf")))
+            drop = torch.topk(ranked, excess, largest=False).indices  # lowest opacities among the kept
+            keep[drop] = False
+    return keep

@@ -1,0 +1,177 @@
+"""The Gaussian map: raw parameters, the activations the renderer needs, and Adam bookkeeping.
+
+Raw (optimised) parameters, as in SplaTAM / 3DGS:
+``means`` (N,3) world metres, ``quats`` (N,4) wxyz unnormalised, ``log_scales`` (N,3),
+``opacity_logits`` (N,), ``f_dc`` (N,3) the degree-0 SH coefficient, rgb = 0.5 + C0 * f_dc.
+The colour is stored as f_dc (not plain RGB) so that the standard 3DGS PLY layout round-trips
+bit-exactly; :class:`~activesplat.splat.config.LearningRates` explains why the dynamics are unchanged.
+
+Adam state follows every change of the Gaussian count: :meth:`GaussianMap.append` extends the
+moments with zeros, :meth:`GaussianMap.keep` drops the pruned rows (the 3DGS recipe).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+from activesplat.errors import InvalidInputError
+from activesplat.splat.config import LearningRates
+
+SH_C0 = 0.28209479177387814  # degree-0 real spherical harmonic, 1 / (2 sqrt(pi))
+PARAM_NAMES = ("means", "quats", "log_scales", "opacity_logits", "f_dc")
+PARAM_WIDTHS = {"means": 3, "quats": 4, "log_scales": 3, "opacity_logits": 0, "f_dc": 3}
+
+
+def rgb_to_f_dc(rgb: torch.Tensor) -> torch.Tensor:
+    """3DGS convention: f_dc = (rgb - 0.5) / C0."""
+    return (rgb - 0.5) / SH_C0
+
+
+def f_dc_to_rgb(f_dc: torch.Tensor) -> torch.Tensor:
+    """Inverse of :func:`rgb_to_f_dc`."""
+    return 0.5 + SH_C0 * f_dc
+
+
+def _check_raw(raw: dict[str, torch.Tensor]) -> int:
+    """Validate a dict of raw parameters; return the Gaussian count."""
+    if set(raw) != set(PARAM_NAMES):
+        raise InvalidInputError(f"Gaussian parameters must be exactly {PARAM_NAMES}, got {sorted(raw)}")
+    n = raw["means"].shape[0]
+    for name in PARAM_NAMES:
+        t = raw[name]
+        want = (n,) if PARAM_WIDTHS[name] == 0 else (n, PARAM_WIDTHS[name])
+        if tuple(t.shape) != want:
+            raise InvalidInputError(
+                f"Gaussian parameter {name!r} must have shape {want}, got {tuple(t.shape)}")
+        if not torch.isfinite(t).all():
+            raise InvalidInputError(f"Gaussian parameter {name!r} contains NaN or inf")
+    return n
+
+
+class GaussianMap:
+    """A set of 3D Gaussians (paper eq. 1) held as leaf tensors that Adam optimises."""
+
+    def __init__(self, raw: dict[str, torch.Tensor]):
+        _check_raw(raw)
+        self.params: dict[str, torch.Tensor] = {
+            name: raw[name].detach().to(torch.float32).clone().requires_grad_(True) for name in PARAM_NAMES
+        }
+
+    # ------------------------------------------------------------------ construction
+    @classmethod
+    def empty(cls, device: str | torch.device = "cpu") -> GaussianMap:
+        raw = {
+            name: torch.zeros((0,) if w == 0 else (0, w), device=device) for name, w in PARAM_WIDTHS.items()
+        }
+        return cls(raw)
+
+    @staticmethod
+    def raw_from_points(points: torch.Tensor, rgb: torch.Tensor, radii: torch.Tensor,
+                        opacity: float) -> dict[str, torch.Tensor]:
+        """Isotropic Gaussians at ``points`` (M,3) with colour ``rgb`` (M,3) in [0,1] and radius ``radii``
+        (M,), identity rotation, opacity ``opacity`` (REFERENCE.md sec. 2, initialisation)."""
+        m = points.shape[0]
+        quats = torch.zeros((m, 4), dtype=torch.float32, device=points.device)
+        quats[:, 0] = 1.0
+        logit = float(np.log(opacity / (1.0 - opacity)))
+        return {
+            "means": points.to(torch.float32),
+            "quats": quats,
+            "log_scales": torch.log(radii.to(torch.float32)).unsqueeze(1).expand(m, 3).clone(),
+            "opacity_logits": torch.full((m,), logit, dtype=torch.float32, device=points.device),
+            "f_dc": rgb_to_f_dc(rgb.to(torch.float32)),
+        }
+
+    @classmethod
+    def from_points(cls, points: torch.Tensor, rgb: torch.Tensor, radii: torch.Tensor,
+                    opacity: float = 0.5) -> GaussianMap:
+        return cls(cls.raw_from_points(points, rgb, radii, opacity))
+
+    # ------------------------------------------------------------------ activations (what the renderer takes)
+    def __len__(self) -> int:
+        return int(self.params["means"].shape[0])
+
+    @property
+    def device(self) -> torch.device:
+        return self.params["means"].device
+
+    @property
+    def means(self) -> torch.Tensor:
+        return self.params["means"]
+
+    @property
+    def quats(self) -> torch.Tensor:
+        """Unit quaternions wxyz."""
+        q = self.params["quats"]
+        return q / q.norm(dim=1, keepdim=True).clamp_min(1e-12)
+
+    @property
+    def scales(self) -> torch.Tensor:
+        """Linear scales (metres), exp of the log-scales."""
+        return torch.exp(self.params["log_scales"])
+
+    @property
+    def opacities(self) -> torch.Tensor:
+        """Opacities in [0,1], sigmoid of the logits."""
+        return torch.sigmoid(self.params["opacity_logits"])
+
+    @property
+    def colors(self) -> torch.Tensor:
+        """Plain RGB (no clamping, as SplaTAM)."""
+        return f_dc_to_rgb(self.params["f_dc"])
+
+    def raw(self) -> dict[str, torch.Tensor]:
+        """Detached copies of the raw parameters."""
+        return {name: t.detach().clone() for name, t in self.params.items()}
+
+    # ------------------------------------------------------------------ optimiser
+    def make_optimizer(self, lr: LearningRates, eps: float) -> torch.optim.Adam:
+        """Adam with one parameter group per raw tensor, the release's rates."""
+        rates = {"means": lr.means, "quats": lr.quats, "log_scales": lr.scales,
+                 "opacity_logits": lr.opacities, "f_dc": lr.colors / SH_C0}
+        groups = [{"params": [self.params[n]], "lr": rates[n], "name": n} for n in PARAM_NAMES]
+        return torch.optim.Adam(groups, lr=0.0, eps=eps)
+
+    def _replace(self, name: str, new: torch.Tensor, optimizer: torch.optim.Adam | None,
+                 edit_state) -> None:
+        """Swap parameter ``name`` for ``new`` (a leaf), editing its Adam moments with ``edit_state``."""
+        old = self.params[name]
+        new = new.detach().requires_grad_(True)
+        self.params[name] = new
+        if optimizer is None:
+            return
+        for group in optimizer.param_groups:
+            if group["params"][0] is old:
+                group["params"][0] = new
+                state = optimizer.state.pop(old, None)
+                if state:
+                    for key in ("exp_avg", "exp_avg_sq"):
+                        state[key] = edit_state(state[key])
+                    optimizer.state[new] = state
+                return
+        raise RuntimeError(f"optimizer does not hold parameter {name!r}")
+
+    # ------------------------------------------------------------------ densify / prune
+    def append(self, raw: dict[str, torch.Tensor], optimizer: torch.optim.Adam | None = None) -> int:
+        """Add Gaussians (densification); their Adam moments start at zero. Returns the number added."""
+        m = _check_raw(raw)
+        if m == 0:
+            return 0
+        for name in PARAM_NAMES:
+            extra = raw[name].detach().to(self.device, torch.float32)
+            self._replace(name, torch.cat([self.params[name].detach(), extra]), optimizer,
+                          lambda s, m=m: torch.cat([s, s.new_zeros((m, *s.shape[1:]))]))
+        return m
+
+    def keep(self, mask: torch.Tensor, optimizer: torch.optim.Adam | None = None) -> int:
+        """Keep the Gaussians where ``mask`` (N,) is True (pruning). Returns the number removed."""
+        if mask.dtype != torch.bool or tuple(mask.shape) != (len(self),):
+            raise InvalidInputError(f"keep mask must be bool of shape ({len(self)},), got {mask.dtype} "
+                                    f"{tuple(mask.shape)}")
+        removed = int((~mask).sum())
+        if removed == 0:
+            return 0
+        for name in PARAM_NAMES:
+            self._replace(name, self.params[name].detach()[mask], optimizer, lambda s: s[mask])
+        return removed

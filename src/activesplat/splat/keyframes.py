@@ -1,0 +1,84 @@
+"""Keyframe buffer and overlap-based window selection (SplaTAM's keyframe selection, as the release).
+
+The mapping window of a frame is the ``k`` keyframes that see most of what the current frame sees,
+plus the last keyframe, plus the current frame (REFERENCE.md sec. 2). Overlap of a keyframe = the
+share of ``n_pixels`` sampled valid-depth pixels of the current frame that, back-projected to the
+world and projected into the keyframe, land in front of it and more than ``border`` pixels inside
+its image.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass
+class Keyframe:
+    """One stored observation: ``rgb`` (H,W,3) uint8, ``depth`` (H,W) float32 metres (0 = invalid),
+    ``pose`` 4x4 camera-to-world (OpenCV), ``step`` the index of the frame it came from."""
+
+    rgb: np.ndarray
+    depth: np.ndarray
+    pose: np.ndarray
+    step: int
+
+
+def backproject(depth: np.ndarray, pose: np.ndarray, K: np.ndarray, v: np.ndarray,
+                u: np.ndarray) -> np.ndarray:
+    """World points (M,3) of pixels (v, u) (row, column) with z-depth ``depth[v, u]``; pixel centres
+    at integer + 0.5 (the rasterizer's convention)."""
+    z = depth[v, u].astype(np.float64)
+    x = (u + 0.5 - K[0, 2]) / K[0, 0] * z
+    y = (v + 0.5 - K[1, 2]) / K[1, 1] * z
+    cam = np.stack([x, y, z], axis=1)
+    return cam @ pose[:3, :3].T + pose[:3, 3]
+
+
+def overlap_fraction(points: np.ndarray, pose: np.ndarray, K: np.ndarray, width: int, height: int,
+                     border: int) -> float:
+    """Share of world ``points`` (M,3) that project in front of camera ``pose``, > ``border`` px inside."""
+    if len(points) == 0:
+        return 0.0
+    rot = pose[:3, :3]
+    cam = (points - pose[:3, 3]) @ rot  # world -> camera: R^T (p - t)
+    z = cam[:, 2]
+    safe_z = np.where(z > 1e-6, z, 1.0)
+    u = K[0, 0] * cam[:, 0] / safe_z + K[0, 2]
+    v = K[1, 1] * cam[:, 1] / safe_z + K[1, 2]
+    inside = (z > 1e-6) & (u > border) & (u < width - border) & (v > border) & (v < height - border)
+    return float(inside.mean())
+
+
+def sample_valid_pixels(depth: np.ndarray, n_pixels: int, rng: np.random.Generator) -> tuple[np.ndarray,
+                                                                                             np.ndarray]:
+    """Up to ``n_pixels`` (row, column) indices drawn without replacement among valid-depth pixels."""
+    v, u = np.nonzero(depth > 0)
+    if len(v) > n_pixels:
+        pick = rng.choice(len(v), size=n_pixels, replace=False)
+        v, u = v[pick], u[pick]
+    return v, u
+
+
+def select_overlapping(depth: np.ndarray, pose: np.ndarray, K: np.ndarray, keyframes: list[Keyframe], k: int,
+                       n_pixels: int, border: int, rng: np.random.Generator) -> list[int]:
+    """Indices of the (at most) ``k`` keyframes with the largest non-zero overlap, best first."""
+    if k <= 0 or not keyframes:
+        return []
+    v, u = sample_valid_pixels(depth, n_pixels, rng)
+    points = backproject(depth, pose, K, v, u)
+    height, width = depth.shape
+    scores = np.array([overlap_fraction(points, kf.pose, K, width, height, border) for kf in keyframes])
+    order = np.argsort(-scores, kind="stable")
+    return [int(i) for i in order[:k] if scores[i] > 0]
+
+
+def mapping_window(depth: np.ndarray, pose: np.ndarray, K: np.ndarray, keyframes: list[Keyframe], k: int,
+                   n_pixels: int, border: int, rng: np.random.Generator) -> list[int]:
+    """Keyframe indices of the mapping window: ``k`` best-overlap keyframes + the last keyframe
+    (without duplicates). The current frame is added by the caller."""
+    window = select_overlapping(depth, pose, K, keyframes, k, n_pixels, border, rng)
+    if keyframes and (len(keyframes) - 1) not in window:
+        window.append(len(keyframes) - 1)
+    return window

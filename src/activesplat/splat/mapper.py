@@ -1,0 +1,274 @@
+"""Online Gaussian mapper (paper sec. III-A), SplaTAM-style, from posed RGB-D with known poses.
+
+Per accepted frame (``add_frame``), following the schedule of :class:`MapperConfig`:
+
+1. render the current view from the map (no grad);
+2. high-loss mask, eq. 10 (kept in :attr:`Mapper.high_loss_mask` for the planner), before densifying;
+3. densification, eq. 8: new Gaussians on the masked pixels;
+4. a few Adam iterations over the mapping window (best-overlap keyframes + last keyframe + current
+   frame), loss eqs. 5-7;
+5. pruning of near-transparent and oversized Gaussians, and the Gaussian cap;
+6. every ``keyframe_every`` frames, the frame joins the keyframe buffer.
+
+Input checks: wrong shapes/dtypes, non-finite poses or colours raise InvalidInputError and leave the
+map untouched; NaN/inf/negative depth pixels are treated as invalid (set to 0); a frame without any
+valid depth is skipped with a warning.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+import warnings
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from activesplat.errors import InvalidInputError
+from activesplat.splat.config import LearningRates, MapperConfig, Schedule
+from activesplat.splat.densify import densification_mask, gaussians_from_pixels, high_loss_mask, prune_mask
+from activesplat.splat.gaussians import GaussianMap
+from activesplat.splat.keyframes import Keyframe, mapping_window
+from activesplat.splat.losses import mapping_loss
+from activesplat.splat.ply import load_ply, save_ply
+
+
+@dataclass
+class FrameStats:
+    """What one ``add_frame`` call did. ``ms`` is its wall time, ``timings`` per phase (ms)."""
+
+    step: int
+    mapped: bool
+    keyframe: bool
+    skipped: bool
+    n_gaussians: int
+    added: int = 0
+    pruned: int = 0
+    loss: float | None = None
+    ms: float = 0.0
+    timings: dict[str, float] = field(default_factory=dict)
+
+
+def _as_intrinsics(K) -> np.ndarray:
+    K = np.asarray(K, dtype=np.float64)
+    if K.shape != (3, 3) or not np.isfinite(K).all() or K[0, 0] <= 0 or K[1, 1] <= 0:
+        raise InvalidInputError(f"intrinsics K must be a finite 3x3 matrix with positive focal lengths, "
+                                f"got {K.tolist()}")
+    return K
+
+
+def _as_pose(pose) -> np.ndarray:
+    pose = np.asarray(pose, dtype=np.float64)
+    if pose.shape != (4, 4) or not np.isfinite(pose).all():
+        raise InvalidInputError(f"pose must be a finite 4x4 camera-to-world matrix, got shape {pose.shape}")
+    rot = pose[:3, :3]
+    if not np.allclose(rot @ rot.T, np.eye(3), atol=1e-4) or not np.allclose(pose[3], [0, 0, 0, 1]):
+        raise InvalidInputError("pose must be rigid: orthonormal rotation and last row [0, 0, 0, 1]")
+    return pose
+
+
+def _blank_render(width: int, height: int):
+    """What rendering an empty map gives: all zeros (no colour, depth or opacity)."""
+    return {"rgb": torch.zeros(height, width, 3), "depth": torch.zeros(height, width),
+            "alpha": torch.zeros(height, width), "median_depth": torch.zeros(height, width)}
+
+
+class Mapper:
+    """Incremental Gaussian map built from posed RGB-D frames (see module docstring)."""
+
+    def __init__(self, K, width: int, height: int, config: MapperConfig | None = None, backend: str = "auto",
+                 device: str | torch.device = "cpu"):
+        if int(width) <= 0 or int(height) <= 0:
+            raise InvalidInputError(f"image size must be positive, got {width}x{height}")
+        self.K = _as_intrinsics(K)
+        self.width, self.height = int(width), int(height)
+        self.config = config if config is not None else MapperConfig()
+        self.backend = backend
+        self.device = torch.device(device)
+        self.gaussians = GaussianMap.empty(self.device)
+        self.optimizer = self.gaussians.make_optimizer(self.config.lr, self.config.adam_eps)
+        self.keyframes: list[Keyframe] = []
+        self.high_loss_mask = np.zeros((self.height, self.width), dtype=bool)
+        self.frames = 0  # accepted (non-skipped) frames
+        self.peak_gaussians = 0
+        self._rng = np.random.default_rng(self.config.seed)
+
+    # ------------------------------------------------------------------ rendering
+    def render(self, pose, K=None, width: int | None = None, height: int | None = None):
+        """Render the map from camera-to-world ``pose`` (no grad); intrinsics default to the sensor's."""
+        K = self.K if K is None else _as_intrinsics(K)
+        with torch.no_grad():
+            return self._render(_as_pose(pose), K, width or self.width, height or self.height)
+
+    def _render(self, pose: np.ndarray, K: np.ndarray, width: int, height: int):
+        from activesplat.splat.rasterize import rasterize
+
+        g = self.gaussians
+        viewmat = torch.from_numpy(np.linalg.inv(pose).astype(np.float32)).to(self.device)
+        Kt = torch.from_numpy(K.astype(np.float32)).to(self.device)
+        return rasterize(g.means, g.quats, g.scales, g.opacities, g.colors, viewmat, Kt, width, height,
+                         backend=self.backend)
+
+    # ------------------------------------------------------------------ input checks
+    def _validate(self, rgb, depth, pose) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        rgb, depth = np.asarray(rgb), np.asarray(depth)
+        hw = (self.height, self.width)
+        if rgb.shape != (*hw, 3):
+            raise InvalidInputError(f"rgb must have shape {(*hw, 3)}, got {rgb.shape}")
+        if depth.shape != hw:
+            raise InvalidInputError(f"depth must have shape {hw}, got {depth.shape}")
+        if rgb.dtype != np.uint8:
+            if not np.issubdtype(rgb.dtype, np.floating) or not np.isfinite(rgb).all():
+                raise InvalidInputError(f"rgb must be uint8 or finite floats in [0,1], got {rgb.dtype}")
+            rgb = (np.clip(rgb, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
+        if not np.issubdtype(depth.dtype, np.number):
+            raise InvalidInputError(f"depth must be numeric metres, got {depth.dtype}")
+        depth = depth.astype(np.float32)
+        invalid = ~np.isfinite(depth) | (depth < self.config.min_depth_m)
+        depth = np.where(invalid, np.float32(0.0), depth)
+        return np.ascontiguousarray(rgb), depth, _as_pose(pose)
+
+    # ------------------------------------------------------------------ the per-frame pipeline
+    def add_frame(self, rgb, depth, pose, dense: bool = False) -> FrameStats:
+        """One simulator step (see module docstring). ``dense`` selects the look-around schedule."""
+        t0 = time.perf_counter()
+        rgb, depth, pose = self._validate(rgb, depth, pose)
+        if not (depth > 0).any():
+            warnings.warn(f"mapper: frame {self.frames} has no valid depth, skipped", stacklevel=2)
+            return FrameStats(self.frames, False, False, True, len(self.gaussians))
+        schedule = self.config.dense_schedule if dense else self.config.schedule
+        step = self.frames
+        self.frames += 1
+        is_map, is_keyframe = step % schedule.map_every == 0, step % schedule.keyframe_every == 0
+        stats = FrameStats(step, is_map, is_keyframe, False, 0)
+        if stats.mapped:
+            self._map_frame(rgb, depth, pose, step, schedule, stats)
+        if stats.keyframe:
+            self.keyframes.append(Keyframe(rgb, depth, pose, step))
+        stats.n_gaussians = len(self.gaussians)
+        stats.ms = 1000.0 * (time.perf_counter() - t0)
+        return stats
+
+    def _map_frame(self, rgb: np.ndarray, depth: np.ndarray, pose: np.ndarray, step: int, schedule: Schedule,
+                   stats: FrameStats) -> None:
+        clock = _Clock(stats.timings)
+        cfg = self.config
+        obs_rgb = torch.from_numpy(rgb).to(self.device, torch.float32) / 255.0
+        obs_depth = torch.from_numpy(depth).to(self.device)
+        with torch.no_grad():
+            out = self._render_or_blank(pose)
+            hl = high_loss_mask(out["alpha"], out["median_depth"], obs_depth, cfg)
+            self.high_loss_mask = hl.cpu().numpy()
+            new_mask = densification_mask(out["alpha"], out["depth"], obs_depth, cfg)
+        clock.lap("render_masks")
+        stats.added = self.gaussians.append(
+            gaussians_from_pixels(new_mask, obs_rgb, obs_depth, pose, self.K, cfg), self.optimizer)
+        clock.lap("densify")
+        window = mapping_window(depth, pose, self.K, self.keyframes, cfg.window_overlap, cfg.overlap_pixels,
+                                cfg.overlap_border_px, self._rng)
+        clock.lap("window")
+        current = (obs_rgb, obs_depth, pose)
+        views = [self._pick_view(i, window, current) for i in range(schedule.iterations)]
+        losses = [self._optimize_view(view) for view in views]
+        stats.loss = float(np.mean(losses)) if losses else None
+        clock.lap("optimize")
+        stats.pruned = self.gaussians.keep(prune_mask(self.gaussians, cfg), self.optimizer)
+        self.peak_gaussians = max(self.peak_gaussians, len(self.gaussians) + stats.pruned)
+        clock.lap("prune")
+
+    def _render_or_blank(self, pose: np.ndarray) -> dict[str, torch.Tensor]:
+        if len(self.gaussians) == 0:
+            return {k: v.to(self.device) for k, v in _blank_render(self.width, self.height).items()}
+        out = self._render(pose, self.K, self.width, self.height)
+        return {"alpha": out.alpha, "depth": out.depth, "median_depth": out.median_depth}
+
+    def _pick_view(self, iteration: int, window: list[int], current):
+        """Iteration 0 trains the current frame (if so configured); others a random window member."""
+        choices = len(window) + 1
+        if iteration == 0 and self.config.current_frame_first:
+            pick = choices - 1
+        else:
+            pick = int(self._rng.integers(choices))
+        if pick == choices - 1:
+            return current
+        kf = self.keyframes[window[pick]]
+        rgb = torch.from_numpy(kf.rgb).to(self.device, torch.float32) / 255.0
+        return rgb, torch.from_numpy(kf.depth).to(self.device), kf.pose
+
+    def _optimize_view(self, view) -> float:
+        """One Adam iteration on one view; a non-finite loss is skipped (the map stays as it was)."""
+        obs_rgb, obs_depth, pose = view
+        out = self._render(pose, self.K, self.width, self.height)
+        terms = mapping_loss(out.rgb, out.depth, obs_rgb, obs_depth, self.config)
+        if not torch.isfinite(terms.total):
+            warnings.warn("mapper: non-finite loss, optimisation step skipped", stacklevel=3)
+            return float("nan")
+        self.optimizer.zero_grad(set_to_none=True)
+        terms.total.backward()
+        self.optimizer.step()
+        return float(terms.total.detach())
+
+    # ------------------------------------------------------------------ persistence
+    def save(self, directory: str | Path) -> Path:
+        """Write ``gaussians.ply``, ``keyframes.npz`` and ``mapper.json`` (intrinsics, config) into
+        ``directory``. The Adam state is not saved."""
+        directory = Path(directory)
+        directory.mkdir(parents=True, exist_ok=True)
+        save_ply(self.gaussians, directory / "gaussians.ply")
+        kfs = self.keyframes
+        h, w = self.height, self.width
+        np.savez_compressed(
+            directory / "keyframes.npz",
+            rgb=np.stack([k.rgb for k in kfs]) if kfs else np.zeros((0, h, w, 3), np.uint8),
+            depth=np.stack([k.depth for k in kfs]) if kfs else np.zeros((0, h, w), np.float32),
+            pose=np.stack([k.pose for k in kfs]) if kfs else np.zeros((0, 4, 4)),
+            step=np.array([k.step for k in kfs], dtype=np.int64),
+        )
+        meta = {"K": self.K.tolist(), "width": w, "height": h, "frames": self.frames,
+                "backend": self.backend, "config": asdict(self.config)}
+        (directory / "mapper.json").write_text(json.dumps(meta, indent=1))
+        return directory
+
+    @classmethod
+    def load(cls, directory: str | Path, backend: str | None = None,
+             device: str | torch.device = "cpu") -> Mapper:
+        """Read a folder written by :meth:`save` (fresh Adam state)."""
+        directory = Path(directory)
+        meta_path = directory / "mapper.json"
+        if not meta_path.is_file():
+            raise InvalidInputError(f"{directory}: not a mapper folder (no mapper.json)")
+        meta = json.loads(meta_path.read_text())
+        mapper = cls(meta["K"], meta["width"], meta["height"], _config_from_dict(meta["config"]),
+                     backend or meta["backend"], device)
+        mapper.gaussians = load_ply(directory / "gaussians.ply", device)
+        mapper.optimizer = mapper.gaussians.make_optimizer(mapper.config.lr, mapper.config.adam_eps)
+        mapper.peak_gaussians = len(mapper.gaussians)
+        with np.load(directory / "keyframes.npz") as data:
+            mapper.keyframes = [
+                Keyframe(data["rgb"][i], data["depth"][i], data["pose"][i], int(data["step"][i]))
+                for i in range(len(data["step"]))
+            ]
+        mapper.frames = int(meta["frames"])
+        return mapper
+
+
+def _config_from_dict(d: dict) -> MapperConfig:
+    d = dict(d)
+    d["lr"] = LearningRates(**d["lr"])
+    d["schedule"] = Schedule(**d["schedule"])
+    d["dense_schedule"] = Schedule(**d["dense_schedule"])
+    return MapperConfig(**d)
+
+
+class _Clock:
+    """Adds the wall time since the previous lap (ms) to ``timings[name]``."""
+
+    def __init__(self, timings: dict[str, float]):
+        self.timings, self.t = timings, time.perf_counter()
+
+    def lap(self, name: str) -> None:
+        now = time.perf_counter()
+        self.timings[name] = self.timings.get(name, 0.0) + 1000.0 * (now - self.t)
+        self.t = now

@@ -1,0 +1,153 @@
+"""The online mapper end to end on a tiny analytic scene (torch reference rasterizer, 32x32)."""
+
+import warnings
+
+import numpy as np
+import pytest
+import torch
+from _synthetic import intrinsics, observe, pose
+
+from activesplat.errors import InvalidInputError
+from activesplat.splat import GaussianMap, Mapper, MapperConfig
+from activesplat.splat.config import Schedule
+from activesplat.splat.densify import densification_mask, stride_mask
+
+S = 32
+BACKEND = "torch"
+
+
+def _mapper(iterations=0, map_every=1, keyframe_every=1, **kw) -> Mapper:
+    cfg = MapperConfig(schedule=Schedule(map_every, keyframe_every, iterations), **kw)
+    return Mapper(intrinsics(S), S, S, cfg, backend=BACKEND)
+
+
+def _psnr(mapper: Mapper, cam_pose, rgb) -> float:
+    out = mapper.render(cam_pose)
+    mse = ((out.rgb.clamp(0, 1) - torch.from_numpy(rgb).float() / 255) ** 2).mean().item()
+    return -10 * np.log10(mse)
+
+
+def test_first_frame_initialises_one_gaussian_per_strided_pixel():
+    mapper = _mapper(pixel_stride=2)
+    rgb, depth = observe(pose(), S)
+    stats = mapper.add_frame(rgb, depth, pose())
+    assert stats.mapped and stats.keyframe and stats.added == (S // 2) ** 2 == len(mapper.gaussians)
+    assert np.allclose(mapper.gaussians.means[:, 2].detach().numpy(), 2.0, atol=1e-5)  # on the wall
+    out = mapper.render(pose())
+    assert out.alpha.min() > 0.9 and out.alpha.mean() > 0.98
+    assert (out.depth - torch.from_numpy(depth)).abs().mean() < 0.05
+    assert not mapper.high_loss_mask.any()
+
+
+def test_map_quality_improves_with_iterations():
+    mapper = _mapper(iterations=0)
+    cams = [pose(), pose(tx=0.15), pose(yaw_deg=-8)]
+    frames = [observe(c, S) for c in cams]
+    for c, (rgb, depth) in zip(cams, frames, strict=True):
+        mapper.add_frame(rgb, depth, c)
+    before = np.mean([_psnr(mapper, c, f[0]) for c, f in zip(cams, frames, strict=True)])
+    mapper.config = MapperConfig(schedule=Schedule(1, 1000, 10))
+    losses = []
+    for _ in range(3):
+        for c, (rgb, depth) in zip(cams, frames, strict=True):
+            losses.append(mapper.add_frame(rgb, depth, c).loss)
+    after = np.mean([_psnr(mapper, c, f[0]) for c, f in zip(cams, frames, strict=True)])
+    assert after > before + 1.0, (before, after)
+    assert np.mean(losses[-3:]) < np.mean(losses[:3])
+
+
+def test_densification_adds_gaussians_only_where_the_mask_says():
+    mapper = _mapper(iterations=0, pixel_stride=2)
+    rgb, depth = observe(pose(), S)
+    mapper.add_frame(rgb, depth, pose())
+    n0 = len(mapper.gaussians)
+    box = (-0.3, 0.3, -0.3, 0.3, 1.0)  # a face 1 m in front of the wall
+    rgb_b, depth_b = observe(pose(), S, box=box)
+    with torch.no_grad():
+        out = mapper.render(pose())
+    expected = densification_mask(out.alpha, out.depth, torch.from_numpy(depth_b), mapper.config)
+    on_box = torch.from_numpy(depth_b < 1.5)
+    inner = torch.zeros_like(on_box)
+    inner[2:-2, 2:-2] = True  # the outermost pixels lack neighbours and stay below O = 0.98
+    assert not (expected & ~on_box & inner).any() and (expected & on_box).sum() > 0.9 * on_box.sum()
+    stats = mapper.add_frame(rgb_b, depth_b, pose())
+    assert stats.added == int(stride_mask(expected, 2).sum()) > 0
+    new = mapper.gaussians.means[n0:].detach().numpy()
+    on_face = np.isclose(new[:, 2], 1.0, atol=1e-5)
+    assert on_face.sum() == int(stride_mask(expected & on_box, 2).sum())  # the box face ...
+    assert np.all(np.abs(new[~on_face, :2]).max(axis=1) > 0.85 * 2.0)  # ... and the image border only
+    # eq. 10 mask of that frame was computed before densification: it marks the box
+    hl = torch.from_numpy(mapper.high_loss_mask)
+    assert hl.sum() > 0 and bool((hl <= on_box).all())
+    assert hl.sum() >= 0.8 * on_box.sum()
+
+
+def test_schedule_dense_and_normal():
+    mapper = _mapper(iterations=0, map_every=5, keyframe_every=5)
+    rgb, depth = observe(pose(), S)
+    flags = [(s.mapped, s.keyframe) for s in (mapper.add_frame(rgb, depth, pose()) for _ in range(6))]
+    assert flags == [(True, True)] + [(False, False)] * 4 + [(True, True)]
+    mapper.config = MapperConfig(dense_schedule=Schedule(2, 1, 0))
+    dense = [mapper.add_frame(rgb, depth, pose(), dense=True) for _ in range(2)]
+    dense = [(s.mapped, s.keyframe) for s in dense]
+    assert dense == [(True, True), (False, True)]  # frames 6 and 7
+    assert [k.step for k in mapper.keyframes] == [0, 5, 6, 7]
+
+
+def test_bad_frames_are_rejected_or_skipped_without_touching_the_map():
+    mapper = _mapper(iterations=1)
+    rgb, depth = observe(pose(), S)
+    mapper.add_frame(rgb, depth, pose())
+    snapshot = {k: v.clone() for k, v in mapper.gaussians.raw().items()}
+    n_kf = len(mapper.keyframes)
+    with pytest.warns(UserWarning, match="no valid depth"):
+        stats = mapper.add_frame(rgb, np.zeros_like(depth), pose())
+    assert stats.skipped and not stats.mapped
+    bad_calls = [
+        ((rgb[:, :-1], depth, pose()), "rgb must have shape"),
+        ((rgb, depth[None], pose()), "depth must have shape"),
+        ((rgb, depth, np.eye(3)), "pose"),
+        ((rgb, depth, np.full((4, 4), np.nan)), "pose"),
+        ((rgb, depth, 2 * np.eye(4)), "rigid"),
+        ((np.full(rgb.shape, np.nan), depth, pose()), "rgb"),
+    ]
+    for args, msg in bad_calls:
+        with pytest.raises(InvalidInputError, match=msg):
+            mapper.add_frame(*args)
+    assert mapper.frames == 1 and len(mapper.keyframes) == n_kf
+    for k, v in mapper.gaussians.raw().items():
+        assert torch.equal(v, snapshot[k])
+
+
+def test_nan_depth_pixels_are_treated_as_invalid():
+    mapper = _mapper(iterations=2, pixel_stride=1)
+    rgb, depth = observe(pose(), S)
+    depth[:, : S // 2] = np.nan
+    depth[0, -1] = np.inf
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        stats = mapper.add_frame(rgb, depth, pose())
+    assert stats.added == (S // 2) * S - 1
+    for t in mapper.gaussians.params.values():
+        assert torch.isfinite(t).all()
+    assert np.all(mapper.gaussians.means[:, 0].detach().numpy() > -0.1)  # only the right half
+    assert mapper.keyframes[0].depth[0, 0] == 0.0
+
+
+def test_save_and_load_round_trip(tmp_path):
+    mapper = _mapper(iterations=1)
+    for c in (pose(), pose(tx=0.1)):
+        rgb, depth = observe(c, S)
+        mapper.add_frame(rgb, depth, c)
+    mapper.save(tmp_path / "m")
+    back = Mapper.load(tmp_path / "m")
+    assert isinstance(back.gaussians, GaussianMap)
+    for k, v in mapper.gaussians.raw().items():
+        assert torch.equal(back.gaussians.params[k].detach(), v)
+    assert [k.step for k in back.keyframes] == [0, 1]
+    assert np.array_equal(back.keyframes[1].rgb, mapper.keyframes[1].rgb)
+    assert np.array_equal(back.keyframes[1].pose, mapper.keyframes[1].pose)
+    assert back.config == mapper.config and back.frames == 2
+    assert torch.allclose(back.render(pose()).rgb, mapper.render(pose()).rgb)
+    with pytest.raises(InvalidInputError, match="mapper.json"):
+        Mapper.load(tmp_path)

@@ -1,0 +1,135 @@
+"""Mapper building blocks that need no rendering: eq. 8 / eq. 10 masks, new Gaussians, pruning, Adam
+bookkeeping under densify/prune."""
+
+import numpy as np
+import pytest
+import torch
+
+from activesplat.errors import InvalidInputError
+from activesplat.splat.config import LearningRates, MapperConfig, Schedule
+from activesplat.splat.densify import densification_mask, gaussians_from_pixels, high_loss_mask, prune_mask
+from activesplat.splat.gaussians import SH_C0, GaussianMap
+
+
+def _planar_render(h=4, w=4):
+    alpha = torch.ones(h, w)
+    depth = torch.full((h, w), 2.0)
+    obs = torch.full((h, w), 2.0)
+    return alpha, depth, obs
+
+
+def test_densification_mask_eq8():
+    cfg = MapperConfig(densify_k=50.0)
+    alpha, depth, obs = _planar_render()
+    obs = obs + 0.001 * torch.arange(16.0).reshape(4, 4)  # median |error| = 0.0075 -> threshold 0.375
+    alpha[0, 0] = 0.97  # not yet covered -> densify
+    alpha[0, 1] = 0.99  # covered -> keep
+    obs[1, 1] = 1.5  # in front by 0.5 > 0.375 -> densify
+    obs[1, 2] = 1.8  # in front by only 0.2 -> keep
+    obs[2, 2] = 2.6  # behind by 0.6 -> keep (eq. 8 only looks at D_obs < D_render)
+    obs[3, 3] = 0.0  # invalid depth never densifies
+    alpha[3, 3] = 0.0
+    mask = densification_mask(alpha, depth, obs, cfg)
+    expected = torch.zeros(4, 4, dtype=torch.bool)
+    expected[0, 0] = expected[1, 1] = True
+    assert torch.equal(mask, expected)
+    assert not densification_mask(alpha, depth, obs, MapperConfig(densify_max_depth_m=1.0))[1, 1]
+
+
+def test_high_loss_mask_eq10():
+    cfg = MapperConfig()
+    alpha, median, obs = _planar_render()
+    obs[0, 0] = 1.5  # in front by 0.5, opaque -> high loss
+    obs[0, 1] = 1.8  # in front by 0.2 < 0.3 -> no
+    obs[0, 2], alpha[0, 2] = 1.0, 0.7  # in front but O <= 0.8 -> no
+    obs[0, 3] = 2.5  # behind -> no
+    obs[1, 0] = 0.0  # invalid -> no
+    mask = high_loss_mask(alpha, median, obs, cfg)
+    assert mask.sum() == 1 and mask[0, 0]
+
+
+def test_gaussians_from_pixels_backprojects_with_projective_radius():
+    cfg = MapperConfig(pixel_stride=1, init_radius_scale=1.0)
+    K = np.array([[8.0, 0, 4], [0, 8.0, 4], [0, 0, 1]])
+    pose = np.eye(4)
+    pose[:3, 3] = [1.0, 2.0, 3.0]
+    depth = torch.full((8, 8), 4.0)
+    rgb = torch.rand(8, 8, 3, generator=torch.Generator().manual_seed(0))
+    mask = torch.zeros(8, 8, dtype=torch.bool)
+    mask[2, 5] = True
+    raw = gaussians_from_pixels(mask, rgb, depth, pose, K, cfg)
+    x = (5 + 0.5 - 4) / 8 * 4.0
+    y = (2 + 0.5 - 4) / 8 * 4.0
+    assert torch.allclose(raw["means"], torch.tensor([[1.0 + x, 2.0 + y, 3.0 + 4.0]]))
+    assert torch.allclose(raw["log_scales"], torch.full((1, 3), np.log(4.0 / 8.0)))
+    assert torch.allclose(torch.sigmoid(raw["opacity_logits"]), torch.tensor([0.5]))
+    assert torch.equal(raw["quats"], torch.tensor([[1.0, 0, 0, 0]]))
+    assert torch.allclose(0.5 + SH_C0 * raw["f_dc"], rgb[2, 5])
+
+
+def test_pixel_stride_subsamples_the_mask():
+    cfg = MapperConfig(pixel_stride=2)
+    K = np.array([[8.0, 0, 4], [0, 8.0, 4], [0, 0, 1]])
+    raw = gaussians_from_pixels(torch.ones(8, 8, dtype=torch.bool), torch.zeros(8, 8, 3), torch.ones(8, 8),
+                                np.eye(4), K, cfg)
+    assert raw["means"].shape == (16, 3)
+    assert torch.allclose(raw["log_scales"], torch.full((16, 3), np.log(1.25 * 2 / 8.0)))
+
+
+def _map(n=6, seed=0) -> GaussianMap:
+    g = torch.Generator().manual_seed(seed)
+    return GaussianMap({"means": torch.randn(n, 3, generator=g), "quats": torch.randn(n, 4, generator=g),
+                        "log_scales": torch.full((n, 3), -3.0), "opacity_logits": torch.zeros(n),
+                        "f_dc": torch.zeros(n, 3)})
+
+
+def test_prune_removes_transparent_and_oversized_then_caps():
+    gmap = _map(6)
+    with torch.no_grad():
+        gmap.params["opacity_logits"][:] = torch.tensor([2.0, -6.0, 1.0, 0.5, 3.0, -1.0])  # [1]: 0.0025
+        gmap.params["log_scales"][2, 1] = np.log(0.8)  # oversized (> 0.5 m)
+    keep = prune_mask(gmap, MapperConfig())
+    assert keep.tolist() == [True, False, False, True, True, True]
+    capped = prune_mask(gmap, MapperConfig(max_gaussians=2))  # keep the two most opaque survivors
+    assert capped.tolist() == [True, False, False, False, True, False]
+    removed = gmap.keep(capped)
+    assert removed == 4 and len(gmap) == 2
+
+
+def test_adam_state_follows_densify_and_prune():
+    gmap = _map(5)
+    opt = gmap.make_optimizer(LearningRates(), 1e-15)
+    loss = sum((t**2).sum() for t in (gmap.means, gmap.scales, gmap.opacities, gmap.colors, gmap.quats))
+    loss.backward()
+    opt.step()
+    before = {n: opt.state[gmap.params[n]]["exp_avg"].clone() for n in gmap.params}
+    added = gmap.append({k: v[:3] for k, v in _map(3, seed=1).raw().items()}, opt)
+    assert added == 3 and len(gmap) == 8
+    for n, t in gmap.params.items():
+        state = opt.state[t]
+        assert state["exp_avg"].shape == t.shape and state["exp_avg_sq"].shape == t.shape
+        assert torch.equal(state["exp_avg"][:5], before[n])
+        assert not state["exp_avg"][5:].any() and not state["exp_avg_sq"][5:].any()
+        assert any(g["params"][0] is t for g in opt.param_groups)
+    keep = torch.tensor([True, False, True, True, False, True, True, False])
+    gmap.keep(keep, opt)
+    for n, t in gmap.params.items():
+        assert torch.equal(opt.state[t]["exp_avg"][:3], before[n][[0, 2, 3]])
+        assert opt.state[t]["exp_avg"].shape == t.shape
+    assert len(opt.state) == 5  # no stale entries for replaced tensors
+    opt.zero_grad()
+    gmap.means.sum().backward()
+    opt.step()  # still steps after the swaps
+
+
+def test_map_and_config_reject_bad_values():
+    with pytest.raises(InvalidInputError, match="quats"):
+        GaussianMap({**_map(3).raw(), "quats": torch.zeros(2, 4)})
+    with pytest.raises(InvalidInputError, match="NaN"):
+        GaussianMap({**_map(3).raw(), "f_dc": torch.full((3, 3), float("nan"))})
+    with pytest.raises(InvalidInputError, match="keep mask"):
+        _map(3).keep(torch.ones(2, dtype=torch.bool))
+    with pytest.raises(InvalidInputError, match="densify_k"):
+        MapperConfig(densify_k=-1.0)
+    with pytest.raises(InvalidInputError, match="schedule"):
+        MapperConfig(schedule=Schedule(0, 5, 2))

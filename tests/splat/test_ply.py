@@ -1,0 +1,88 @@
+"""PLY I/O: standard 3DGS layout, bit-exact round trip, clear errors on bad files."""
+
+import numpy as np
+import pytest
+import torch
+
+from activesplat.errors import InvalidInputError
+from activesplat.splat.gaussians import SH_C0, GaussianMap
+from activesplat.splat.ply import PLY_FIELDS, load_ply, save_ply
+
+
+def _random_map(n: int = 50, seed: int = 0) -> GaussianMap:
+    g = torch.Generator().manual_seed(seed)
+    raw = {
+        "means": torch.randn(n, 3, generator=g) * 3,
+        "quats": torch.randn(n, 4, generator=g),
+        "log_scales": torch.randn(n, 3, generator=g) - 3,
+        "opacity_logits": torch.randn(n, generator=g),
+        "f_dc": torch.randn(n, 3, generator=g),
+    }
+    return GaussianMap(raw)
+
+
+def test_round_trip_is_bit_exact(tmp_path):
+    gmap = _random_map()
+    path = save_ply(gmap, tmp_path / "g.ply")
+    back = load_ply(path)
+    assert len(back) == len(gmap)
+    for name, t in gmap.params.items():
+        assert torch.equal(back.params[name], t.detach()), name
+    assert torch.equal(back.colors, gmap.colors.detach())
+
+
+def test_header_is_standard_3dgs_layout(tmp_path):
+    gmap = _random_map(7)
+    path = save_ply(gmap, tmp_path / "g.ply")
+    raw = path.read_bytes()
+    header, body = raw.split(b"end_header\n", 1)
+    lines = header.decode().splitlines()
+    assert lines[:3] == ["ply", "format binary_little_endian 1.0", "element vertex 7"]
+    assert [ln.split()[2] for ln in lines[3:]] == list(PLY_FIELDS)
+    assert all(ln.split()[1] == "float" for ln in lines[3:])
+    assert len(body) == 7 * 17 * 4
+    # independent decode of the first vertex: f_dc maps to rgb through C0, rot is wxyz
+    rec = np.frombuffer(body, dtype="<f4").reshape(7, 17)
+    assert np.allclose(0.5 + SH_C0 * rec[0, 6:9], gmap.colors[0].detach().numpy())
+    assert np.allclose(rec[0, 13:17], gmap.params["quats"][0].detach().numpy())
+    assert np.allclose(rec[0, 9], gmap.params["opacity_logits"][0].item())
+
+
+def test_extra_properties_are_ignored(tmp_path):
+    """Files from other 3DGS tools carry f_rest_* (higher SH); they still load."""
+    names = list(PLY_FIELDS) + ["f_rest_0", "f_rest_1"]
+    data = np.arange(3 * len(names), dtype="<f4").reshape(3, len(names))
+    header = "ply\nformat binary_little_endian 1.0\ncomment made elsewhere\nelement vertex 3\n"
+    header += "".join(f"property float {n}\n" for n in names) + "end_header\n"
+    path = tmp_path / "other.ply"
+    path.write_bytes(header.encode() + data.tobytes())
+    gmap = load_ply(path)
+    assert len(gmap) == 3
+    assert np.array_equal(gmap.params["means"].detach().numpy(), data[:, :3])
+    assert np.array_equal(gmap.params["quats"].detach().numpy(), data[:, 13:17])
+
+
+def test_empty_map_round_trip(tmp_path):
+    back = load_ply(save_ply(GaussianMap.empty(), tmp_path / "e.ply"))
+    assert len(back) == 0
+
+
+@pytest.mark.parametrize(
+    "content",
+    [b"not a ply\n", b"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nend_header\n1\n",
+     b"ply\nformat binary_little_endian 1.0\nelement vertex 1\nproperty float x\nend_header\n"],
+)
+def test_bad_files_raise_clear_errors(tmp_path, content):
+    path = tmp_path / "bad.ply"
+    path.write_bytes(content)
+    with pytest.raises(InvalidInputError, match="bad.ply"):
+        load_ply(path)
+
+
+def test_truncated_and_missing_files(tmp_path):
+    path = save_ply(_random_map(5), tmp_path / "t.ply")
+    path.write_bytes(path.read_bytes()[:-10])
+    with pytest.raises(InvalidInputError, match="truncated"):
+        load_ply(path)
+    with pytest.raises(InvalidInputError, match="does not exist"):
+        load_ply(tmp_path / "nope.ply")
