@@ -36,19 +36,27 @@ def backproject(depth: np.ndarray, pose: np.ndarray, K: np.ndarray, v: np.ndarra
     return cam @ pose[:3, :3].T + pose[:3, 3]
 
 
+def overlap_fractions(points: np.ndarray, poses: np.ndarray, K: np.ndarray, width: int, height: int,
+                      border: int) -> np.ndarray:
+    """For each camera of ``poses`` (M,4,4), the share of world ``points`` (P,3) that project in front
+    of it and more than ``border`` px inside its image. Returns (M,)."""
+    poses = np.asarray(poses, dtype=np.float64).reshape(-1, 4, 4)
+    if len(points) == 0 or len(poses) == 0:
+        return np.zeros(len(poses))
+    rel = points[None, :, :] - poses[:, None, :3, 3]  # (M,P,3)
+    cam = np.einsum("mpi,mij->mpj", rel, poses[:, :3, :3])  # world -> camera: R^T (p - t)
+    z = cam[..., 2]
+    safe_z = np.where(z > 1e-6, z, 1.0)
+    u = K[0, 0] * cam[..., 0] / safe_z + K[0, 2]
+    v = K[1, 1] * cam[..., 1] / safe_z + K[1, 2]
+    inside = (z > 1e-6) & (u > border) & (u < width - border) & (v > border) & (v < height - border)
+    return inside.mean(axis=1)
+
+
 def overlap_fraction(points: np.ndarray, pose: np.ndarray, K: np.ndarray, width: int, height: int,
                      border: int) -> float:
-    """Share of world ``points`` (M,3) that project in front of camera ``pose``, > ``border`` px inside."""
-    if len(points) == 0:
-        return 0.0
-    rot = pose[:3, :3]
-    cam = (points - pose[:3, 3]) @ rot  # world -> camera: R^T (p - t)
-    z = cam[:, 2]
-    safe_z = np.where(z > 1e-6, z, 1.0)
-    u = K[0, 0] * cam[:, 0] / safe_z + K[0, 2]
-    v = K[1, 1] * cam[:, 1] / safe_z + K[1, 2]
-    inside = (z > 1e-6) & (u > border) & (u < width - border) & (v > border) & (v < height - border)
-    return float(inside.mean())
+    """:func:`overlap_fractions` for a single camera."""
+    return float(overlap_fractions(points, pose[None], K, width, height, border)[0])
 
 
 def sample_valid_pixels(depth: np.ndarray, n_pixels: int, rng: np.random.Generator) -> tuple[np.ndarray,
@@ -69,7 +77,8 @@ def select_overlapping(depth: np.ndarray, pose: np.ndarray, K: np.ndarray, keyfr
     v, u = sample_valid_pixels(depth, n_pixels, rng)
     points = backproject(depth, pose, K, v, u)
     height, width = depth.shape
-    scores = np.array([overlap_fraction(points, kf.pose, K, width, height, border) for kf in keyframes])
+    poses = np.stack([kf.pose for kf in keyframes])
+    scores = overlap_fractions(points, poses, K, width, height, border)
     order = np.argsort(-scores, kind="stable")
     return [int(i) for i in order[:k] if scores[i] > 0]
 
