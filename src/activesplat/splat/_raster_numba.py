@@ -1,0 +1,119 @@
+"""numba CPU backend of :func:`activesplat.splat.rasterize`: two autograd Functions.
+
+``_Project`` maps world Gaussians to screen conics (kernels in ``_raster_numba_project``);
+``_Composite`` bins them into 16x16 tiles and blends front to back (``_raster_numba_tiles``).
+Splitting at the 2D means, as gsplat does, makes ``means2d`` a graph node whose gradient 3DGS
+densification can read. Everything is float32; inputs of other dtypes are cast.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import torch
+from torch import Tensor
+
+from activesplat.splat import _raster_numba_project as proj
+from activesplat.splat import _raster_numba_tiles as tiles
+from activesplat.splat._raster_common import RASTER
+from activesplat.splat._raster_torch import fov_limits
+from activesplat.splat.rasterize import RenderOutput
+
+
+def _np(t: Tensor) -> np.ndarray:
+    return np.ascontiguousarray(t.detach().to("cpu", torch.float32).numpy())
+
+
+def _intrinsics(K: Tensor, width: int, height: int) -> np.ndarray:
+    """[fx, fy, cx, cy, lim_x-, lim_x+, lim_y-, lim_y+] as float32 for the kernels."""
+    k = K.detach().double().cpu()
+    fx, fy, cx, cy = float(k[0, 0]), float(k[1, 1]), float(k[0, 2]), float(k[1, 2])
+    return np.array([fx, fy, cx, cy, *fov_limits(k, width, height)], np.float32)
+
+
+class _Project(torch.autograd.Function):
+    @staticmethod
+    def forward(ctx, means, quats, scales, view, intr, width, height, mask):
+        n = means.shape[0]
+        arrays = [_np(means), _np(quats), _np(scales)]
+        means2d, conics = np.zeros((n, 2), np.float32), np.zeros((n, 3), np.float32)
+        depths, radii = np.zeros(n, np.float32), np.zeros(n, np.int32)
+        rects = np.zeros((n, 4), np.int32)
+        proj.project_forward(*arrays, view, intr, width, height, mask, means2d, conics, depths, radii, rects)
+        ctx.arrays, ctx.view, ctx.intr, ctx.radii, ctx.conics = arrays, view, intr, radii, conics
+        radii_t, rects_t = torch.from_numpy(radii), torch.from_numpy(rects)
+        ctx.mark_non_differentiable(radii_t, rects_t)
+        return torch.from_numpy(means2d), torch.from_numpy(conics), torch.from_numpy(depths), radii_t, rects_t
+
+    @staticmethod
+    def backward(ctx, v_means2d, v_conics, v_depths, _v_radii, _v_rects):
+        means, quats, scales = ctx.arrays
+        v_means, v_quats, v_scales = np.zeros_like(means), np.zeros_like(quats), np.zeros_like(scales)
+        proj.project_backward(means, quats, scales, ctx.view, ctx.intr, ctx.radii, ctx.conics,
+                              _np(v_means2d), _np(v_conics), _np(v_depths), v_means, v_quats, v_scales)
+        return (torch.from_numpy(v_means), torch.from_numpy(v_quats), torch.from_numpy(v_scales),
+                None, None, None, None, None)
+
+
+class _Composite(torch.autograd.Function):
+    @staticmethod
+    def forward(ctx, means2d, conics, depths, opacities, colors, background, radii, rects, width, height):
+        rects = rects.numpy()
+        depth_np = _np(depths)
+        visible = np.flatnonzero(radii.numpy() > 0)
+        order = visible[np.argsort(depth_np[visible], kind="stable")]
+        grid_x, grid_y = math.ceil(width / RASTER.tile_size), math.ceil(height / RASTER.tile_size)
+        tile_starts, ids, emit_start, slot = tiles.build_tile_lists(order, rects, grid_x, grid_x * grid_y)
+        feat = tiles.gather_features(ids, _np(means2d), _np(conics), _np(opacities), _np(colors), depth_np)
+        bg = _np(background)
+        rgb = np.empty((height, width, 3), np.float32)
+        depth, trans, median = (np.empty((height, width), np.float32) for _ in range(3))
+        last = np.empty((height, width), np.int64)
+        tiles.composite_forward(tile_starts, feat, width, height, bg, rgb, depth, trans, median, last)
+        ctx.saved = (order, tile_starts, emit_start, slot, feat, bg, trans, last, width, height)
+        ctx.n = means2d.shape[0]
+        median_t = torch.from_numpy(median)
+        ctx.mark_non_differentiable(median_t)
+        return torch.from_numpy(rgb), torch.from_numpy(depth), torch.from_numpy(1 - trans), median_t
+
+    @staticmethod
+    def backward(ctx, v_rgb, v_depth, v_alpha, _v_median):
+        order, tile_starts, emit_start, slot, feat, bg, trans, last, width, height = ctx.saved
+        v_rgb_np = _np(v_rgb)
+        grads = tiles.composite_backward(tile_starts, feat, width, height, bg, trans, last,
+                                         v_rgb_np, _np(v_depth), _np(v_alpha))
+        g = torch.from_numpy(tiles.sum_instance_grads(order, emit_start, slot, grads, ctx.n))
+        v_bg = torch.from_numpy((v_rgb_np * trans[..., None]).sum(axis=(0, 1)))
+        return g[:, 0:2], g[:, 2:5], g[:, 9], g[:, 5], g[:, 6:9], v_bg, None, None, None, None
+
+
+def rasterize_numba(means, quats, scales, opacities, colors, viewmat, K, width, height, background, mask):
+    """The numba backend of :func:`activesplat.splat.rasterize` (float32, CPU)."""
+    device = means.device
+    f32 = [t.to("cpu", torch.float32) for t in (means, quats, scales, opacities, colors, background)]
+    means, quats, scales, opacities, colors, background = f32
+    view = _np(viewmat)
+    intr = _intrinsics(K, width, height)
+    n = means.shape[0]
+    mask_np = np.ones(n, np.bool_) if mask is None else np.ascontiguousarray(mask.cpu().numpy())
+    projected = _Project.apply(means, quats, scales, view, intr, width, height, mask_np)
+    means2d, conics, depths, radii, rects = projected
+    rgb, depth, alpha, median = _Composite.apply(means2d, conics, depths, opacities, colors, background,
+                                                 radii, rects, width, height)
+    return RenderOutput(rgb=rgb.to(device), depth=depth.to(device), alpha=alpha.to(device),
+                        median_depth=median.to(device), radii=radii.to(device),
+                        means2d=means2d.to(device), depths=depths.to(device))
+
+
+def warm_up() -> None:
+    """Compile (or load from the on-disk cache) every numba kernel: one tiny forward + backward."""
+    gen = torch.Generator().manual_seed(0)
+    n = 8
+    means = torch.cat([torch.rand(n, 2, generator=gen) - 0.5, torch.full((n, 1), 2.0)], dim=1)
+    params = [means, torch.randn(n, 4, generator=gen), torch.full((n, 3), 0.2), torch.full((n,), 0.5),
+              torch.rand(n, 3, generator=gen)]
+    params = [p.requires_grad_(True) for p in params]
+    K = torch.tensor([[16.0, 0, 16], [0, 16, 16], [0, 0, 1]])
+    out = rasterize_numba(*params, torch.eye(4), K, 32, 32, torch.zeros(3), torch.ones(n, dtype=torch.bool))
+    (out.rgb.sum() + out.depth.sum() + out.alpha.sum()).backward()
