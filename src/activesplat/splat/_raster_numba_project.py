@@ -23,7 +23,7 @@ TILE_F = F32(RASTER.tile_size)
 ZERO, HALF, ONE, TWO = F32(0.0), F32(0.5), F32(1.0), F32(2.0)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def quat_rotmat(w, x, y, z):
     """Rotation matrix (row-major 9-tuple) of a unit quaternion wxyz."""
     return (
@@ -33,7 +33,7 @@ def quat_rotmat(w, x, y, z):
     )
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def matmul3(a, b):
     """3x3 product of row-major 9-tuples."""
     return (
@@ -46,12 +46,12 @@ def matmul3(a, b):
     )
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def transpose3(a):
     return (a[0], a[3], a[6], a[1], a[4], a[7], a[2], a[5], a[8])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def view_covariance(quat, scale, rot):
     """(unit quaternion, R(q), M = R(q) diag(s), W Sigma W^T) for one Gaussian."""
     norm = np.sqrt(quat[0] * quat[0] + quat[1] * quat[1] + quat[2] * quat[2] + quat[3] * quat[3])
@@ -63,7 +63,7 @@ def view_covariance(quat, scale, rot):
     return (w, x, y, z), norm, r, m, matmul3(matmul3(rot, cov), transpose3(rot))
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def jacobian(px, py, z, intr):
     """EWA Jacobian entries (j00, j02, j11, j12) at x/z, y/z clamped to the padded image, plus
     whether x and y were inside the clamp (3DGS / gsplat ``persp_proj``)."""
@@ -76,7 +76,7 @@ def jacobian(px, py, z, intr):
     return fx / z, -fx * tx / (z * z), fy / z, -fy * ty / (z * z), tx, ty, x_in, y_in
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def screen_cov(j00, j02, j11, j12, cv):
     """Sigma_2D = J Sigma_view J^T + 0.3 I as (s00, s01, s11), plus A = J Sigma_view (2x3)."""
     a0 = (j00 * cv[0] + j02 * cv[6], j00 * cv[1] + j02 * cv[7], j00 * cv[2] + j02 * cv[8])
@@ -87,7 +87,7 @@ def screen_cov(j00, j02, j11, j12, cv):
     return s00, s01, s11, a0, a1
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, error_model="numpy")
 def project_forward(means, quats, scales, view, intr, width, height, mask,
                     means2d, conics, depths, radii, rects):
     """Fill means2d (N,2), conics (N,3), depths (N,), radii (N,) and tile rects (N,4) [x0,x1,y0,y1)."""
@@ -123,7 +123,7 @@ def project_forward(means, quats, scales, view, intr, width, height, mask,
             rects[i, 0], rects[i, 1], rects[i, 2], rects[i, 3] = int(x0), int(x1), int(y0), int(y1)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def conic_vjp(a, b, c, va, vb, vc):
     """Gradient on Sigma_2D (g00, g01, g11; symmetric matrix entries) from the conic gradient, with
     power = 0.5 (a dx^2 + c dy^2) + b dx dy: dL/dSigma = -C G C, G = [[va, vb/2], [vb/2, vc]]."""
@@ -133,7 +133,7 @@ def conic_vjp(a, b, c, va, vb, vc):
     return -(cg00 * a + cg01 * b), -(cg00 * b + cg01 * c), -(cg10 * b + cg11 * c)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def quat_vjp(q, norm, v_r):
     """Gradient on the raw quaternion from the gradient on R(q / |q|)."""
     w, x, y, z = q
@@ -148,7 +148,7 @@ def quat_vjp(q, norm, v_r):
     return (gw - w * dot) / norm, (gx - x * dot) / norm, (gy - y * dot) / norm, (gz - z * dot) / norm
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, error_model="numpy")
 def project_backward(means, quats, scales, view, intr, radii, conics, v_means2d, v_conics, v_depths,
                      v_means, v_quats, v_scales):
     """Chain rule of :func:`project_forward` for every rendered Gaussian (radius > 0)."""

@@ -1,0 +1,111 @@
+"""Rasterizer speed: numba (CPU) vs the torch reference (and gsplat when CUDA is available).
+
+Scene: N anisotropic Gaussians of 1-3 cm on the walls, floor and ceiling of a 6 x 4 x 2.8 m room,
+camera inside at 1.25 m looking along the long axis; 256x256, 90 deg hfov. Prints a markdown table
+of forward and forward+backward milliseconds (median of repeats) and the numba compile/warm time.
+
+    python benchmarks/raster.py [--sizes 10000 50000 200000] [--repeats 5] [--torch-max 200000]
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import statistics
+import time
+
+import torch
+
+from activesplat.splat import rasterize
+
+WIDTH = HEIGHT = 256
+ROOM = (6.0, 2.8, 4.0)  # x, y (up), z extents in metres
+
+
+def room_gaussians(n: int, seed: int = 0):
+    """N Gaussians of 1-3 cm scattered uniformly over the six faces of the room (area-weighted)."""
+    gen = torch.Generator().manual_seed(seed)
+    sx, sy, sz = ROOM
+    faces = [(0, sx * sz), (1, sx * sy), (2, sy * sz)]  # normal axis, area; two faces each
+    areas = torch.tensor([a for _, a in faces for _ in range(2)])
+    face = torch.multinomial(areas, n, replacement=True, generator=gen)
+    pts = torch.rand(n, 3, generator=gen) * torch.tensor(ROOM)
+    axis = torch.tensor([1, 1, 2, 2, 0, 0])[face]  # y for floor/ceiling, z for long walls, x for short
+    side = (face % 2).float() * torch.tensor(ROOM)[axis]
+    pts[torch.arange(n), axis] = side
+    quats = torch.randn(n, 4, generator=gen)
+    scales = 0.01 + 0.02 * torch.rand(n, 3, generator=gen)
+    opacities = 0.3 + 0.7 * torch.rand(n, generator=gen)
+    colors = torch.rand(n, 3, generator=gen)
+    return pts, quats, scales, opacities, colors
+
+
+def camera():
+    """viewmat and K: camera at the room centre, 1.25 m high, looking along +x, 90 deg hfov."""
+    c2w = torch.eye(4, dtype=torch.float64)
+    c2w[:3, :3] = torch.tensor([[0.0, 0, 1], [0, -1, 0], [1, 0, 0]], dtype=torch.float64)  # columns x, y, z
+    c2w[:3, 3] = torch.tensor([ROOM[0] / 2 - 2.0, 1.25, ROOM[2] / 2], dtype=torch.float64)
+    f = 0.5 * WIDTH / math.tan(math.radians(90) / 2)
+    K = torch.tensor([[f, 0, WIDTH / 2], [0, f, HEIGHT / 2], [0, 0, 1]])
+    return torch.linalg.inv(c2w).float(), K
+
+
+def time_backend(params, backend: str, repeats: int) -> tuple[float, float, int]:
+    """Median forward ms and forward+backward ms; also the number of rendered Gaussians."""
+    view, K = camera()
+    leaves = [p.clone().requires_grad_(True) for p in params]
+    fwd, both = [], []
+    visible = 0
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        out = rasterize(*leaves, view, K, WIDTH, HEIGHT, backend=backend)
+        t1 = time.perf_counter()
+        (out.rgb.sum() + out.depth.sum() + out.alpha.sum()).backward()
+        t2 = time.perf_counter()
+        fwd.append(1e3 * (t1 - t0))
+        both.append(1e3 * (t2 - t0))
+        visible = int((out.radii > 0).sum())
+    return statistics.median(fwd), statistics.median(both), visible
+
+
+def warm_time() -> float:
+    """Seconds to compile (or load from the disk cache) the numba kernels in this process."""
+    from activesplat.splat._raster_numba import warm_up
+
+    t0 = time.perf_counter()
+    warm_up()
+    return time.perf_counter() - t0
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--sizes", type=int, nargs="+", default=[10_000, 50_000, 200_000])
+    parser.add_argument("--repeats", type=int, default=5)
+    parser.add_argument("--torch-max", type=int, default=200_000, help="largest N timed with torch")
+    parser.add_argument("--torch-repeats", type=int, default=1)
+    args = parser.parse_args()
+    warm = warm_time()
+    cuda = torch.cuda.is_available()
+    print(f"numba warm-up (compile or cache load): {warm:.2f} s; torch threads {torch.get_num_threads()}\n")
+    head = ("| N | visible | numba fwd ms | numba fwd+bwd ms | torch fwd ms | torch fwd+bwd ms"
+            " | speedup fwd+bwd |")
+    print(head + (" gsplat fwd ms | gsplat fwd+bwd ms |" if cuda else ""))
+    print("|" + "---|" * (7 + 2 * cuda))
+    for n in args.sizes:
+        params = room_gaussians(n)
+        nf, nb, vis = time_backend(params, "numba", args.repeats)
+        row = f"| {n} | {vis} | {nf:.1f} | {nb:.1f} |"
+        if n <= args.torch_max:
+            tf, tb, _ = time_backend(params, "torch", args.torch_repeats)
+            row += f" {tf:.0f} | {tb:.0f} | {tb / nb:.1f}x |"
+        else:
+            row += " skipped | skipped | - |"
+        if cuda:
+            gparams = [p.cuda() for p in params]
+            gf, gb, _ = time_backend(gparams, "gsplat", args.repeats)
+            row += f" {gf:.2f} | {gb:.2f} |"
+        print(row, flush=True)
+
+
+if __name__ == "__main__":
+    main()
