@@ -3,7 +3,9 @@
 ``_Project`` maps world Gaussians to screen conics (kernels in ``_raster_numba_project``);
 ``_Composite`` bins them into 16x16 tiles and blends front to back (``_raster_numba_tiles``).
 Splitting at the 2D means, as gsplat does, makes ``means2d`` a graph node whose gradient 3DGS
-densification can read. Everything is float32; inputs of other dtypes are cast.
+densification can read. Everything is float32; inputs of other dtypes are cast (gradients come
+back in the input dtype). Gaussians with radius 0 (culled, masked, off-screen) get zero gradient,
+also through ``out.means2d`` / ``out.depths`` (the torch reference would still differentiate those).
 """
 
 from __future__ import annotations
