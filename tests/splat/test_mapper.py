@@ -57,7 +57,7 @@ def test_map_quality_improves_with_iterations():
 
 
 def test_densification_adds_gaussians_only_where_the_mask_says():
-    mapper = _mapper(iterations=0, pixel_stride=2)
+    mapper = _mapper(iterations=0, pixel_stride=2, mask_downscale=1)
     rgb, depth = observe(pose(), S)
     mapper.add_frame(rgb, depth, pose())
     n0 = len(mapper.gaussians)
@@ -151,3 +151,19 @@ def test_save_and_load_round_trip(tmp_path):
     assert torch.allclose(back.render(pose()).rgb, mapper.render(pose()).rgb)
     with pytest.raises(InvalidInputError, match="mapper.json"):
         Mapper.load(tmp_path)
+
+
+def test_half_resolution_mask_render_finds_the_same_new_surface():
+    full, half = _mapper(mask_downscale=1), _mapper(mask_downscale=2)
+    rgb, depth = observe(pose(), S)
+    rgb_b, depth_b = observe(pose(), S, box=(-0.3, 0.3, -0.3, 0.3, 1.0))
+    added = []
+    for mapper in (full, half):
+        mapper.add_frame(rgb, depth, pose())
+        n0 = len(mapper.gaussians)
+        mapper.add_frame(rgb_b, depth_b, pose())
+        added.append(int(np.isclose(mapper.gaussians.means[n0:, 2].detach().numpy(), 1.0).sum()))
+        assert mapper.high_loss_mask.shape == (S, S)
+    assert added[0] > 0 and abs(added[1] - added[0]) <= 0.15 * added[0]
+    n_full, n_half = int(full.high_loss_mask.sum()), int(half.high_loss_mask.sum())
+    assert abs(n_half - n_full) <= 0.2 * n_full

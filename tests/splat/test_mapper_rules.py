@@ -62,7 +62,7 @@ def test_gaussians_from_pixels_backprojects_with_projective_radius():
     y = (2 + 0.5 - 4) / 8 * 4.0
     assert torch.allclose(raw["means"], torch.tensor([[1.0 + x, 2.0 + y, 3.0 + 4.0]]))
     assert torch.allclose(raw["log_scales"], torch.full((1, 3), np.log(4.0 / 8.0)))
-    assert torch.allclose(torch.sigmoid(raw["opacity_logits"]), torch.tensor([0.5]))
+    assert torch.allclose(torch.sigmoid(raw["opacity_logits"]), torch.tensor([cfg.init_opacity]))
     assert torch.equal(raw["quats"], torch.tensor([[1.0, 0, 0, 0]]))
     assert torch.allclose(0.5 + SH_C0 * raw["f_dc"], rgb[2, 5])
 
@@ -73,7 +73,7 @@ def test_pixel_stride_subsamples_the_mask():
     raw = gaussians_from_pixels(torch.ones(8, 8, dtype=torch.bool), torch.zeros(8, 8, 3), torch.ones(8, 8),
                                 np.eye(4), K, cfg)
     assert raw["means"].shape == (16, 3)
-    assert torch.allclose(raw["log_scales"], torch.full((16, 3), np.log(1.25 * 2 / 8.0)))
+    assert torch.allclose(raw["log_scales"], torch.full((16, 3), np.log(cfg.init_radius_scale * 2 / 8.0)))
 
 
 def _map(n=6, seed=0) -> GaussianMap:

@@ -179,10 +179,19 @@ class Mapper:
         clock.lap("prune")
 
     def _render_or_blank(self, pose: np.ndarray) -> dict[str, torch.Tensor]:
+        """Opacity, depth and median depth of the current view for eqs. 8 and 10, rendered at
+        1/``mask_downscale`` resolution and upsampled (nearest) to the sensor size."""
         if len(self.gaussians) == 0:
             return {k: v.to(self.device) for k, v in _blank_render(self.width, self.height).items()}
-        out = self._render(pose, self.K, self.width, self.height)
-        return {"alpha": out.alpha, "depth": out.depth, "median_depth": out.median_depth}
+        d = self.config.mask_downscale
+        w, h = -(-self.width // d), -(-self.height // d)
+        K = self.K.copy()
+        K[:2] /= d
+        out = self._render(pose, K, w, h)
+        def upsample(t: torch.Tensor) -> torch.Tensor:
+            return t.repeat_interleave(d, 0).repeat_interleave(d, 1)[: self.height, : self.width]
+
+        return {name: upsample(getattr(out, name)) for name in ("alpha", "depth", "median_depth")}
 
     def _pick_view(self, iteration: int, window: list[int], current):
         """Iteration 0 trains the current frame (if so configured); others a random window member."""
