@@ -67,12 +67,13 @@ class _Composite(torch.autograd.Function):
         order = tiles.stable_depth_order(visible, depth_np)
         grid_x, grid_y = math.ceil(width / RASTER.tile_size), math.ceil(height / RASTER.tile_size)
         tile_starts, ids, emit_start, slot = tiles.build_tile_lists(order, rects, grid_x, grid_x * grid_y)
-        feat = tiles.gather_features(order, _np(means2d), _np(conics), _np(opacities), _np(colors), depth_np)
+        feat = tiles.gather_features(order, ids, _np(means2d), _np(conics), _np(opacities), _np(colors),
+                                     depth_np)
         bg = _np(background)
         rgb = np.empty((height, width, 3), np.float32)
         depth, trans, median = (np.empty((height, width), np.float32) for _ in range(3))
         last = np.empty((height, width), np.int64)
-        tiles.composite_forward(tile_starts, ids, feat, width, height, bg, rgb, depth, trans, median, last)
+        tiles.composite_forward(tile_starts, feat, width, height, bg, rgb, depth, trans, median, last)
         ctx.saved = (order, tile_starts, ids, emit_start, slot, feat, bg, trans, last, width, height)
         ctx.n = means2d.shape[0]
         median_t = torch.from_numpy(median)
@@ -83,7 +84,7 @@ class _Composite(torch.autograd.Function):
     def backward(ctx, v_rgb, v_depth, v_alpha, _v_median):
         order, tile_starts, ids, emit_start, slot, feat, bg, trans, last, width, height = ctx.saved
         v_rgb_np = _np(v_rgb)
-        grads = tiles.composite_backward(tile_starts, ids, feat, width, height, bg, trans, last,
+        grads = tiles.composite_backward(tile_starts, feat, width, height, bg, trans, last,
                                          v_rgb_np, _np(v_depth), _np(v_alpha))
         g = torch.from_numpy(tiles.sum_instance_grads(order, emit_start, slot, grads, ctx.n))
         v_bg = torch.from_numpy((v_rgb_np * trans[..., None]).sum(axis=(0, 1)))

@@ -84,23 +84,27 @@ def stable_depth_order(candidates, depths):
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def gather_features(order, means2d, conics, opacities, colors, depths):
-    """Rows (N, 13) for the rendered Gaussians: mean2d, conic, opacity, colour, depth, the half
-    extents of the box where alpha can reach 1/255 (|dx| <= sqrt(2 ln(255 o) Sigma_xx)) and the
+def gather_features(order, ids, means2d, conics, opacities, colors, depths):
+    """Instance rows (n_inst, 13), contiguous per tile: mean2d, conic, opacity, colour, depth, the
+    half extents of the box where alpha can reach 1/255 (|dx| <= sqrt(2 ln(255 o) Sigma_xx)) and the
     power above which alpha < 1/255 for sure (ln(255 o) plus a margin), saving most skipped exps."""
-    feat = np.zeros((means2d.shape[0], N_FEAT), F32)
+    aux = np.zeros((means2d.shape[0], 3), F32)
     for r in prange(order.shape[0]):
         g = order[r]
-        a, b, c, o = conics[g, 0], conics[g, 1], conics[g, 2], opacities[g]
-        level = TWO * (np.log(max(o, ALPHA_MIN)) + LOG_255)
+        a, b, c = conics[g, 0], conics[g, 1], conics[g, 2]
+        level = TWO * (np.log(max(opacities[g], ALPHA_MIN)) + LOG_255)
         det = a * c - b * b
-        feat[g, MX], feat[g, MY] = means2d[g, 0], means2d[g, 1]
-        feat[g, CA], feat[g, CB], feat[g, CC] = a, b, c
-        feat[g, OP], feat[g, CR], feat[g, CG], feat[g, CBL] = o, colors[g, 0], colors[g, 1], colors[g, 2]
-        feat[g, DZ] = depths[g]
-        feat[g, HX] = np.sqrt(max(ZERO, level * c / det)) + BOX_PAD
-        feat[g, HY] = np.sqrt(max(ZERO, level * a / det)) + BOX_PAD
-        feat[g, PMAX] = HALF * level + POWER_PAD
+        aux[g, 0] = np.sqrt(max(ZERO, level * c / det)) + BOX_PAD
+        aux[g, 1] = np.sqrt(max(ZERO, level * a / det)) + BOX_PAD
+        aux[g, 2] = HALF * level + POWER_PAD
+    feat = np.empty((ids.shape[0], N_FEAT), F32)
+    for k in prange(ids.shape[0]):
+        g = ids[k]
+        feat[k, MX], feat[k, MY] = means2d[g, 0], means2d[g, 1]
+        feat[k, CA], feat[k, CB], feat[k, CC] = conics[g, 0], conics[g, 1], conics[g, 2]
+        feat[k, OP], feat[k, CR], feat[k, CG] = opacities[g], colors[g, 0], colors[g, 1]
+        feat[k, CBL], feat[k, DZ] = colors[g, 2], depths[g]
+        feat[k, HX], feat[k, HY], feat[k, PMAX] = aux[g, 0], aux[g, 1], aux[g, 2]
     return feat
 
 
@@ -135,7 +139,7 @@ def tile_bounds(t, grid_x, width, height):
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def composite_forward(tile_starts, ids, feat, width, height, background, rgb, depth, trans, median, last):
+def composite_forward(tile_starts, feat, width, height, background, rgb, depth, trans, median, last):
     """Front-to-back blending per tile; fills rgb (H,W,3), depth, final T, median depth and the list
     position of the last blended instance (-1 if none)."""
     grid_x = (width + TILE - 1) // TILE
@@ -150,11 +154,10 @@ def composite_forward(tile_starts, ids, feat, width, height, background, rgb, de
         for k in range(tile_starts[t], tile_starts[t + 1]):
             if n_left == 0:
                 break
-            f = feat[ids[k]]
-            mx, my, a, b, c, o = f[MX], f[MY], f[CA], f[CB], f[CC], f[OP]
-            cr, cg, cb, z, pmax = f[CR], f[CG], f[CBL], f[DZ], f[PMAX]
-            jx0, jx1 = pixel_range(mx, f[HX], x0, x1)
-            iy0, iy1 = pixel_range(my, f[HY], y0, y1)
+            mx, my, a, b, c, o = feat[k, MX], feat[k, MY], feat[k, CA], feat[k, CB], feat[k, CC], feat[k, OP]
+            cr, cg, cb, z, pmax = feat[k, CR], feat[k, CG], feat[k, CBL], feat[k, DZ], feat[k, PMAX]
+            jx0, jx1 = pixel_range(mx, feat[k, HX], x0, x1)
+            iy0, iy1 = pixel_range(my, feat[k, HY], y0, y1)
             for i in range(iy0, iy1 + 1):
                 for j in range(jx0, jx1 + 1):
                     if done[i - y0, j - x0]:
@@ -184,7 +187,7 @@ def composite_forward(tile_starts, ids, feat, width, height, background, rgb, de
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def composite_backward(tile_starts, ids, feat, width, height, background, trans_final, last,
+def composite_backward(tile_starts, feat, width, height, background, trans_final, last,
                        v_rgb, v_depth, v_alpha):
     """Reverse-order pass of :func:`composite_forward` (3DGS ``renderCUDA`` backward). Returns one
     gradient row per instance: v_mean2d (2), v_conic (3), v_opacity, v_colour (3), v_depth.
@@ -194,7 +197,7 @@ def composite_backward(tile_starts, ids, feat, width, height, background, trans_
     dD/dalpha_i = z_i T_i - S_i / (1 - alpha_i), d(1 - T_final)/dalpha_i = T_final / (1 - alpha_i).
     """
     grid_x = (width + TILE - 1) // TILE
-    grads = np.zeros((ids.shape[0], N_GRAD), F32)
+    grads = np.zeros((feat.shape[0], N_GRAD), F32)
     for t in prange(tile_starts.shape[0] - 1):
         x0, x1, y0, y1 = tile_bounds(t, grid_x, width, height)
         trans = np.empty((TILE, TILE), F32)
@@ -205,11 +208,10 @@ def composite_backward(tile_starts, ids, feat, width, height, background, trans_
                 trans[i - y0, j - x0] = trans_final[i, j]
                 k_end = max(k_end, last[i, j])
         for k in range(k_end, tile_starts[t] - 1, -1):
-            f = feat[ids[k]]
-            mx, my, a, b, c, o = f[MX], f[MY], f[CA], f[CB], f[CC], f[OP]
-            cr, cg, cb, z, pmax = f[CR], f[CG], f[CBL], f[DZ], f[PMAX]
-            jx0, jx1 = pixel_range(mx, f[HX], x0, x1)
-            iy0, iy1 = pixel_range(my, f[HY], y0, y1)
+            mx, my, a, b, c, o = feat[k, MX], feat[k, MY], feat[k, CA], feat[k, CB], feat[k, CC], feat[k, OP]
+            cr, cg, cb, z, pmax = feat[k, CR], feat[k, CG], feat[k, CBL], feat[k, DZ], feat[k, PMAX]
+            jx0, jx1 = pixel_range(mx, feat[k, HX], x0, x1)
+            iy0, iy1 = pixel_range(my, feat[k, HY], y0, y1)
             g_mx = g_my = g_a = g_b = g_c = g_o = g_r = g_g = g_bl = g_z = ZERO
             for i in range(iy0, iy1 + 1):
                 pi = i - y0
