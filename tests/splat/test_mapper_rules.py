@@ -133,3 +133,14 @@ def test_map_and_config_reject_bad_values():
         MapperConfig(densify_k=-1.0)
     with pytest.raises(InvalidInputError, match="schedule"):
         MapperConfig(schedule=Schedule(0, 5, 2))
+
+
+def test_downsample_observation_block_means_and_invalid_blocks():
+    from activesplat.splat.mapper import downsample_observation
+
+    rgb = torch.arange(4 * 4 * 3, dtype=torch.float32).reshape(4, 4, 3)
+    depth = torch.tensor([[1.0, 2, 3, 4], [1, 2, 0, 4], [5, 5, 6, 6], [5, 5, 6, 6]])
+    small_rgb, small_depth = downsample_observation(rgb, depth, 2)
+    assert torch.equal(small_rgb[0, 1], rgb[:2, 2:].reshape(-1, 3).mean(dim=0))
+    assert torch.equal(small_depth, torch.tensor([[1.5, 0.0], [5.0, 6.0]]))  # a block with a hole -> invalid
+    assert downsample_observation(rgb, depth, 1)[1] is depth

@@ -64,6 +64,10 @@ class MapperConfig:
     The eq. 8 / eq. 10 render (``mask_downscale``) runs at half resolution and is upsampled
     (nearest): new Gaussians are placed on a 2-px grid anyway, so a full-resolution render would
     only cost time; the release itself downsamples the eq. 10 mask (to 90x90) before clustering.
+    The Adam iterations (``train_downscale``) also render and compare at half resolution (2x2 block
+    means of the observation): the Gaussians sit on a 2-px grid, so the map has no finer detail to
+    fit; on small-0 (first 100 steps) it cuts mapper time 96 -> 68 ms/step for -0.4 dB PSNR and
+    +0.4 cm depth L1.
     """
 
     # --- losses, eqs. 5-7 (paper = release = SplaTAM)
@@ -84,6 +88,7 @@ class MapperConfig:
     min_depth_m: float = 0.05  # project: depth below this is treated as invalid (sensor noise)
 
     mask_downscale: int = 2  # project: the eq. 8 / eq. 10 render runs at 1/2 resolution (CPU time)
+    train_downscale: int = 2  # project: Adam iterations render/compare at 1/2 resolution (release 1)
 
     # --- densification, eq. 8
     densify_opacity: float = 0.98  # tau_o1 (paper)
@@ -119,7 +124,7 @@ class MapperConfig:
             s = getattr(self, name)
             if s.map_every < 1 or s.keyframe_every < 1 or s.iterations < 0:
                 raise InvalidInputError(f"MapperConfig.{name} needs map_every, keyframe_every >= 1, got {s}")
-        for name in ("pixel_stride", "mask_downscale"):
+        for name in ("pixel_stride", "mask_downscale", "train_downscale"):
             if getattr(self, name) < 1:
                 raise InvalidInputError(f"MapperConfig.{name} must be >= 1, got {getattr(self, name)}")
         if not 0.0 < self.init_opacity < 1.0:

@@ -69,6 +69,19 @@ def _as_pose(pose) -> np.ndarray:
     return pose
 
 
+def downsample_observation(rgb: torch.Tensor, depth: torch.Tensor,
+                           d: int) -> tuple[torch.Tensor, torch.Tensor]:
+    """Average d x d blocks (the image of a camera with K[:2] / d): colour is the block mean, depth the
+    block mean where every pixel of the block is valid, else 0 (invalid)."""
+    if d == 1:
+        return rgb, depth
+    h, w = depth.shape[0] // d, depth.shape[1] // d
+    rgb = rgb[: h * d, : w * d].reshape(h, d, w, d, 3).mean(dim=(1, 3))
+    blocks = depth[: h * d, : w * d].reshape(h, d, w, d)
+    all_valid = (blocks > 0).all(dim=3).all(dim=1)
+    return rgb, torch.where(all_valid, blocks.mean(dim=(1, 3)), depth.new_zeros(()))
+
+
 def _blank_render(width: int, height: int):
     """What rendering an empty map gives: all zeros (no colour, depth or opacity)."""
     return {"rgb": torch.zeros(height, width, 3), "depth": torch.zeros(height, width),
@@ -188,6 +201,7 @@ class Mapper:
         K = self.K.copy()
         K[:2] /= d
         out = self._render(pose, K, w, h)
+
         def upsample(t: torch.Tensor) -> torch.Tensor:
             return t.repeat_interleave(d, 0).repeat_interleave(d, 1)[: self.height, : self.width]
 
@@ -207,9 +221,14 @@ class Mapper:
         return rgb, torch.from_numpy(kf.depth).to(self.device), kf.pose
 
     def _optimize_view(self, view) -> float:
-        """One Adam iteration on one view; a non-finite loss is skipped (the map stays as it was)."""
+        """One Adam iteration on one view (at 1/``train_downscale`` resolution); a non-finite loss is
+        skipped (the map stays as it was)."""
         obs_rgb, obs_depth, pose = view
-        out = self._render(pose, self.K, self.width, self.height)
+        d = self.config.train_downscale
+        obs_rgb, obs_depth = downsample_observation(obs_rgb, obs_depth, d)
+        K = self.K.copy()
+        K[:2] /= d
+        out = self._render(pose, K, obs_depth.shape[1], obs_depth.shape[0])
         terms = mapping_loss(out.rgb, out.depth, obs_rgb, obs_depth, self.config)
         if not torch.isfinite(terms.total):
             warnings.warn("mapper: non-finite loss, optimisation step skipped", stacklevel=3)
