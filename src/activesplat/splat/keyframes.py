@@ -44,7 +44,7 @@ def overlap_fractions(points: np.ndarray, poses: np.ndarray, K: np.ndarray, widt
     if len(points) == 0 or len(poses) == 0:
         return np.zeros(len(poses))
     rel = points[None, :, :] - poses[:, None, :3, 3]  # (M,P,3)
-    cam = np.einsum("mpi,mij->mpj", rel, poses[:, :3, :3])  # world -> camera: R^T (p - t)
+    cam = np.matmul(rel, poses[:, :3, :3])  # world -> camera: R^T (p - t), batched over cameras
     z = cam[..., 2]
     safe_z = np.where(z > 1e-6, z, 1.0)
     u = K[0, 0] * cam[..., 0] / safe_z + K[0, 2]
