@@ -43,8 +43,10 @@ def overlap_fractions(points: np.ndarray, poses: np.ndarray, K: np.ndarray, widt
     poses = np.asarray(poses, dtype=np.float64).reshape(-1, 4, 4)
     if len(points) == 0 or len(poses) == 0:
         return np.zeros(len(poses))
-    rel = points[None, :, :] - poses[:, None, :3, 3]  # (M,P,3)
-    cam = np.matmul(rel, poses[:, :3, :3])  # world -> camera: R^T (p - t), batched over cameras
+    rot = poses[:, :3, :3]  # world -> camera: R^T (p - t) = p R - t R, one BLAS call for all cameras
+    offset = np.einsum("mi,mij->mj", poses[:, :3, 3], rot)  # (M,3)
+    cam = (points @ rot.transpose(1, 0, 2).reshape(3, -1)).reshape(len(points), -1, 3).transpose(1, 0, 2)
+    cam = cam - offset[:, None, :]  # (M,P,3)
     z = cam[..., 2]
     safe_z = np.where(z > 1e-6, z, 1.0)
     u = K[0, 0] * cam[..., 0] / safe_z + K[0, 2]
