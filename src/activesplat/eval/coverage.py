@@ -4,8 +4,7 @@ These measure the *observed sensor data*, not the map: after the reset and after
 ground-truth depth (at 128 x 128) is back-projected into world points; 200,000 points sampled (seeded) on
 the full ground-truth mesh keep the running minimum distance to any frame's points, initialised to 1 m.
 completion = mean of that minimum (cm); completion ratio = share below 5 cm. The uncapped variant keeps
-the true minimum (infinite until something is observed within range, reported over the points that were
-observed at all as well as over all points when every point has a finite distance).
+the true minimum distance (None until anything has been observed).
 """
 
 from __future__ import annotations
@@ -43,6 +42,12 @@ def backproject(depth: np.ndarray, pose: np.ndarray, K: np.ndarray) -> np.ndarra
     return cam @ pose[:3, :3].T + pose[:3, 3]
 
 
+def _voxel_keys(pts: np.ndarray, size: float) -> np.ndarray:
+    """One int64 per voxel of `size` (21 bits per axis: +-10 km at 1 cm)."""
+    v = np.floor(pts / size).astype(np.int64) + (1 << 20)
+    return (v[:, 0] << 42) | (v[:, 1] << 21) | v[:, 2]
+
+
 class CoverageAccumulator:
     """Running minimum distance from each ground-truth point to everything observed so far.
 
@@ -53,9 +58,10 @@ class CoverageAccumulator:
     def __init__(self, gt_points: np.ndarray, cfg: CoverageConfig | None = None):
         self.cfg = cfg or CoverageConfig()
         self.gt = np.asarray(gt_points, np.float64)
-        self._tree_gt = None
         self.min_dist = np.full(len(self.gt), np.inf)
         self._pending: list[np.ndarray] = []
+        self._voxels = np.zeros(0, np.int64)
+        self._thinned: list[np.ndarray] = []
         self.frames = 0
 
     def add_frame(self, depth: np.ndarray, pose: np.ndarray, K: np.ndarray) -> None:
@@ -72,19 +78,47 @@ class CoverageAccumulator:
             return
         pts = np.concatenate(self._pending)
         self._pending = []
-        dist, _ = cKDTree(pts).query(self.gt, k=1, workers=-1)
-        np.minimum(self.min_dist, dist, out=self.min_dist)
+        # Exact within the cap: only GT points within the cap of the batch's bounding box can get closer
+        # than the cap, and a bounded search returns inf beyond it.
+        cap = self.cfg.cap_m
+        lo, hi = pts.min(axis=0) - cap, pts.max(axis=0) + cap
+        near = np.flatnonzero(np.all((self.gt >= lo) & (self.gt <= hi), axis=1))
+        if len(near):
+            dist, _ = cKDTree(pts).query(self.gt[near], k=1, distance_upper_bound=cap, workers=-1)
+            self.min_dist[near] = np.minimum(self.min_dist[near], dist)
+        self._keep_thinned(pts)
 
-    def metrics(self) -> dict:
-        """completion_ratio_pct, completion_cm (capped at 1 m), completion_cm_uncapped and helpers."""
+    def _keep_thinned(self, pts: np.ndarray) -> None:
+        """One observed point per 1 cm voxel, for the uncapped distances beyond the cap."""
+        keys = _voxel_keys(pts, 0.01)
+        keys, first = np.unique(keys, return_index=True)
+        fresh = ~np.isin(keys, self._voxels, assume_unique=True)
+        if fresh.any():
+            self._voxels = np.union1d(self._voxels, keys[fresh])
+            self._thinned.append(pts[first[fresh]])
+
+    def _uncapped(self) -> np.ndarray:
+        """True minimum distances: exact below the cap; beyond it, measured against the observed points
+        thinned to one per 1 cm voxel (error < 0.9 cm on distances over 1 m)."""
+        out = self.min_dist.copy()
+        far = ~(out < self.cfg.cap_m)
+        if far.any() and self._thinned:
+            dist, _ = cKDTree(np.concatenate(self._thinned)).query(self.gt[far], k=1, workers=-1)
+            out[far] = dist
+        return out
+
+    def metrics(self, uncapped: bool = True) -> dict:
+        """completion_ratio_pct, completion_cm (capped at 1 m), completion_cm_uncapped (None until something
+        was observed) and helpers. `uncapped=False` skips the (slower) uncapped distances."""
         self.flush()
         capped = np.minimum(self.min_dist, self.cfg.cap_m)
-        finite = np.isfinite(self.min_dist)
+        uncapped = self._uncapped() if uncapped else None
         return {
             "completion_ratio_pct": float(100.0 * np.mean(capped < self.cfg.threshold_m)),
             "completion_cm": float(100.0 * capped.mean()),
-            "completion_cm_uncapped": float(100.0 * self.min_dist[finite].mean()) if finite.any() else None,
-            "observed_gt_share_pct": float(100.0 * finite.mean()),
+            "completion_cm_uncapped": (float(100.0 * uncapped.mean())
+                                       if uncapped is not None and np.isfinite(uncapped).all() else None),
+            "within_cap_pct": float(100.0 * np.mean(self.min_dist < self.cfg.cap_m)),
             "n_gt_points": len(self.gt),
             "frames": self.frames,
         }

@@ -1,1 +1,34 @@
-"""Simulated robot: scenes (procedural houses, mesh loading), Embree RGB-D sensor, agent and actions."""
+"""Simulated robot: scenes (procedural houses, mesh loading), Embree RGB-D sensor, agent and actions.
+
+```python
+from activesplat.sim import load_scene, Simulator
+scene = load_scene("small-0")
+sim = Simulator(scene, seed=0)
+obs = sim.reset()
+obs = sim.step("move_forward")
+```
+"""
+
+from activesplat.sim.config import SimConfig
+from activesplat.sim.house import HouseConfig
+from activesplat.sim.navmap import NavMap
+from activesplat.sim.scene import Scene, box_room, describe_builtin_scenes, load_scene
+from activesplat.sim.sensor import RGBDSensor, intrinsics
+from activesplat.sim.simulator import ACTIONS, AgentState, Observation, Simulator, camera_pose
+
+__all__ = [
+    "ACTIONS",
+    "AgentState",
+    "HouseConfig",
+    "NavMap",
+    "Observation",
+    "RGBDSensor",
+    "Scene",
+    "SimConfig",
+    "Simulator",
+    "box_room",
+    "camera_pose",
+    "describe_builtin_scenes",
+    "intrinsics",
+    "load_scene",
+]

@@ -60,6 +60,12 @@ def safe_edges(workspace: Workspace, vertices: np.ndarray, ridges: np.ndarray, c
     edges = np.unique(np.sort(edges[edges[:, 0] != edges[:, 1]], axis=1), axis=0)
     if len(edges) == 0:
         return merged, edges
+    # Cheap first: both vertices clear (this also drops the far-away vertices qhull places outside the
+    # workspace, whose ridges would be millions of samples long); then the whole ridge.
+    vertex_ok = workspace.clearance_at(merged) > cfg.agent_radius
+    edges = edges[vertex_ok[edges[:, 0]] & vertex_ok[edges[:, 1]]]
+    if len(edges) == 0:
+        return merged, edges
     ok = workspace.segments_clearance(merged[edges[:, 0]], merged[edges[:, 1]]) > cfg.agent_radius
     return merged, edges[ok]
 

@@ -1,0 +1,122 @@
+"""The episode folder (DESIGN.md): what an exploration leaves behind, written so that a crash or Ctrl-C
+leaves a consistent, evaluable partial episode.
+
+- ``episode.json``  scene, seed, policy, start pose, configuration (written first, atomically)
+- ``actions.txt``   one action name per line, appended and flushed as actions happen
+- ``poses.txt``     one line per observation including the reset: step index then the 16 numbers of the
+                    4x4 camera-to-world matrix, row-major (OpenCV axes, world frame of the scene)
+- ``metrics.json``  written only when the run completes; its presence marks a complete episode
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from activesplat.errors import EpisodeError
+
+EPISODE_FILES = ("episode.json", "actions.txt", "poses.txt", "metrics.json", "gaussians.ply", "topdown.png",
+                 "completion.png", "keyframes.npz", "mapper.json")
+
+
+def write_json_atomic(path: Path, data: dict) -> None:
+    """Write JSON through a temporary file and a rename, so readers never see half a file."""
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    tmp.write_text(json.dumps(data, indent=2))
+    os.replace(tmp, path)
+
+
+def _pose_line(step: int, pose: np.ndarray) -> str:
+    return f"{step} " + " ".join(f"{v:.9g}" for v in np.asarray(pose, dtype=np.float64).reshape(16)) + "\n"
+
+
+class EpisodeWriter:
+    """Appends actions and poses as they happen; `finish(metrics)` marks the episode complete."""
+
+    def __init__(self, out_dir: str | Path, overwrite: bool = False):
+        self.dir = Path(out_dir)
+        if self.dir.exists() and not self.dir.is_dir():
+            raise EpisodeError(f"output path {self.dir} exists and is not a folder")
+        if (self.dir / "metrics.json").exists() and not overwrite:
+            raise EpisodeError(f"{self.dir} already holds a complete episode; pass --overwrite to replace it")
+        self.dir.mkdir(parents=True, exist_ok=True)
+        for name in EPISODE_FILES:
+            (self.dir / name).unlink(missing_ok=True)
+        self._actions = None
+        self._poses = None
+
+    def start(self, meta: dict, pose: np.ndarray) -> None:
+        """Write episode.json and the reset pose (step 0)."""
+        write_json_atomic(self.dir / "episode.json", meta)
+        self._actions = open(self.dir / "actions.txt", "w", encoding="utf-8")  # noqa: SIM115
+        self._poses = open(self.dir / "poses.txt", "w", encoding="utf-8")  # noqa: SIM115
+        self._poses.write(_pose_line(0, pose))
+        self._poses.flush()
+
+    def record(self, step: int, action: str, pose: np.ndarray) -> None:
+        """One action and the pose it led to (step = number of actions so far)."""
+        self._actions.write(action + "\n")
+        self._poses.write(_pose_line(step, pose))
+        self._actions.flush()
+        self._poses.flush()
+
+    def close(self) -> None:
+        for f in (self._actions, self._poses):
+            if f is not None and not f.closed:
+                f.close()
+
+    def finish(self, metrics: dict) -> None:
+        self.close()
+        write_json_atomic(self.dir / "metrics.json", metrics)
+
+
+@dataclass
+class Episode:
+    """An episode folder read back: the consistent prefix of what was recorded."""
+
+    dir: Path
+    meta: dict
+    actions: list[str]
+    poses: np.ndarray
+    """(len(actions) + 1, 4, 4) camera-to-world poses, the reset first."""
+    complete: bool
+
+    @property
+    def start_pose(self) -> np.ndarray:
+        return np.asarray(self.meta["start_pose"], dtype=np.float64)
+
+
+def read_episode(path: str | Path) -> Episode:
+    """Read an episode folder; a partial (interrupted) one is cut to its last complete step."""
+    d = Path(path)
+    if not d.is_dir():
+        raise EpisodeError(f"{d} is not a folder")
+    meta_path = d / "episode.json"
+    if not meta_path.exists() or not (d / "actions.txt").exists():
+        raise EpisodeError(f"{d} is not an episode folder (no episode.json / actions.txt)")
+    try:
+        meta = json.loads(meta_path.read_text())
+        start = np.asarray(meta["start_pose"], dtype=np.float64).reshape(4, 4)
+    except (ValueError, KeyError, TypeError) as exc:
+        raise EpisodeError(f"{meta_path} is unreadable: {exc}") from exc
+    text = (d / "actions.txt").read_text()
+    lines = text.split("\n")
+    actions = [a.strip() for a in (lines if text.endswith("\n") else lines[:-1]) if a.strip()]
+    poses = [start]
+    if (d / "poses.txt").exists():
+        poses = []
+        for line in (d / "poses.txt").read_text().splitlines():
+            parts = line.split()
+            if len(parts) != 17:
+                break  # a line cut by a crash
+            try:
+                poses.append(np.array([float(v) for v in parts[1:]]).reshape(4, 4))
+            except ValueError:
+                break
+        poses = poses or [start]
+    n = min(len(actions), len(poses) - 1)
+    return Episode(d, meta, actions[:n], np.stack(poses[: n + 1]), (d / "metrics.json").exists())

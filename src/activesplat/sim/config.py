@@ -1,0 +1,48 @@
+"""Documented constants of the simulated robot (REFERENCE.md section 1: the Habitat protocol)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class SimConfig:
+    """Sensor, agent and action settings. Defaults follow REFERENCE.md section 1 (Habitat protocol)."""
+
+    width: int = 256
+    """Image width in pixels (REFERENCE 1: RGB-D 256x256; the paper's refinement uses 512x512)."""
+    height: int = 256
+    """Image height in pixels (REFERENCE 1)."""
+    hfov_deg: float = 90.0
+    """Horizontal field of view; square pixels, so vfov is 90 deg at 256x256 too (REFERENCE 1)."""
+    sensor_height: float = 1.25
+    """Camera height above the floor in metres (REFERENCE 1)."""
+    max_depth: float = 10.0
+    """Depth range 0-10 m; farther hits and misses read 0 (REFERENCE 1)."""
+    agent_radius: float = 0.1
+    """Agent cylinder radius in metres (REFERENCE 1)."""
+    agent_height: float = 1.5
+    """Agent cylinder height in metres (REFERENCE 1)."""
+    forward_step: float = 0.065
+    """MOVE_FORWARD distance in metres (REFERENCE 1)."""
+    turn_deg: float = 10.0
+    """TURN_LEFT / TURN_RIGHT angle (REFERENCE 1)."""
+    look_deg: float = 15.0
+    """LOOK_UP / LOOK_DOWN angle (REFERENCE 1)."""
+    pitch_min_deg: float = -45.0
+    """Lowest pitch; a LOOK_DOWN beyond it is a no-op that still costs a step. REFERENCE 1 (bootstrap
+    pitches between 0 and -45 deg) and REFERENCE 5 (on-the-spot rotations within +-45 deg)."""
+    pitch_max_deg: float = 45.0
+    """Highest pitch; a LOOK_UP beyond it is a no-op that still costs a step (REFERENCE 5: +-45 deg)."""
+    step_margin: float = 0.1
+    """Geometry lower than this above the floor does not block the agent (thresholds, rugs). Our
+    choice; Habitat's navmesh climbs 0.2 m."""
+    nav_cell: float = 0.025
+    """Navigability grid cell in metres. A cell is navigable when its clearance exceeds
+    agent_radius + one cell diagonal, so the continuous camera position always keeps agent_radius."""
+    ambient: float = 0.55
+    """View-independent shading: colour = albedo * (ambient + (1 - ambient) * |n . light|)."""
+    light_dir: tuple[float, float, float] = (0.3, 0.8, 0.5)
+    """Fixed world-space directional light (normalised in the sensor); no headlight, no specular, so
+    colours do not depend on the viewpoint."""
+

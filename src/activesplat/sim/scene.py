@@ -1,0 +1,227 @@
+"""Scenes: built-in procedural houses, user meshes (.glb/.gltf/.ply/.obj) and a box room for tests."""
+
+from __future__ import annotations
+
+import re
+from functools import cached_property
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+from activesplat.errors import InvalidInputError, SceneError, SceneNotFoundError
+from activesplat.sim.config import SimConfig
+from activesplat.sim.house import HouseConfig, house_mesh, make_layout
+from activesplat.sim.navmap import NavMap, build_navmap
+from activesplat.sim.sensor import RGBDSensor
+from activesplat.sim.textures import build_atlas
+
+MESH_SUFFIXES = (".glb", ".gltf", ".ply", ".obj")
+BUILTIN_PATTERN = re.compile(r"^(small|medium)-(\d+)$")
+DEFAULT_STEPS = {"small": 1000, "medium": 2000, "file": 1000}
+"""Step budgets (REFERENCE 1: 1000 actions for small scenes, 2000 for medium; 1000 for user meshes)."""
+_MAX_FURNITURE_TRIES = 6
+_MAX_SECONDARY_AREA = 0.05
+"""Largest navigable area (m^2) allowed outside the main component of a built-in house."""
+
+
+class Scene:
+    """A triangle mesh in the world frame (y up, metres) with its floor height, navigability map
+    and Embree sensor. `rooms` is the room count of built-in houses (None for user meshes)."""
+
+    def __init__(self, name: str, mesh: trimesh.Trimesh, floor_height: float, default_steps: int,
+                 rooms: int | None = None):
+        self.name = name
+        self.mesh = mesh
+        self.floor_height = float(floor_height)
+        self.default_steps = int(default_steps)
+        self.rooms = rooms
+        self._navmaps: dict[tuple, NavMap] = {}
+        self._sensors: dict[SimConfig, RGBDSensor] = {}
+
+    def __repr__(self) -> str:
+        size = self.bounds[1] - self.bounds[0]
+        return f"Scene({self.name!r}, {len(self.mesh.faces)} faces, {size[0]:.1f} x {size[2]:.1f} m)"
+
+    @cached_property
+    def bounds(self) -> np.ndarray:
+        """(2, 3) min and max corner of the mesh."""
+        return np.asarray(self.mesh.bounds, dtype=np.float64)
+
+    @property
+    def navmap(self) -> NavMap:
+        """Navigability map for the default agent (SimConfig())."""
+        return self.navmap_for(SimConfig())
+
+    def navmap_for(self, config: SimConfig) -> NavMap:
+        """Navigability map for an agent's radius, height, step margin and grid cell (cached)."""
+        key = (config.agent_radius, config.agent_height, config.step_margin, config.nav_cell)
+        if key not in self._navmaps:
+            try:
+                navmap = build_navmap(self.mesh.vertices, self.mesh.faces, self.floor_height, config)
+            except ValueError as exc:
+                raise SceneError(f"scene {self.name!r} has no walkable floor ({exc})") from None
+            if not navmap.largest.any():
+                raise SceneError(f"scene {self.name!r} has no walkable floor: no place at floor height "
+                                 f"{self.floor_height:.2f} m fits the agent (radius {config.agent_radius} m)")
+            self._navmaps[key] = navmap
+        return self._navmaps[key]
+
+    def sensor_for(self, config: SimConfig) -> RGBDSensor:
+        """Embree sensor of this mesh (cached per config)."""
+        if config not in self._sensors:
+            self._sensors[config] = RGBDSensor(self.mesh, config)
+        return self._sensors[config]
+
+    def export(self, path) -> Path:
+        """Write the exact simulator mesh (world frame, y up, texture) as binary glTF (.glb)."""
+        path = Path(path)
+        if path.suffix.lower() != ".glb":
+            raise InvalidInputError(f"export file must end in .glb: {path}")
+        path.parent.mkdir(parents=True, exist_ok=True)
+        self.mesh.export(path, file_type="glb")
+        return path
+
+    def sample_surface(self, n: int, seed: int = 0) -> np.ndarray:
+        """(n, 3) points, uniform by area over the whole mesh, reproducible per seed."""
+        rng = np.random.default_rng(seed)
+        tri = np.asarray(self.mesh.triangles, dtype=np.float64)
+        area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+        face = rng.choice(len(tri), size=n, p=area / area.sum())
+        a, b = rng.random(n), rng.random(n)
+        flip = a + b > 1.0
+        a[flip], b[flip] = 1.0 - a[flip], 1.0 - b[flip]
+        t = tri[face]
+        return t[:, 0] + a[:, None] * (t[:, 1] - t[:, 0]) + b[:, None] * (t[:, 2] - t[:, 0])
+
+
+# --------------------------------------------------------------------------- built-in houses
+def build_house(name: str, config: HouseConfig = HouseConfig()) -> Scene:
+    """`small-<seed>` or `medium-<seed>`; refurnishes (new furniture seed) until the navigable space
+    is one component (secondary pockets below _MAX_SECONDARY_AREA are tolerated)."""
+    match = BUILTIN_PATTERN.match(name)
+    if match is None:
+        raise SceneError(f"unknown built-in scene {name!r}: expected small-<seed> or medium-<seed>")
+    kind, seed = match.group(1), int(match.group(2))
+    for attempt in range(_MAX_FURNITURE_TRIES):
+        house = make_layout(name, seed, config, furniture_seed=attempt)
+        scene = Scene(name, house_mesh(house, seed, config), 0.0, DEFAULT_STEPS[kind], rooms=house.n_rooms)
+        navmap = scene.navmap
+        secondary = (navmap.grid & ~navmap.largest).sum() * navmap.resolution**2
+        if secondary <= _MAX_SECONDARY_AREA:
+            return scene
+    raise AssertionError(f"{name}: free space stayed disconnected after {_MAX_FURNITURE_TRIES} tries")
+
+
+def box_room(width: float = 4.0, depth: float = 3.0, height: float = 2.6, textured: bool = True) -> Scene:
+    """A closed box room x in [0, width], y in [0, height], z in [0, depth] (all faces inward);
+    textured with plaster/wood, or one flat colour per face when textured=False."""
+    from activesplat.sim.geometry import MeshBuilder
+
+    for value in (width, depth, height):
+        if not np.isfinite(value) or value <= 0.5:
+            raise InvalidInputError(f"box_room sizes must be finite and > 0.5 m, got {value}")
+    builder = MeshBuilder(build_atlas(0))
+    lo, hi = np.zeros(3), np.array([width, height, depth])
+    builder.add_box(lo, [width, 0.0, depth], "floor_wood", faces=("+y",))
+    builder.add_box([0.0, height, 0.0], hi, "ceiling", faces=("-y",))
+    for face, material in (("+x", "wall_a"), ("-x", "wall_b"), ("+z", "wall_c"), ("-z", "wall_d")):
+        axis = {"x": 0, "z": 2}[face[1]]
+        box_lo, box_hi = lo.copy(), hi.copy()
+        if face[0] == "+":  # the wall at the low end faces +axis (into the room)
+            box_hi[axis] = 0.0
+        else:
+            box_lo[axis] = hi[axis]
+        builder.add_box(box_lo, box_hi, material, faces=(face,))
+    mesh = builder.build()
+    if not textured:
+        colours = np.array([[200, 170, 120], [230, 230, 225], [180, 90, 80], [90, 150, 200],
+                            [120, 180, 110], [210, 200, 90]], dtype=np.uint8)
+        normals = np.round(mesh.face_normals).astype(int)
+        which = np.argmax(np.abs(normals), axis=1) * 2 + (normals.max(axis=1) > 0)
+        mesh = trimesh.Trimesh(mesh.vertices, mesh.faces, face_colors=colours[which], process=False)
+    name = f"box_room-{width:g}x{depth:g}x{height:g}"
+    return Scene(name, mesh, 0.0, DEFAULT_STEPS["file"])
+
+
+# --------------------------------------------------------------------------- user meshes
+def _read_mesh(path: Path) -> trimesh.Trimesh:
+    try:
+        mesh = trimesh.load(path, force="mesh", process=False)
+    except Exception as exc:  # trimesh raises many types on corrupt files
+        raise SceneError(f"cannot read mesh file {path}: {type(exc).__name__}: {exc}") from None
+    if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
+        raise SceneError(f"mesh file {path} contains no triangles")
+    if not np.all(np.isfinite(mesh.vertices)):
+        raise SceneError(f"mesh file {path} has non-finite vertex coordinates")
+    return mesh
+
+
+def estimate_floor_height(mesh: trimesh.Trimesh, bin_size: float = 0.05) -> float:
+    """y of the walkable floor: the height bin holding the largest area of upward-facing faces
+    (face normal within ~25 deg of +y); falls back to |n_y| for meshes with flipped winding."""
+    normals, areas = mesh.face_normals, mesh.area_faces
+    heights = mesh.triangles_center[:, 1]
+    for upward in (normals[:, 1] > 0.9, np.abs(normals[:, 1]) > 0.9):
+        if areas[upward].sum() > 0:
+            break
+    else:
+        raise SceneError("mesh has no horizontal faces, so no walkable floor")
+    h, a = heights[upward], areas[upward]
+    bins = np.floor((h - h.min()) / bin_size).astype(np.int64)
+    best = int(np.argmax(np.bincount(bins, weights=a)))
+    in_bin = bins == best
+    order = np.argsort(h[in_bin])
+    cum = np.cumsum(a[in_bin][order])
+    return float(h[in_bin][order][np.searchsorted(cum, 0.5 * cum[-1])])
+
+
+def load_mesh_scene(path, z_up: bool = False) -> Scene:
+    """A user mesh; z_up files are rotated into the y-up world frame ((x, y, z) -> (x, z, -y))."""
+    path = Path(path)
+    if not path.is_file():
+        raise SceneNotFoundError(f"scene file not found: {path}")
+    if path.suffix.lower() not in MESH_SUFFIXES:
+        raise SceneError(f"unsupported mesh format {path.suffix!r} for {path}: use {', '.join(MESH_SUFFIXES)}")
+    mesh = _read_mesh(path)
+    if z_up:
+        mesh.apply_transform(trimesh.transformations.rotation_matrix(-np.pi / 2, [1, 0, 0]))
+    try:
+        floor = estimate_floor_height(mesh)
+    except SceneError as exc:
+        raise SceneError(f"{path}: {exc}") from None
+    scene = Scene(str(path), mesh, floor, DEFAULT_STEPS["file"])
+    scene.navmap  # noqa: B018 - raises SceneError when nothing is walkable
+    return scene
+
+
+def load_scene(name, z_up: bool = False) -> Scene:
+    """A built-in house (`small-<seed>`, `medium-<seed>`) or a mesh file (.glb/.gltf/.ply/.obj)."""
+    text = str(name)
+    if BUILTIN_PATTERN.match(text):
+        return build_house(text)
+    if Path(text).suffix.lower() in MESH_SUFFIXES or Path(text).exists() or "/" in text:
+        return load_mesh_scene(text, z_up=z_up)
+    raise SceneError(f"unknown scene {text!r}: expected small-<seed>, medium-<seed> or a mesh file "
+                     f"({', '.join(MESH_SUFFIXES)})")
+
+
+def describe_builtin_scenes(seeds=(0, 1, 2)) -> str:
+    """Text for `activesplat scenes list`: name patterns and a few examples with room count and size."""
+    config = HouseConfig()
+    lines = ["Built-in procedural houses (deterministic per seed; any integer seed works):",
+             f"  small-<seed>   {config.small_rooms[0]}-{config.small_rooms[1]} rooms, "
+             f"{DEFAULT_STEPS['small']} steps",
+             f"  medium-<seed>  {config.medium_rooms[0]}-{config.medium_rooms[1]} rooms + corridor, "
+             f"{DEFAULT_STEPS['medium']} steps",
+             "  or a mesh file: .glb .gltf .ply .obj (y up; --z-up for z-up files)", "",
+             f"{'name':<12}{'rooms':>6}{'size (m)':>14}{'floor (m^2)':>13}"]
+    for kind in ("small", "medium"):
+        for seed in seeds:
+            house = make_layout(f"{kind}-{seed}", seed, config)
+            xs = [r.x1 for r in house.rooms]
+            zs = [r.z1 for r in house.rooms]
+            area = sum(r.area for r in house.rooms)
+            size = f"{max(xs):.1f} x {max(zs):.1f}"
+            lines.append(f"{kind + '-' + str(seed):<12}{house.n_rooms:>6}{size:>14}{area:>13.1f}")
+    return "\n".join(lines)
