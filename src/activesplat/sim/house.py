@@ -224,7 +224,8 @@ def _box_along(axis: str, coord: float, lo: float, hi: float, t: float, y0: floa
 
 # --------------------------------------------------------------------------- furniture
 def _legs(w, d, h, leg=0.05):
-    return [((x, 0.0, z), (x + leg, h, z + leg)) for x in (0.02, w - leg - 0.02) for z in (0.02, d - leg - 0.02)]
+    corners = [(x, z) for x in (0.02, w - leg - 0.02) for z in (0.02, d - leg - 0.02)]
+    return [((x, 0.0, z), (x + leg, h, z + leg)) for x, z in corners]
 
 
 def _table(rng):
@@ -234,13 +235,14 @@ def _table(rng):
 
 def _desk(rng):
     w, d = rng.uniform(1.0, 1.4), rng.uniform(0.55, 0.7)
-    return w, d, [*_legs(w, d, 0.71), ((0, 0.71, 0), (w, 0.75, d)), ((w - 0.42, 0.0, 0), (w - 0.02, 0.71, d))], \
-        "furniture_dark"
+    drawers = ((w - 0.42, 0.0, 0), (w - 0.02, 0.71, d))
+    return w, d, [*_legs(w, d, 0.71), ((0, 0.71, 0), (w, 0.75, d)), drawers], "furniture_dark"
 
 
 def _chair(rng):
     w = d = 0.45
-    return w, d, [*_legs(w, d, 0.44), ((0, 0.44, 0), (w, 0.48, d)), ((0, 0.48, 0), (w, 0.9, 0.05))], "furniture_wood"
+    seat, back = ((0, 0.44, 0), (w, 0.48, d)), ((0, 0.48, 0), (w, 0.9, 0.05))
+    return w, d, [*_legs(w, d, 0.44), seat, back], "furniture_wood"
 
 
 def _shelf(rng):
@@ -293,7 +295,8 @@ def _furniture_boxes(rng, room: Room, make, t: float):
     tables; returns its world boxes and footprint (x0, z0, x1, z1), or None if it does not fit."""
     w, d, parts, material = make(rng)
     material = rng.choice(_MATERIAL_OVERRIDES.get(material, (material,)))
-    x0, z0, x1, z1 = room.x0 + t / 2 + 0.02, room.z0 + t / 2 + 0.02, room.x1 - t / 2 - 0.02, room.z1 - t / 2 - 0.02
+    inset = t / 2 + 0.02
+    x0, z0, x1, z1 = room.x0 + inset, room.z0 + inset, room.x1 - inset, room.z1 - inset
     side = int(rng.integers(0, 4))
     along = (x1 - x0) if side in (0, 1) else (z1 - z0)
     across = (z1 - z0) if side in (0, 1) else (x1 - x0)
@@ -333,7 +336,8 @@ class _FreeSpace:
         for r in house.rooms:
             self.set_rect((r.x0 + t / 2, r.z0 + t / 2, r.x1 - t / 2, r.z1 - t / 2), False)
         for d in house.doors:
-            lo, hi = _box_along(d.axis, d.coord, d.centre - d.width / 2, d.centre + d.width / 2, t + 0.02, 0, 1)
+            lo, hi = _box_along(d.axis, d.coord, d.centre - d.width / 2, d.centre + d.width / 2,
+                                t + 0.02, 0, 1)
             self.set_rect((lo[0], lo[2], hi[0], hi[2]), False)
 
     def _slices(self, rect):
@@ -400,7 +404,8 @@ def make_layout(name: str, seed: int, cfg: HouseConfig, furniture_seed: int = 0)
         r.wall = str(rng.choice(WALL_MATERIALS))
         r.floor = "floor_tiles" if r.kind == "corridor" else str(rng.choice(FLOOR_MATERIALS))
     doors = _place_doors(rng, rooms, cfg)
-    house = House(name=name, rooms=rooms, doors=doors, ceiling=float(np.round(rng.uniform(*cfg.ceiling_range), 2)))
+    ceiling = float(np.round(rng.uniform(*cfg.ceiling_range), 2))
+    house = House(name=name, rooms=rooms, doors=doors, ceiling=ceiling)
     furnish(house, np.random.default_rng([seed, 2, furniture_seed]), cfg)
     return house
 
@@ -425,7 +430,8 @@ def house_mesh(house: House, atlas_seed: int, cfg: HouseConfig):
             b = b + t / 2 if b == hi else b
             builder.add_box(*_box_along(axis, coord, a, b, t, 0.0, h), wall_material, faces=side_faces)
     for d in house.doors:
-        lo, hi = _box_along(d.axis, d.coord, d.centre - d.width / 2, d.centre + d.width / 2, t, cfg.door_height, h)
+        half = d.width / 2
+        lo, hi = _box_along(d.axis, d.coord, d.centre - half, d.centre + half, t, cfg.door_height, h)
         broad = ("+z", "-z") if d.axis == "x" else ("+x", "-x")
         builder.add_box(lo, hi, wall_material, faces=("-y", *broad))
     for lo, hi, material in house.boxes:

@@ -95,8 +95,9 @@ def sample_triangles(triangles: np.ndarray, spacing: float):
 
 
 def build_navmap(vertices: np.ndarray, faces: np.ndarray, floor_height: float,
-                 config: SimConfig = SimConfig()) -> NavMap:
+                 config: SimConfig | None = None) -> NavMap:
     """Rasterise floor and obstacle-band samples of the mesh, then threshold the clearance."""
+    config = config or SimConfig()
     cell = config.nav_cell
     triangles = np.asarray(vertices, dtype=np.float64)[np.asarray(faces)]
     normals = np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0])

@@ -96,9 +96,10 @@ class Scene:
 
 
 # --------------------------------------------------------------------------- built-in houses
-def build_house(name: str, config: HouseConfig = HouseConfig()) -> Scene:
+def build_house(name: str, config: HouseConfig | None = None) -> Scene:
     """`small-<seed>` or `medium-<seed>`; refurnishes (new furniture seed) until the navigable space
     is one component (secondary pockets below _MAX_SECONDARY_AREA are tolerated)."""
+    config = config or HouseConfig()
     match = BUILTIN_PATTERN.match(name)
     if match is None:
         raise SceneError(f"unknown built-in scene {name!r}: expected small-<seed> or medium-<seed>")
@@ -182,7 +183,8 @@ def load_mesh_scene(path, z_up: bool = False) -> Scene:
     if not path.is_file():
         raise SceneNotFoundError(f"scene file not found: {path}")
     if path.suffix.lower() not in MESH_SUFFIXES:
-        raise SceneError(f"unsupported mesh format {path.suffix!r} for {path}: use {', '.join(MESH_SUFFIXES)}")
+        raise SceneError(f"unsupported mesh format {path.suffix!r} for {path}: "
+                         f"use {', '.join(MESH_SUFFIXES)}")
     mesh = _read_mesh(path)
     if z_up:
         mesh.apply_transform(trimesh.transformations.rotation_matrix(-np.pi / 2, [1, 0, 0]))

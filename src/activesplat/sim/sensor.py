@@ -66,8 +66,8 @@ def surface_colours(mesh: trimesh.Trimesh):
 class RGBDSensor:
     """Ray casts a mesh with Embree; shared by the agent's camera and arbitrary evaluation poses."""
 
-    def __init__(self, mesh: trimesh.Trimesh, config: SimConfig = SimConfig()):
-        self.config = config
+    def __init__(self, mesh: trimesh.Trimesh, config: SimConfig | None = None):
+        self.config = config = config or SimConfig()
         self.vertices = np.ascontiguousarray(mesh.vertices, dtype=np.float32)
         self.faces = np.ascontiguousarray(mesh.faces, dtype=np.int32)
         self._scene = rtcore_scene.EmbreeScene()

@@ -68,10 +68,10 @@ class Simulator:
     pose); every `step(action)` costs one step, blocked moves and pitch-limit no-ops included."""
 
     def __init__(self, scene: Scene, seed: int = 0, start: np.ndarray | None = None,
-                 config: SimConfig = SimConfig()):
+                 config: SimConfig | None = None):
         self.scene = scene
         self.seed = int(seed)
-        self.config = config
+        self.config = config = config or SimConfig()
         self.width, self.height = int(config.width), int(config.height)
         if self.width <= 0 or self.height <= 0 or not 0.0 < config.hfov_deg < 180.0:
             raise InvalidInputError(f"bad sensor size {self.width}x{self.height} or hfov {config.hfov_deg}")

@@ -17,6 +17,10 @@ TILE_METRES = 0.5
 """Surface size one tile covers (TILE_PX / TILE_METRES = 128 px per metre)."""
 ATLAS_TILES = 4
 """The atlas is ATLAS_TILES x ATLAS_TILES tiles."""
+BRIGHTNESS_JITTER = (0.92, 1.08)
+"""Per-scene brightness factor range of each material's base colour."""
+CHANNEL_JITTER = (0.97, 1.03)
+"""Per-channel factor range: small, so near-white materials (ceiling) stay neutral, not pink."""
 
 
 def _noise(rng: np.random.Generator, sigma: float) -> np.ndarray:
@@ -129,7 +133,8 @@ def build_atlas(seed: int) -> Atlas:
     image = np.zeros((size, size, 3), dtype=np.uint8)
     tile_of = {}
     for k, (name, (pattern, base)) in enumerate(MATERIALS.items()):
-        colour = np.clip(np.asarray(base) * rng.uniform(0.9, 1.1, size=3), 0, 1)
+        jitter = rng.uniform(*BRIGHTNESS_JITTER) * rng.uniform(*CHANNEL_JITTER, size=3)
+        colour = np.clip(np.asarray(base) * jitter, 0, 1)
         r, c = (k // ATLAS_TILES) * TILE_PX, (k % ATLAS_TILES) * TILE_PX
         image[r : r + TILE_PX, c : c + TILE_PX] = np.round(pattern(rng, colour) * 255).astype(np.uint8)
         tile_of[name] = k
