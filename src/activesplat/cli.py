@@ -40,6 +40,18 @@ def _cmd_explore(args: argparse.Namespace) -> int:
     return explore_from_args(args)
 
 
+# --------------------------------------------------------------------------- evaluate
+def _cmd_evaluate(args: argparse.Namespace) -> int:
+    from activesplat.eval.evaluate import evaluate_episode
+
+    m = evaluate_episode(args.dir)
+    uncapped = m["completion_cm_uncapped"]
+    print(f"completion ratio {m['completion_ratio_pct']:.2f} %  completion {m['completion_cm']:.2f} cm  "
+          f"(uncapped {'n/a' if uncapped is None else f'{uncapped:.2f}'} cm)  "
+          f"path length {m['path_length_m']:.2f} m  steps {m['steps']}  -> {args.dir}/metrics.json")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="activesplat",
@@ -68,13 +80,23 @@ def build_parser() -> argparse.ArgumentParser:
     p_explore.add_argument("--scene", default="small-0", help="built-in name or mesh file")
     p_explore.add_argument("--steps", type=int, default=None,
                            help="step budget (default: 1000 for small scenes, 2000 for medium)")
-    p_explore.add_argument("--policy", default="activesplat", help="exploration policy")
+    p_explore.add_argument("--policy", default="activesplat",
+                           help="exploration policy: activesplat (default), fbe, random, position, "
+                                "viewpoint, no-hp, visibility-only, hull-only")
     p_explore.add_argument("--seed", type=int, default=0, help="seed of the random start")
     p_explore.add_argument("--out", default=None, help="episode folder (default: runs/SCENE-sSEED)")
     p_explore.add_argument("--overwrite", action="store_true",
                            help="replace an existing complete episode in --out")
     p_explore.add_argument("--z-up", action="store_true", help="the scene mesh file is z-up")
+    p_explore.add_argument("--backend", default="auto", choices=("auto", "numba", "torch", "gsplat"),
+                           help="rasterizer backend (auto: gsplat with CUDA, else numba)")
+    p_explore.add_argument("--no-progress", action="store_true", help="no progress bar")
     p_explore.set_defaults(func=_cmd_explore)
+
+    # evaluate
+    p_eval = sub.add_parser("evaluate", help="recompute completion metrics of an episode from its actions")
+    p_eval.add_argument("dir", help="episode folder")
+    p_eval.set_defaults(func=_cmd_evaluate)
     return parser
 
 

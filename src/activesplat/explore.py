@@ -31,25 +31,27 @@ def _default_out(scene: str, policy: str, seed: int) -> Path:
     return Path("runs") / f"{stem}-{policy}-s{seed}"
 
 
-def run_exploration(scene: str = "small-0", policy: str = "activesplat", steps: int | None = None,
+def run_exploration(scene="small-0", policy: str = "activesplat", steps: int | None = None,
                     seed: int = 0, out: str | Path | None = None, overwrite: bool = False, z_up: bool = False,
                     backend: str = "auto", progress: bool = True, explorer_config=None, mapper_config=None,
                     coverage_config=None, sim_config=None) -> dict:
-    """Explore `scene` with `policy` for `steps` actions and write the episode folder; returns metrics."""
+    """Explore `scene` (a built-in name, a mesh path or a `Scene`) with `policy` for `steps` actions and write
+    the episode folder; returns the metrics (also written to metrics.json)."""
     import torch
 
     from activesplat.eval.coverage import CoverageAccumulator, CoverageConfig
     from activesplat.geometry import intrinsics
     from activesplat.planning.explorer import Timers
     from activesplat.planning.policies import POLICY_NAMES, make_policy
-    from activesplat.sim import SimConfig, Simulator, load_scene
+    from activesplat.sim import Scene, SimConfig, Simulator, load_scene
     from activesplat.splat import Mapper
 
     if policy not in POLICY_NAMES:
         raise InvalidInputError(f"unknown policy {policy!r}; choose one of: {', '.join(POLICY_NAMES)}")
     if steps is not None and steps <= 0:
         raise InvalidInputError(f"--steps must be a positive number of actions, got {steps}")
-    scene_obj = load_scene(scene, z_up=z_up)
+    scene_obj = scene if isinstance(scene, Scene) else load_scene(scene, z_up=z_up)
+    scene = scene_obj.name if isinstance(scene, Scene) else scene
     steps = int(steps or scene_obj.default_steps)
     sim_config = sim_config or SimConfig()
     sim = Simulator(scene_obj, seed=seed, config=sim_config)

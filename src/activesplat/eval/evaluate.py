@@ -1,0 +1,45 @@
+"""`activesplat evaluate DIR`: recompute an episode's completion metrics from its action log alone."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from activesplat.episode import read_episode, write_json_atomic
+from activesplat.errors import EpisodeError
+from activesplat.eval.coverage import CoverageConfig
+from activesplat.eval.replay import replay_coverage
+
+COMPLETION_KEYS = ("completion_ratio_pct", "completion_cm", "completion_cm_uncapped", "within_cap_pct",
+                   "n_gt_points", "path_length_m", "steps")
+
+
+def _sim_config(meta: dict):
+    from activesplat.sim import SimConfig
+
+    saved = meta.get("config", {}).get("sim", {})
+    fields = SimConfig.__dataclass_fields__
+    kwargs = {k: tuple(v) if isinstance(v, list) else v for k, v in saved.items() if k in fields}
+    return SimConfig(**kwargs)
+
+
+def evaluate_episode(path: str | Path, write: bool = True) -> dict:
+    """Replay DIR/actions.txt from the recorded start pose, measure completion (REFERENCE.md section 6) and
+    update DIR/metrics.json (a partial episode gets one marked `"complete": false`)."""
+    from activesplat.sim import load_scene
+
+    episode = read_episode(path)
+    meta = episode.meta
+    if "scene" not in meta:
+        raise EpisodeError(f"{episode.dir}/episode.json names no scene")
+    scene = load_scene(meta["scene"], z_up=bool(meta.get("z_up", False)))
+    cov = meta.get("config", {}).get("coverage", {})
+    cfg = CoverageConfig(**{k: v for k, v in cov.items() if k in CoverageConfig.__dataclass_fields__})
+    result = replay_coverage(scene, episode.start_pose, episode.actions, cfg, expected_poses=episode.poses,
+                             sim_config=_sim_config(meta))
+    metrics_path = episode.dir / "metrics.json"
+    metrics = json.loads(metrics_path.read_text()) if metrics_path.exists() else {"complete": False}
+    metrics.update({k: result[k] for k in COMPLETION_KEYS})
+    if write:
+        write_json_atomic(metrics_path, metrics)
+    return metrics

@@ -1,0 +1,120 @@
+"""The closed loop end to end on tiny settings: episode folder, determinism, evaluate = explore, crash safety,
+bad input on the command line."""
+
+import json
+
+import numpy as np
+import pytest
+
+from activesplat.cli import main
+from activesplat.episode import read_episode
+from activesplat.eval.coverage import CoverageConfig
+from activesplat.eval.evaluate import evaluate_episode
+from activesplat.explore import TIMING_KEYS, run_exploration
+from activesplat.sim import SimConfig
+
+TINY = dict(sim_config=SimConfig(width=64, height=64), coverage_config=CoverageConfig(n_gt_points=4000,
+                                                                                     batch_frames=10),
+            progress=False, backend="numba")
+
+
+@pytest.fixture(scope="module")
+def episode(tmp_path_factory):
+    out = tmp_path_factory.mktemp("ep") / "small0"
+    metrics = run_exploration("small-0", policy="activesplat", steps=90, seed=1, out=out, **TINY)
+    return out, metrics
+
+
+def test_episode_folder_is_complete(episode):
+    out, metrics = episode
+    for name in ("episode.json", "actions.txt", "poses.txt", "metrics.json", "gaussians.ply", "topdown.png",
+                 "completion.png"):
+        assert (out / name).is_file(), name
+    ep = read_episode(out)
+    assert ep.complete and len(ep.actions) == 90 and ep.poses.shape == (91, 4, 4)
+    assert ep.actions[:2] == ["turn_left", "look_down"]  # the bootstrap look-around comes first
+    saved = json.loads((out / "metrics.json").read_text())
+    for key in ("completion_ratio_pct", "completion_cm", "completion_cm_uncapped", "path_length_m", "steps",
+                "wall_time_s", "timing_ms"):
+        assert key in saved
+    assert set(TIMING_KEYS) <= set(saved["timing_ms"])
+    assert saved["path_length_m"] == pytest.approx(0.065 * ep.actions.count("move_forward"))
+    assert 0 < saved["completion_ratio_pct"] < 100
+    # poses are rigid transforms, camera 1.25 m above the floor
+    R = ep.poses[:, :3, :3]
+    assert np.allclose(R @ R.transpose(0, 2, 1), np.eye(3), atol=1e-6)
+
+
+def test_evaluate_recomputes_the_same_completion(episode):
+    out, metrics = episode
+    m = evaluate_episode(out, write=False)
+    assert m["completion_ratio_pct"] == pytest.approx(metrics["completion_ratio_pct"], abs=1e-9)
+    assert m["completion_cm"] == pytest.approx(metrics["completion_cm"], rel=1e-9)
+    assert m["path_length_m"] == pytest.approx(metrics["path_length_m"])
+
+
+def test_same_seed_same_actions(episode, tmp_path):
+    out, _ = episode
+    again = tmp_path / "again"
+    run_exploration("small-0", policy="activesplat", steps=90, seed=1, out=again, **TINY)
+    assert (again / "actions.txt").read_text() == (out / "actions.txt").read_text()
+
+
+def test_interrupted_run_leaves_a_consistent_partial_episode(tmp_path, monkeypatch):
+    from activesplat.planning import explorer as explorer_mod
+
+    original = explorer_mod.ActiveSplatExplorer.act
+    calls = {"n": 0}
+
+    def act(self, obs):
+        calls["n"] += 1
+        if calls["n"] == 12:
+            raise KeyboardInterrupt
+        return original(self, obs)
+
+    monkeypatch.setattr(explorer_mod.ActiveSplatExplorer, "act", act)
+    out = tmp_path / "partial"
+    with pytest.raises(KeyboardInterrupt):
+        run_exploration("small-0", policy="activesplat", steps=50, seed=0, out=out, **TINY)
+    assert not (out / "metrics.json").exists()
+    ep = read_episode(out)
+    assert not ep.complete and len(ep.actions) == 11 and len(ep.poses) == 12
+    assert (out / "gaussians.ply").exists()
+    m = evaluate_episode(out)
+    assert m["steps"] == 11 and m["complete"] is False
+
+
+def _cli(capsys, *argv):
+    code = main(list(argv))
+    err = capsys.readouterr().err
+    return code, err
+
+
+@pytest.mark.parametrize("argv, needle", [
+    (["explore", "--policy", "nope", "--steps", "5"], "unknown policy 'nope'"),
+    (["explore", "--steps", "0"], "--steps must be a positive"),
+    (["explore", "--steps", "-3"], "--steps must be a positive"),
+    (["explore", "--scene", "/does/not/exist.glb", "--steps", "5"], "/does/not/exist.glb"),
+    (["explore", "--scene", "huge-3", "--steps", "5"], "huge-3"),
+])
+def test_explore_bad_input_is_one_line_error(capsys, tmp_path, argv, needle):
+    out = tmp_path / "never"
+    code, err = _cli(capsys, *argv, "--out", str(out))
+    assert code == 2
+    assert needle in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
+    assert not (out / "metrics.json").exists()
+
+
+def test_complete_episode_is_not_overwritten(capsys, episode):
+    out, _ = episode
+    before = (out / "metrics.json").read_text()
+    code, err = _cli(capsys, "explore", "--steps", "5", "--out", str(out))
+    assert code == 2 and "--overwrite" in err
+    assert (out / "metrics.json").read_text() == before
+
+
+def test_evaluate_on_a_non_episode_folder(capsys, tmp_path):
+    code, err = _cli(capsys, "evaluate", str(tmp_path))
+    assert code == 2 and "not an episode" in err and len(err.strip().splitlines()) == 1
+    code, err = _cli(capsys, "evaluate", str(tmp_path / "missing"))
+    assert code == 2 and "not a folder" in err
