@@ -143,8 +143,10 @@ def extract_workspace(grids: TopDownGrids, agent_xz: np.ndarray, cfg: WorkspaceC
     outer, holes = outer_and_holes(region, agent_rc, cfg) if region.any() else (None, [])
     if outer is None or len(outer) < 3:
         return empty_workspace(geometry)
-    # The simplified polygon may cut up to polygon_epsilon into walls: observed obstacles stay out.
-    mask = polygon_mask(geometry.shape, outer, holes) & ~grids.obstacle
+    # The simplified polygon may cut up to polygon_epsilon into walls or unobserved space: the polygons
+    # shape the Voronoi sites, the mask keeps only the polished observed region (ours; the release uses
+    # the polygon as is).
+    mask = polygon_mask(geometry.shape, outer, holes) & region & ~grids.obstacle
     if not mask.any():
         return empty_workspace(geometry)
     return Workspace(geometry, mask, clearance_map(mask, cfg.resolution), _contour_world(outer, geometry),

@@ -39,6 +39,12 @@ class WorkspaceConfig:
     ground_opacity: float = 0.4
     """A pixel is observed ground where the ground-band opacity exceeds this (ours, mirrors the
     release's obstacle threshold; release: 'not white' on a white background)."""
+    ground_closing: float = 0.15
+    """Side in metres of the square kernel of a morphological closing of the observed-ground mask (ours;
+    0 = release rule). With the release's 0.01 scale modifier each floor Gaussian covers ~1 px, and the
+    floor far from the agent, seen at a grazing angle, is sampled more sparsely than the grid: it renders
+    as free/unknown stripes 1-2 px apart. A 3 px closing fills those gaps without growing the observed
+    area outwards (a blur or a larger scale modifier would); obstacles are never closed over."""
     bounds_padding: float = 0.5
     """Metres added around the Gaussian means when growing the map bounds (ours)."""
     max_grid_pixels: int = 2048
@@ -59,9 +65,12 @@ class WorkspaceConfig:
     boundary_sample_spacing: float = 0.2
     """Spacing in metres of the points sampled along the contour edges (ours; release samples the
     edges of the simplified polygon)."""
-    prune_length: float = 0.5
-    """Dangling leaf chains shorter than this (metres, leaf to junction) are pruned, repeatedly
-    (ours: the release prunes dangling chains; a fixed length keeps corridors, which are chains)."""
+    prune_length: float = 0.25
+    """Dangling leaf chains that reach less than this (metres) beyond the clearance disc of the junction
+    they hang off are pruned, repeatedly (ours: the release prunes dangling chains; measuring the reach
+    beyond the junction's disc drops corner spurs and keeps corridors and dead ends; a spur into a right
+    angle corner reaches ~0.41 x the junction clearance - 0.04 m, so 0.25 m cleans the ends of corridors
+    up to ~1.4 m wide and keeps the corner spurs of rooms, which lead to good view positions)."""
     merge_distance: float = 1e-3
     """Voronoi vertices closer than this (metres) are merged (qhull duplicates on co-circular sites)."""
 
@@ -88,10 +97,17 @@ class WorkspaceConfig:
         if not 0 <= self.floor_margin < self.agent_height:
             raise InvalidInputError(f"WorkspaceConfig.floor_margin must be in [0, agent_height), "
                                     f"got {self.floor_margin}")
+        if self.ground_closing < 0:
+            raise InvalidInputError(f"WorkspaceConfig.ground_closing must be >= 0, got {self.ground_closing}")
         for name in ("obstacle_opacity", "ground_opacity"):
             value = getattr(self, name)
             if not 0 < value < 1:
                 raise InvalidInputError(f"WorkspaceConfig.{name} must be in (0, 1), got {value}")
+
+    @property
+    def ground_closing_px(self) -> int:
+        """Closing kernel side in pixels (odd, so the closing does not shift the mask); 1 = no closing."""
+        return 2 * int(round(0.5 * self.ground_closing / self.resolution)) + 1
 
     @property
     def path_clearance(self) -> float:

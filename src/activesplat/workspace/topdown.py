@@ -12,6 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+import cv2
 import numpy as np
 
 from activesplat.errors import InvalidInputError
@@ -126,12 +127,22 @@ def height_band_masks(heights: np.ndarray, floor_height: float, cfg: WorkspaceCo
     return ground, obstacle
 
 
+def observed_ground(ground_alpha: np.ndarray, cfg: WorkspaceConfig) -> np.ndarray:
+    """Ground-band opacity above the threshold, closed with a `ground_closing` kernel so sparse far floor
+    Gaussians (1 px each at the release's scale modifier) read as one observed floor, not stripes."""
+    observed = (ground_alpha > cfg.ground_opacity).astype(np.uint8)
+    k = cfg.ground_closing_px
+    if k > 1:
+        observed = cv2.morphologyEx(observed, cv2.MORPH_CLOSE, np.ones((k, k), np.uint8))
+    return observed.astype(bool)
+
+
 def grids_from_alpha(geometry: GridGeometry, ground_alpha: np.ndarray, obstacle_alpha: np.ndarray,
                      floor_height: float, cfg: WorkspaceConfig) -> TopDownGrids:
     """Free / obstacle / unknown from the two band opacities: obstacle where the obstacle band is opaque,
     free where the ground is observed and no obstacle is above it, unknown elsewhere."""
     obstacle = obstacle_alpha > cfg.obstacle_opacity
-    free = (ground_alpha > cfg.ground_opacity) & ~obstacle
+    free = observed_ground(ground_alpha, cfg) & ~obstacle
     return TopDownGrids(geometry=geometry, free=free, obstacle=obstacle, unknown=~(free | obstacle),
                         ground_alpha=ground_alpha.astype(np.float32),
                         obstacle_alpha=obstacle_alpha.astype(np.float32), floor_height=float(floor_height))

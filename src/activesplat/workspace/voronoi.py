@@ -82,19 +82,46 @@ def dangling_chain(graph: nx.Graph, leaf: int) -> tuple[list[int], float, int]:
         prev, node = node, nxt
 
 
-def prune_dangling_chains(graph: nx.Graph, max_length: float) -> None:
-    """Repeatedly remove leaf chains shorter than `max_length` that hang off a junction (REFERENCE
-    sec. 3, release: prune dangling leaf chains repeatedly). Chains between two leaves stay (corridors)."""
-    changed = True
-    while changed:
-        changed = False
-        for leaf in sorted(n for n in graph.nodes if graph.degree(n) == 1):
-            if leaf not in graph or graph.degree(leaf) != 1:
-                continue
-            chain, length, end = dangling_chain(graph, leaf)
-            if graph.degree(end) >= 3 and length < max_length:
+def chain_reach(graph: nx.Graph, chain: list[int], length: float, end: int) -> float:
+    """How far (metres) a dangling chain reaches beyond the clearance disc of the junction it hangs off:
+    chain length + clearance at the leaf - clearance at the junction. A spur running into a convex
+    corner stays inside that disc (reach ~ 0.41 x junction clearance), a real dead end does not."""
+    return length + graph.nodes[chain[0]]["clearance"] - graph.nodes[end]["clearance"]
+
+
+def insignificant_chains(graph: nx.Graph, max_reach: float) -> dict[int, list[tuple[float, list[int]]]]:
+    """Dangling chains (leaf .. last degree-2 node) hanging off a junction (degree >= 3) that reach less
+    than `max_reach` beyond it, grouped by junction: {junction: [(reach, chain), ...]}."""
+    found: dict[int, list[tuple[float, list[int]]]] = {}
+    for leaf in sorted(n for n in graph.nodes if graph.degree(n) == 1):
+        chain, length, end = dangling_chain(graph, leaf)
+        if graph.degree(end) >= 3:
+            reach = chain_reach(graph, chain, length, end)
+            if reach < max_reach:
+                found.setdefault(end, []).append((reach, chain))
+    return found
+
+
+def prune_dangling_chains(graph: nx.Graph, max_reach: float) -> None:
+    """Repeatedly remove dangling leaf chains that reach less than `max_reach` beyond the junction they
+    hang off (REFERENCE sec. 3, release: prune dangling leaf chains repeatedly; our significance rule
+    keeps corridors and dead ends, drops corner spurs). All short chains of a junction go at once (a
+    corridor's end keeps no diagonal spur), except that a junction keeps its farthest-reaching chain when
+    it would otherwise lose every edge."""
+    while True:
+        found = insignificant_chains(graph, max_reach)
+        if not found:
+            return
+        removed = False
+        for end, chains in found.items():
+            chains.sort(key=lambda rc: rc[0])
+            if len(chains) == graph.degree(end):
+                chains = chains[:-1]
+            for _, chain in chains:
                 graph.remove_nodes_from(chain)
-                changed = True
+                removed = True
+        if not removed:
+            return
 
 
 def graph_from_edges(vertices: np.ndarray, edges: np.ndarray, workspace: Workspace) -> nx.Graph:
