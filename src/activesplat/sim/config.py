@@ -40,6 +40,9 @@ class SimConfig:
     nav_cell: float = 0.025
     """Navigability grid cell in metres. A cell is navigable when its clearance exceeds
     agent_radius + one cell diagonal, so the continuous camera position always keeps agent_radius."""
+    floor_hole_cells: int = 2
+    """Floor gaps up to this many nav cells wide (scanned meshes) are closed before the agent disc
+    is required to stand on floor. Our choice."""
     ambient: float = 0.55
     """View-independent shading: colour = albedo * (ambient + (1 - ambient) * |n . light|)."""
     light_dir: tuple[float, float, float] = (0.3, 0.8, 0.5)

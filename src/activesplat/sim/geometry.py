@@ -66,8 +66,9 @@ class MeshBuilder:
 
     def build(self) -> trimesh.Trimesh:
         """One unmerged triangle soup with TextureVisuals (PBR base colour = the atlas)."""
-        verts = np.concatenate(self._verts).astype(np.float64)
-        uvs = np.concatenate(self._uvs).astype(np.float64)
+        # Rounded to float32 (what glTF stores), so an exported scene is bit-identical to this one.
+        verts = np.concatenate(self._verts).astype(np.float32).astype(np.float64)
+        uvs = np.concatenate(self._uvs).astype(np.float32).astype(np.float64)
         faces = np.arange(len(verts)).reshape(-1, 3)
         material = trimesh.visual.material.PBRMaterial(
             baseColorTexture=Image.fromarray(self.atlas.image), metallicFactor=0.0, roughnessFactor=1.0,

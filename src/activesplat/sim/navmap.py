@@ -1,8 +1,9 @@
 """Navigability map built from the mesh: a top-down floor grid where the agent cylinder fits.
 
-A cell is navigable when there is floor beneath it (a near-horizontal surface within `step_margin`
-of the floor height) and no geometry between `floor + step_margin` and `floor + agent_height` lies
-within `agent_radius` of any point of the cell (REFERENCE 1: agent radius 0.1 m, height 1.5 m).
+A cell is navigable when there is floor beneath the agent's whole disc (near-horizontal surfaces
+within `step_margin` of the floor height) and no geometry between `floor + step_margin` and
+`floor + agent_height` lies within `agent_radius` of any point of the cell (REFERENCE 1: agent
+radius 0.1 m, height 1.5 m).
 The mesh is sampled densely (spacing <= half a cell), the samples in the height band are rasterised
 into an occupancy grid, and the clearance is the Euclidean distance transform of that grid. Cell
 centres need clearance > radius + 2 cells (sample spacing plus both half-cell diagonals), so any
@@ -94,6 +95,14 @@ def sample_triangles(triangles: np.ndarray, spacing: float):
             yield pts, np.repeat(chunk, len(lattice))
 
 
+def _floor_support(floor: np.ndarray, config: SimConfig) -> np.ndarray:
+    """Cells whose whole agent disc (agent_radius) stands on floor; holes of up to
+    `floor_hole_cells` cells (scan gaps) are closed first, so they do not erode the floor."""
+    closed = ndimage.binary_closing(floor, iterations=config.floor_hole_cells) | floor
+    support = ndimage.distance_transform_edt(closed) * config.nav_cell
+    return floor & (support > config.agent_radius)
+
+
 def build_navmap(vertices: np.ndarray, faces: np.ndarray, floor_height: float,
                  config: SimConfig | None = None) -> NavMap:
     """Rasterise floor and obstacle-band samples of the mesh, then threshold the clearance."""
@@ -122,7 +131,7 @@ def build_navmap(vertices: np.ndarray, faces: np.ndarray, floor_height: float,
         band = (y > y_lo) & (y <= y_hi)
         occupied[ix[band], iz[band]] = True
     clearance = ndimage.distance_transform_edt(~occupied) * cell
-    grid = floor & (clearance > config.agent_radius + 2 * cell)
+    grid = _floor_support(floor, config) & (clearance > config.agent_radius + 2 * cell)
     labels, n = ndimage.label(grid)
     if n == 0:
         largest = grid.copy()

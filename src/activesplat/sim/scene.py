@@ -55,7 +55,8 @@ class Scene:
 
     def navmap_for(self, config: SimConfig) -> NavMap:
         """Navigability map for an agent's radius, height, step margin and grid cell (cached)."""
-        key = (config.agent_radius, config.agent_height, config.step_margin, config.nav_cell)
+        key = (config.agent_radius, config.agent_height, config.step_margin, config.nav_cell,
+               config.floor_hole_cells)
         if key not in self._navmaps:
             try:
                 navmap = build_navmap(self.mesh.vertices, self.mesh.faces, self.floor_height, config)
@@ -180,8 +181,10 @@ def estimate_floor_height(mesh: trimesh.Trimesh, bin_size: float = 0.05) -> floa
 def load_mesh_scene(path, z_up: bool = False) -> Scene:
     """A user mesh; z_up files are rotated into the y-up world frame ((x, y, z) -> (x, z, -y))."""
     path = Path(path)
-    if not path.is_file():
+    if not path.exists():
         raise SceneNotFoundError(f"scene file not found: {path}")
+    if not path.is_file():
+        raise SceneError(f"scene path is not a regular file: {path}")
     if path.suffix.lower() not in MESH_SUFFIXES:
         raise SceneError(f"unsupported mesh format {path.suffix!r} for {path}: "
                          f"use {', '.join(MESH_SUFFIXES)}")

@@ -41,7 +41,7 @@ def _tint(pattern: np.ndarray, colour: np.ndarray) -> np.ndarray:
 
 def plaster(rng, colour) -> np.ndarray:
     """Painted plaster: low-frequency blotches plus fine grain."""
-    return _tint(1.0 + 0.06 * _noise(rng, 6.0) + 0.04 * _noise(rng, 1.0), colour)
+    return _tint(1.0 + 0.08 * _noise(rng, 6.0) + 0.06 * _noise(rng, 1.0), colour)
 
 
 def wood(rng, colour) -> np.ndarray:
