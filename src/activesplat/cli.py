@@ -25,8 +25,13 @@ def _cmd_scenes_list(args: argparse.Namespace) -> int:
 
 
 def _cmd_scenes_export(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from activesplat.errors import InvalidInputError
     from activesplat.sim import load_scene
 
+    if Path(args.file).suffix.lower() != ".glb":  # checked before the (slow) scene build
+        raise InvalidInputError(f"export file must end in .glb: {args.file}")
     scene = load_scene(args.name, z_up=args.z_up)
     path = scene.export(args.file)
     print(f"wrote {path}")

@@ -124,8 +124,12 @@ def _small_layout(rng, cfg: HouseConfig) -> list[Room]:
     return _split(rng, [Room(0.0, 0.0, width, depth)], n, cfg.min_room_side)
 
 
-def _strip(rng, x_total: float, z0: float, z1: float, k: int) -> list[Room]:
-    widths = rng.dirichlet(np.full(k, 4.0)) * x_total
+def _strip(rng, x_total: float, z0: float, z1: float, k: int, min_side: float) -> list[Room]:
+    """k rooms side by side along x, each at least min_side wide (random split of the rest)."""
+    spare = x_total - k * min_side
+    if spare < 0:
+        raise ValueError(f"a strip of {x_total} m cannot hold {k} rooms of {min_side} m")
+    widths = min_side + rng.dirichlet(np.full(k, 4.0)) * spare
     edges = np.round(np.concatenate([[0.0], np.cumsum(widths)]), 2)
     edges[-1] = x_total
     return [Room(float(a), z0, float(b), z1) for a, b in zip(edges[:-1], edges[1:], strict=True)]
@@ -139,9 +143,10 @@ def _medium_layout(rng, cfg: HouseConfig) -> list[Room]:
     depth_s = float(np.round(rng.uniform(3.2, 5.0), 2))
     depth_n = float(np.round(rng.uniform(3.2, 5.0), 2))
     corridor = float(np.round(rng.uniform(*cfg.corridor_width), 2))
-    rooms = _strip(rng, width, 0.0, depth_s, k_south)
+    rooms = _strip(rng, width, 0.0, depth_s, k_south, cfg.min_room_side)
     rooms.append(Room(0.0, depth_s, width, depth_s + corridor, kind="corridor"))
-    rooms += _strip(rng, width, depth_s + corridor, depth_s + corridor + depth_n, k_north)
+    rooms += _strip(rng, width, depth_s + corridor, depth_s + corridor + depth_n, k_north,
+                    cfg.min_room_side)
     return rooms
 
 

@@ -74,7 +74,20 @@ class RGBDSensor:
         TriangleMesh(self._scene, self.vertices, self.faces)
         self.texture, self.face_uv, self.face_rgb = surface_colours(mesh)
         self.face_shade = self._face_shading()
+        self._texel_planes = self._texel_coordinates()
         self._rays: dict[tuple, np.ndarray] = {}
+
+    def _texel_coordinates(self):
+        """Per face, texel column and row as affine functions of Embree's (u, v): (F, 3) arrays
+        [at corner 0, d/du, d/dv], so shading gathers 6 scalars per pixel instead of 3 UV pairs."""
+        if self.texture is None:
+            return None
+        th, tw = self.texture.shape[:2]
+        uv = self.face_uv.astype(np.float64)
+        col = uv[:, :, 0] * tw
+        row = (1.0 - uv[:, :, 1]) * th
+        planes = [np.stack([c[:, 0], c[:, 1] - c[:, 0], c[:, 2] - c[:, 0]], axis=1) for c in (col, row)]
+        return [p.astype(np.float32) for p in planes]
 
     def _face_shading(self) -> np.ndarray:
         """ambient + (1 - ambient) * |n . l| per face: fixed world light, view-independent."""
@@ -101,7 +114,9 @@ class RGBDSensor:
         key = (width, height, *np.round(K.ravel(), 9))
         if key not in self._rays:
             self._rays[key] = camera_rays(K, width, height).astype(np.float32)
-        dirs = self._rays[key] @ np.asarray(pose[:3, :3], dtype=np.float32).T
+        rays, rot = self._rays[key], np.asarray(pose[:3, :3], dtype=np.float32)
+        # Broadcast sums instead of a (N, 3) @ (3, 3) BLAS call: no thread start-up, ~10x faster here.
+        dirs = rays[:, :1] * rot[:, 0] + rays[:, 1:2] * rot[:, 1] + rays[:, 2:] * rot[:, 2]
         origins = np.empty_like(dirs)
         origins[:] = np.asarray(pose[:3, 3], dtype=np.float32)
         return origins, dirs
@@ -112,7 +127,7 @@ class RGBDSensor:
         hit = self.cast(origins, dirs)
         prim = hit["primID"]
         valid = prim >= 0
-        depth = np.where(valid & (hit["tfar"] <= self.config.max_depth), hit["tfar"], 0.0)
+        depth = np.where(valid & (hit["tfar"] <= self.config.max_depth), hit["tfar"], np.float32(0.0))
         rgb = np.zeros((width * height, 3), dtype=np.float32)
         face = prim[valid]
         rgb[valid] = self.shade(face, hit["u"][valid], hit["v"][valid])
@@ -122,14 +137,14 @@ class RGBDSensor:
     def shade(self, face: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
         """Colour of surface points given by face index and Embree barycentrics (u, v): albedo from
         the nearest texel and/or interpolated corner colours, times the face shading."""
-        w = np.stack([1.0 - u - v, u, v], axis=1).astype(np.float32)
         colour = np.ones((len(face), 3), dtype=np.float32)
         if self.texture is not None:
-            uv = np.einsum("nk,nkd->nd", w, self.face_uv[face])
             th, tw = self.texture.shape[:2]
-            col = np.clip((uv[:, 0] * tw).astype(np.int64), 0, tw - 1)
-            row = np.clip(((1.0 - uv[:, 1]) * th).astype(np.int64), 0, th - 1)
-            colour = self.texture[row, col]
+            (c0, cu, cv), (r0, ru, rv) = (p[face].T for p in self._texel_planes)
+            col = np.clip((c0 + u * cu + v * cv).astype(np.int64), 0, tw - 1)
+            row = np.clip((r0 + u * ru + v * rv).astype(np.int64), 0, th - 1)
+            colour = self.texture.reshape(-1, 3)[row * tw + col]
         if self.face_rgb is not None:
+            w = np.stack([1.0 - u - v, u, v], axis=1).astype(np.float32)
             colour = colour * np.einsum("nk,nkd->nd", w, self.face_rgb[face])
         return colour * self.face_shade[face, None]
