@@ -48,7 +48,7 @@ def _draw_graph(ax: Axes, graph: nx.Graph) -> None:
     segments = [(positions[index[a]], positions[index[b]]) for a, b in graph.edges]
     ax.add_collection(LineCollection(segments, colors="#6c757d", linewidths=0.8, zorder=3))
     labels = np.array([graph.nodes[n].get("subregion", 0) for n in nodes])
-    colours = matplotlib.colormaps["tab20"](labels % 20)
+    colours = matplotlib.colormaps["tab10"](labels % 10)
     ax.scatter(positions[:, 0], positions[:, 1], s=6, c=colours, zorder=4, linewidths=0)
     view = np.array([bool(graph.nodes[n].get("view")) for n in nodes])
     ax.scatter(positions[view, 0], positions[view, 1], s=40, c=colours[view], edgecolors="k",
