@@ -9,7 +9,7 @@ from layouts import RES, box, corridor, grids_from_layout, two_rooms
 
 from activesplat.workspace.clean import extract_workspace
 from activesplat.workspace.config import WorkspaceConfig
-from activesplat.workspace.paths import path_length, plan_safe_path
+from activesplat.workspace.paths import line_of_sight, path_length, plan_safe_path
 from activesplat.workspace.subregions import agent_subregion, partition_subregions
 from activesplat.workspace.voronoi import build_voronoi_graph, node_positions
 
@@ -160,3 +160,18 @@ def test_tiny_free_patch_gives_no_graph_without_crashing():
     workspace, graph = topology(grids_from_layout(free, np.zeros(shape, bool)), (1.0, 1.0))
     assert graph.number_of_nodes() == 0
     assert plan_safe_path(graph, workspace, np.array([1.0, 1.0]), np.array([1.8, 1.8]), CFG) is None
+
+
+def test_endpoint_outside_the_workspace_gives_no_line_of_sight_through_walls():
+    grids = two_rooms()
+    workspace, graph = topology(grids, (1.0, 1.0))
+    inside = np.array([2.0, 1.0])
+    in_wall, beyond = np.array([3.6, 1.0]), np.array([7.5, 1.0])  # in the dividing wall / outside the house
+    assert workspace.clearance_at(in_wall) == 0 and workspace.clearance_at(beyond) == 0
+    assert not line_of_sight(workspace, inside, in_wall, CFG)
+    assert not line_of_sight(workspace, beyond, inside, CFG)
+    assert plan_safe_path(graph, workspace, beyond, inside, CFG) is None
+    # Standing just outside the polished workspace (unobserved floor under the agent) still connects.
+    edge = np.array([0.48, 2.0])
+    assert workspace.clearance_at(edge) == 0
+    assert line_of_sight(workspace, edge, np.array([1.5, 2.0]), CFG)

@@ -11,16 +11,31 @@ from activesplat.workspace.clean import Workspace
 from activesplat.workspace.config import WorkspaceConfig
 from activesplat.workspace.voronoi import node_positions
 
+MIN_CLEARANCE = 1e-6
+"""Metres: every checked sample of a segment must lie inside the workspace."""
+
 
 def required_clearance(workspace: Workspace, a: np.ndarray, b: np.ndarray, cfg: WorkspaceConfig) -> float:
     """Clearance a segment a-b must keep: 2 agent radii, relaxed to the clearance at its endpoints when
-    the agent already stands (or must stand) closer to an obstacle than that."""
+    the agent already stands (or must stand) closer to an obstacle than that, but always strictly inside
+    the workspace (an endpoint outside it must not license a segment through walls)."""
     ends = workspace.clearance_at(np.stack([a, b]))
-    return float(min(cfg.path_clearance, ends.min()))
+    return max(float(min(cfg.path_clearance, ends.min())), MIN_CLEARANCE)
+
+
+def enter_workspace(workspace: Workspace, a: np.ndarray, b: np.ndarray, cfg: WorkspaceConfig) -> np.ndarray:
+    """`a` itself when it lies in the workspace; else the point one agent radius from `a` towards `b`
+    (ours: the floor right under the agent is often unobserved, so the agent's own disc is not checked)."""
+    if workspace.clearance_at(a) > 0:
+        return a
+    offset = b - a
+    length = float(np.linalg.norm(offset))
+    return a if length == 0 else a + offset * min(1.0, cfg.agent_radius / length)
 
 
 def line_of_sight(workspace: Workspace, a: np.ndarray, b: np.ndarray, cfg: WorkspaceConfig) -> bool:
     """Whether the straight segment a-b keeps the required clearance at every sample."""
+    a, b = enter_workspace(workspace, a, b, cfg), enter_workspace(workspace, b, a, cfg)
     need = required_clearance(workspace, a, b, cfg)
     return bool(workspace.segments_clearance(a[None], b[None])[0] >= need - 1e-9)
 
