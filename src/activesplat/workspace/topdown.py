@@ -148,22 +148,34 @@ def grids_from_alpha(geometry: GridGeometry, ground_alpha: np.ndarray, obstacle_
                         obstacle_alpha=obstacle_alpha.astype(np.float32), floor_height=float(floor_height))
 
 
-def _band_alpha(gmap: Any, mask: Any, viewmat: np.ndarray, K: np.ndarray, width: int, height: int,
+def _band_alpha(band: dict[str, Any], viewmat: np.ndarray, K: np.ndarray, width: int, height: int,
                 cfg: WorkspaceConfig, backend: str) -> np.ndarray:
-    """Accumulated opacity of the Gaussians selected by `mask`, rendered top-down."""
+    """Accumulated opacity of one height band's Gaussians (dict of activated tensors), rendered top-down
+    with scales times `scale_modifier` (REFERENCE sec. 3)."""
     import torch
 
     from activesplat.splat import rasterize
 
-    if not bool(mask.any()):
+    if len(band["means"]) == 0:
         return np.zeros((height, width), dtype=np.float32)
+    dtype = band["means"].dtype
     with torch.no_grad():
-        dtype = gmap.means.dtype
-        out = rasterize(gmap.means[mask], gmap.quats[mask], gmap.scales[mask] * cfg.scale_modifier,
-                        gmap.opacities.reshape(-1)[mask], gmap.colors[mask],
-                        torch.as_tensor(viewmat, dtype=dtype), torch.as_tensor(K, dtype=dtype),
-                        width, height, backend=backend)
+        out = rasterize(band["means"], band["quats"], band["scales"] * cfg.scale_modifier, band["opacities"],
+                        torch.zeros_like(band["means"]), torch.as_tensor(viewmat, dtype=dtype),
+                        torch.as_tensor(K, dtype=dtype), width, height, backend=backend)
     return np.asarray(out.alpha.detach().cpu().numpy(), dtype=np.float32).reshape(height, width)
+
+
+def _band_gaussians(gmap: Any, bands: list[np.ndarray]) -> list[dict[str, Any]]:
+    """Activated means / quats / scales / opacities of each band (index arrays), each activation computed
+    once for the whole map; colours are not needed for opacity."""
+    import torch
+
+    with torch.no_grad():
+        params = {"means": gmap.means, "quats": gmap.quats, "scales": gmap.scales,
+                  "opacities": gmap.opacities.reshape(-1)}
+        params = {name: t.detach() for name, t in params.items()}
+        return [{name: t[torch.from_numpy(idx).to(t.device)] for name, t in params.items()} for idx in bands]
 
 
 def render_topdown(gmap: Any, floor_height: float, cfg: WorkspaceConfig | None = None,
@@ -172,8 +184,8 @@ def render_topdown(gmap: Any, floor_height: float, cfg: WorkspaceConfig | None =
     free / obstacle / unknown grids (paper sec. III-A; REFERENCE sec. 3).
 
     `gmap` is any object with torch tensors `means (N,3)`, `quats (N,4)`, `scales (N,3)`,
-    `opacities (N,)`, `colors (N,3)`. `floor_height` is the world y of the floor (from the agent's start
-    pose). Bounds grow from the band Gaussians' means (and `agent_xz`, world (x, z), if given)."""
+    `opacities (N,)` (colours are not used). `floor_height` is the world y of the floor (from the agent's
+    start pose). Bounds grow from the band Gaussians' means (and `agent_xz`, world (x, z), if given)."""
     cfg = cfg or WorkspaceConfig()
     if not np.isfinite(floor_height):
         raise InvalidInputError(f"floor_height must be finite, got {floor_height}")
@@ -185,8 +197,7 @@ def render_topdown(gmap: Any, floor_height: float, cfg: WorkspaceConfig | None =
     band_xz = means[:, [0, 2]].cpu().numpy()[ground | obstacle]
     geometry = grid_geometry_from_points(band_xz, cfg, agent_xz)
     viewmat, K, width, height = topdown_camera(geometry, floor_height, cfg)
-    import torch
-
-    ground_alpha = _band_alpha(gmap, torch.from_numpy(ground), viewmat, K, width, height, cfg, backend)
-    obstacle_alpha = _band_alpha(gmap, torch.from_numpy(obstacle), viewmat, K, width, height, cfg, backend)
+    ground_band, obstacle_band = _band_gaussians(gmap, [np.flatnonzero(ground), np.flatnonzero(obstacle)])
+    ground_alpha = _band_alpha(ground_band, viewmat, K, width, height, cfg, backend)
+    obstacle_alpha = _band_alpha(obstacle_band, viewmat, K, width, height, cfg, backend)
     return grids_from_alpha(geometry, ground_alpha, obstacle_alpha, floor_height, cfg)
