@@ -15,29 +15,33 @@ MIN_CLEARANCE = 1e-6
 """Metres: every checked sample of a segment must lie inside the workspace."""
 
 
-def required_clearance(workspace: Workspace, a: np.ndarray, b: np.ndarray, cfg: WorkspaceConfig) -> float:
-    """Clearance a segment a-b must keep: 2 agent radii, relaxed to the clearance at its endpoints when
-    the agent already stands (or must stand) closer to an obstacle than that, but always strictly inside
-    the workspace (an endpoint outside it must not license a segment through walls)."""
-    ends = workspace.clearance_at(np.stack([a, b]))
-    return max(float(min(cfg.path_clearance, ends.min())), MIN_CLEARANCE)
-
-
 def enter_workspace(workspace: Workspace, a: np.ndarray, b: np.ndarray, cfg: WorkspaceConfig) -> np.ndarray:
-    """`a` itself when it lies in the workspace; else the point one agent radius from `a` towards `b`
-    (ours: the floor right under the agent is often unobserved, so the agent's own disc is not checked)."""
-    if workspace.clearance_at(a) > 0:
-        return a
+    """Segment starts (M, 2): each `a` itself when it lies in the workspace, else the point one agent
+    radius from `a` towards `b` (ours: the floor right under the agent is often unobserved, so the
+    agent's own disc is not checked)."""
     offset = b - a
-    length = float(np.linalg.norm(offset))
-    return a if length == 0 else a + offset * min(1.0, cfg.agent_radius / length)
+    length = np.linalg.norm(offset, axis=1, keepdims=True)
+    step = np.minimum(1.0, cfg.agent_radius / np.maximum(length, 1e-12))
+    inside = workspace.clearance_at(a)[:, None] > 0
+    return np.where(inside, a, a + offset * step)
+
+
+def lines_of_sight(workspace: Workspace, a: np.ndarray, b: np.ndarray, cfg: WorkspaceConfig) -> np.ndarray:
+    """(M,) whether each straight segment a_i-b_i (M, 2) keeps the required clearance at every sample:
+    2 agent radii, relaxed to the clearance at its endpoints when the agent already stands (or must stand)
+    closer to an obstacle than that, but always strictly inside the workspace (an endpoint outside it
+    must not license a segment through walls)."""
+    a = np.asarray(a, dtype=np.float64).reshape(-1, 2)
+    b = np.asarray(b, dtype=np.float64).reshape(-1, 2)
+    a, b = enter_workspace(workspace, a, b, cfg), enter_workspace(workspace, b, a, cfg)
+    ends = np.minimum(workspace.clearance_at(a), workspace.clearance_at(b))
+    need = np.maximum(np.minimum(cfg.path_clearance, ends), MIN_CLEARANCE)
+    return workspace.segments_clearance(a, b) >= need - 1e-9
 
 
 def line_of_sight(workspace: Workspace, a: np.ndarray, b: np.ndarray, cfg: WorkspaceConfig) -> bool:
-    """Whether the straight segment a-b keeps the required clearance at every sample."""
-    a, b = enter_workspace(workspace, a, b, cfg), enter_workspace(workspace, b, a, cfg)
-    need = required_clearance(workspace, a, b, cfg)
-    return bool(workspace.segments_clearance(a[None], b[None])[0] >= need - 1e-9)
+    """Whether the straight segment a-b keeps the required clearance (see :func:`lines_of_sight`)."""
+    return bool(lines_of_sight(workspace, a, b, cfg)[0])
 
 
 def visible_nodes(graph: nx.Graph, workspace: Workspace, xz: np.ndarray, cfg: WorkspaceConfig) -> list[int]:
@@ -46,7 +50,8 @@ def visible_nodes(graph: nx.Graph, workspace: Workspace, xz: np.ndarray, cfg: Wo
     positions = node_positions(graph)
     dist = np.linalg.norm(positions - xz, axis=1)
     order = np.argsort(dist, kind="stable")[: cfg.entry_candidates]
-    return [nodes[i] for i in order if line_of_sight(workspace, xz, positions[i], cfg)]
+    visible = lines_of_sight(workspace, np.broadcast_to(xz, (len(order), 2)), positions[order], cfg)
+    return [nodes[i] for i in order[visible]]
 
 
 def shortcut(waypoints: np.ndarray, workspace: Workspace, cfg: WorkspaceConfig) -> np.ndarray:
@@ -54,11 +59,11 @@ def shortcut(waypoints: np.ndarray, workspace: Workspace, cfg: WorkspaceConfig) 
     kept, i = [0], 0
     last = len(waypoints) - 1
     while i < last:
-        here = waypoints[i]
-        visible = (j for j in range(last, i + 1, -1) if line_of_sight(workspace, here, waypoints[j], cfg))
-        j = next(visible, i + 1)
-        kept.append(j)
-        i = j
+        later = np.arange(i + 2, last + 1)
+        here = np.broadcast_to(waypoints[i], (len(later), 2))
+        visible = lines_of_sight(workspace, here, waypoints[later], cfg)
+        i = int(later[visible].max()) if visible.any() else i + 1
+        kept.append(i)
     return waypoints[kept]
 
 
