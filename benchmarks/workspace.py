@@ -108,6 +108,7 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=300)
     parser.add_argument("--synthetic", type=int, default=0, metavar="N",
                         help="time on N points sampled on the scene mesh instead of a mapped episode")
+    parser.add_argument("--out", type=Path, help="keep the exploration episode here (default: a temp folder)")
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--backend", default="auto")
     args = parser.parse_args()
@@ -118,7 +119,7 @@ def main() -> None:
         elif args.synthetic:
             gmap, floor, agent, source = synthetic_map(args.scene, args.synthetic)
         else:
-            gmap, floor, agent, source = explored_map(args.scene, args.steps, Path(tmp))
+            gmap, floor, agent, source = explored_map(args.scene, args.steps, args.out or Path(tmp))
     grids = render_topdown(gmap, floor, cfg, agent, args.backend)  # warm-up (numba JIT)
     agent = agent_or_centre(grids, agent)
     grids, t_render = timed(render_topdown, gmap, floor, cfg, agent, args.backend, repeats=args.repeats)
