@@ -88,6 +88,18 @@ def morphology(region: np.ndarray, cfg: WorkspaceConfig) -> np.ndarray:
     return cv2.dilate(mask, np.ones((cfg.dilate_kernel,) * 2, np.uint8)).astype(bool)
 
 
+def mask_boundaries(workspace: Workspace, epsilon_px: float, min_hole_area: float) -> list[np.ndarray]:
+    """The outer boundaries and the holes of at least `min_hole_area` m^2 of the workspace mask as world
+    (x, z) polygons simplified by `epsilon_px` pixels: the walls as they are (the 0.225 m polygons can cut
+    a thin wall down to a spike and put no Voronoi vertex in its door)."""
+    contours, hierarchy = cv2.findContours(workspace.mask.astype(np.uint8), cv2.RETR_CCOMP,
+                                           cv2.CHAIN_APPROX_NONE)
+    min_area_px = min_hole_area / workspace.geometry.resolution ** 2
+    kept = [c for c, h in zip(contours, hierarchy[0] if contours else [], strict=True)
+            if h[3] < 0 or cv2.contourArea(c) >= min_area_px]
+    return [_contour_world(cv2.approxPolyDP(c, epsilon_px, True), workspace.geometry) for c in kept]
+
+
 def _contour_world(contour: np.ndarray, geometry: GridGeometry) -> np.ndarray:
     """OpenCV contour (K, 1, 2) of pixel (col, row) -> (K, 2) world (x, z) at pixel centres."""
     cr = contour.reshape(-1, 2).astype(np.float64) + 0.5

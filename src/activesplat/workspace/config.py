@@ -65,6 +65,17 @@ class WorkspaceConfig:
     boundary_sample_spacing: float = 0.2
     """Spacing in metres of the points sampled along the contour edges (ours; release samples the
     edges of the simplified polygon)."""
+    sites_from_mask: bool = True
+    """Sample the Voronoi sites along the workspace mask's own contours (ours) instead of the 0.225 m
+    simplified polygons (release): a simplified polygon cuts thin walls down to spikes, so the graph
+    crosses a door on one long ridge with no vertex in it; the mask's contours give a door vertex."""
+    site_epsilon_px: float = 1.0
+    """approxPolyDP tolerance in pixels for the mask contours used as Voronoi sites (ours: removes the
+    pixel staircase of diagonal walls, whose spurs would otherwise need pruning)."""
+    min_site_hole_area: float = 0.04
+    """Holes of the mask smaller than this (m^2; 0.2 m x 0.2 m, 2 agent radii square) give no Voronoi
+    sites (ours: a one-pixel unobserved speck would put a loop in the graph; the mask and its clearance
+    still keep them out of every path)."""
     prune_length: float = 0.25
     """Dangling leaf chains that reach less than this (metres) beyond the clearance disc of the junction
     they hang off are pruned, repeatedly (ours: the release prunes dangling chains; measuring the reach
@@ -97,6 +108,8 @@ class WorkspaceConfig:
         if not 0 <= self.floor_margin < self.agent_height:
             raise InvalidInputError(f"WorkspaceConfig.floor_margin must be in [0, agent_height), "
                                     f"got {self.floor_margin}")
+        if self.site_epsilon_px < 0 or self.min_site_hole_area < 0:
+            raise InvalidInputError("WorkspaceConfig.site_epsilon_px and min_site_hole_area must be >= 0")
         if self.ground_closing < 0:
             raise InvalidInputError(f"WorkspaceConfig.ground_closing must be >= 0, got {self.ground_closing}")
         for name in ("obstacle_opacity", "ground_opacity"):

@@ -12,7 +12,7 @@ import networkx as nx
 import numpy as np
 from scipy.spatial import QhullError, Voronoi
 
-from activesplat.workspace.clean import Workspace
+from activesplat.workspace.clean import Workspace, mask_boundaries
 from activesplat.workspace.config import WorkspaceConfig
 
 
@@ -145,14 +145,19 @@ def relabel_in_order(graph: nx.Graph) -> nx.Graph:
 
 
 def build_voronoi_graph(workspace: Workspace, cfg: WorkspaceConfig | None = None) -> nx.Graph:
-    """Voronoi graph of the workspace (REFERENCE sec. 3): Voronoi of points sampled along the outer and
-    obstacle contours, ridges inside the workspace with clearance > agent radius, isolated vertices
-    dropped, short dangling chains pruned, edges weighted by length, view and multi-connected nodes
+    """Voronoi graph of the workspace (REFERENCE sec. 3): Voronoi of points sampled along the workspace
+    boundary (the mask's contours, or the release's simplified polygons with `sites_from_mask=False`),
+    ridges inside the workspace with clearance > agent radius, isolated vertices dropped, short dangling
+    chains pruned, edges weighted by length, view and multi-connected nodes
     marked. An empty workspace gives an empty graph."""
     cfg = cfg or WorkspaceConfig()
     if workspace.empty:
         return nx.Graph()
-    sites = boundary_samples([workspace.outer, *workspace.holes], cfg.boundary_sample_spacing)
+    if cfg.sites_from_mask:
+        boundaries = mask_boundaries(workspace, cfg.site_epsilon_px, cfg.min_site_hole_area)
+    else:
+        boundaries = [workspace.outer, *workspace.holes]
+    sites = boundary_samples(boundaries, cfg.boundary_sample_spacing)
     vertices, ridges = voronoi_ridges(sites)
     vertices, edges = safe_edges(workspace, vertices, ridges, cfg)
     if len(edges) == 0:
