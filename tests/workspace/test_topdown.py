@@ -90,16 +90,18 @@ def test_sparse_far_floor_reads_as_observed_ground():
 
 
 def test_observed_ground_closing_fills_gaps_but_not_wide_ones():
-    alpha = np.zeros((20, 20), np.float32)
-    alpha[5:15, 2:8] = 1.0
-    alpha[5:15, 10:18] = 1.0  # 2 px gap between the two patches: closed
-    alpha[5:15, 10] = 0.0  # so the gap is columns 8..10, 3 px: stays open
     cfg = WorkspaceConfig()
-    observed = observed_ground(alpha, cfg)
-    assert not observed[10, 8:11].all()
-    alpha[5:15, 10] = 1.0
-    observed = observed_ground(alpha, cfg)
-    assert observed[5:15, 2:18].all() and not observed[:5].any() and not observed[15:].any()
+    k = cfg.ground_closing_px
+    assert k == 5  # 0.25 m at 0.05 m/px
+    for gap, closed in ((k - 1, True), (k, False)):
+        alpha = np.zeros((30, 40), np.float32)
+        alpha[5:25, 2:15] = 1.0
+        alpha[5:25, 15 + gap:35] = 1.0
+        observed = observed_ground(alpha, cfg)
+        assert observed[10, 15:15 + gap].all() == closed
+        # Never grows the observed floor outwards.
+        assert not observed[:5].any() and not observed[25:].any() and not observed[:, 35:].any()
+    assert (observed_ground(alpha, WorkspaceConfig(ground_closing=0.0)) == (alpha > 0.4)).all()
 
 
 def test_render_of_an_empty_map_is_all_unknown():
