@@ -167,3 +167,24 @@ def test_half_resolution_mask_render_finds_the_same_new_surface():
     assert added[0] > 0 and abs(added[1] - added[0]) <= 0.15 * added[0]
     n_full, n_half = int(full.high_loss_mask.sum()), int(half.high_loss_mask.sum())
     assert abs(n_half - n_full) <= 0.2 * n_full
+
+
+def test_floaters_in_observed_free_space_are_pruned():
+    """A box that disappears (seen as free space) is pruned; the wall it hid is then mapped."""
+    mapper = _mapper(iterations=0, pixel_stride=2)
+    rgb_b, depth_b = observe(pose(), S, box=(-0.3, 0.3, -0.3, 0.3, 1.0))
+    mapper.add_frame(rgb_b, depth_b, pose())
+    z = mapper.gaussians.means[:, 2].detach().numpy()
+    n_box, n_wall = int(np.isclose(z, 1.0).sum()), int(np.isclose(z, 2.0).sum())
+    assert n_box > 0 and n_box + n_wall == len(z)
+    rgb, depth = observe(pose(), S)
+    stats = mapper.add_frame(rgb, depth, pose())
+    z = mapper.gaussians.means[:, 2].detach().numpy()
+    assert stats.pruned == n_box and np.isclose(z, 2.0).all()
+    mapper.add_frame(rgb, depth, pose())  # the uncovered wall is densified on the next mapped frame
+    out = mapper.render(pose())
+    assert out.alpha[4:-4, 4:-4].min() > 0.9
+    assert (out.depth - torch.from_numpy(depth))[4:-4, 4:-4].abs().max() < 0.1
+    off = _mapper(iterations=0, pixel_stride=2, prune_floater_margin_m=None)
+    off.add_frame(rgb_b, depth_b, pose())
+    assert off.add_frame(rgb, depth, pose()).pruned == 0

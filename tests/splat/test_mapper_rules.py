@@ -144,3 +144,33 @@ def test_downsample_observation_block_means_and_invalid_blocks():
     assert torch.equal(small_rgb[0, 1], rgb[:2, 2:].reshape(-1, 3).mean(dim=0))
     assert torch.equal(small_depth, torch.tensor([[1.5, 0.0], [5.0, 6.0]]))  # a block with a hole -> invalid
     assert downsample_observation(rgb, depth, 1)[1] is depth
+
+
+def test_free_space_mask_flags_only_gaussians_in_observed_free_space():
+    from activesplat.splat.densify import free_space_mask
+
+    K = np.array([[8.0, 0, 8], [0, 8.0, 8], [0, 0, 1]])  # 16 x 16 image, pixel (v, u) centre (u+.5, v+.5)
+    depth = torch.full((16, 16), 2.0)
+    depth[:, :6] = 1.0  # a box face on the left, its edge between columns 5 and 6
+    depth[12:, 12:] = 0.0  # a hole: unknown space
+
+    def at(v, u, z):  # world point on the ray through pixel (v, u) centre at z-depth z (camera = world)
+        return [(u + 0.5 - 8) / 8 * z, (v + 0.5 - 8) / 8 * z, z]
+
+    means = torch.tensor([
+        at(4, 10, 2.0),  # on the wall -> keep
+        at(4, 10, 1.0),  # 1 m in front of the wall -> floater
+        at(4, 10, 3.0),  # behind the wall (occluded) -> keep
+        at(4, 10, 1.95),  # within the 0.1 m margin -> keep
+        at(4, 6, 1.0),  # box rim seen one pixel off, on a wall pixel next to the box -> keep (3x3 min)
+        at(4, 8, 1.0),  # two pixels off the box -> floater
+        at(13, 13, 0.5),  # in front of unknown depth -> keep
+        [0.0, 0.0, -1.0],  # behind the camera -> keep
+        at(4, 40, 1.0),  # outside the image -> keep
+    ])
+    got = free_space_mask(means, np.eye(4), K, depth, margin_m=0.1, window_px=1)
+    assert got.tolist() == [False, True, False, False, False, True, False, False, False]
+    moved = np.eye(4)
+    moved[:3, 3] = [0.0, 0.0, -1.0]  # camera 1 m back: the wall is at z = 3 in the camera
+    assert free_space_mask(means + torch.tensor([0.0, 0.0, -1.0]), moved, K, depth, 0.1, 1).tolist() == \
+        got.tolist()

@@ -30,7 +30,7 @@ class LearningRates:
     rate on f_dc is the release's RGB rate divided by C0, which gives the same RGB steps.
     """
 
-    means: float = 1e-4
+    means: float = 1e-3  # project: release 1e-4 (see MapperConfig, "depth bias")
     colors: float = 2.5e-3  # on plain RGB, converted to f_dc units by GaussianMap
     quats: float = 1e-3
     opacities: float = 0.05  # on the opacity logit
@@ -53,13 +53,30 @@ class MapperConfig:
     the project adds one per ``pixel_stride`` x ``pixel_stride`` block (radius scaled by the
     stride so the surface stays covered), which divides the Gaussian count by stride^2.
 
-    Initial radius and opacity (``init_radius_scale`` 0.75, ``init_opacity`` 0.9; paper 1.0 and 0.5):
+    Initial radius and opacity (``init_radius_scale`` 0.75, ``init_opacity`` 0.99; paper 1.0 and 0.5):
     the paper's radius depth/focal at opacity 0.5 leaves a freshly covered surface at O ~ 0.973,
     below tau_o1 = 0.98, so eq. 8 would cover it again on every mapped frame; widening the
     Gaussians fixes that but blurs colour and mixes depths across edges (foreground bleeding
     ~3 px), and the release's 2 iterations per mapped frame cannot sharpen them. Smaller, more
     opaque Gaussians give O >= 0.987 everywhere and ~1.5 px bleeding: on small-0 (first 100 steps)
     keyframe PSNR 27.4 -> 28.7 dB and depth L1 4.4 -> 2.6 cm against (1.25, 0.5).
+
+    Depth bias (``init_opacity`` 0.99, ``lr.means`` 1e-3; were 0.9 and the release's 1e-4): the
+    rendered depth is the un-normalised sum w_i z_i of the Gaussians' *centre* depths, composited
+    front to back, so on a surface seen at an angle the nearer of two overlapping neighbours gets the
+    larger weight and the render sits in front of the truth (signed error -3 cm on small-0), and any
+    opacity shortfall 1 - O shortens it by (1 - O) x depth. The fix is letting the depth loss move the
+    centres: at 1e-4 m per Adam step a Gaussian moves at most a few mm in its handful of iterations, at
+    1e-3 it can absorb the bias; 0.99 (the rasterizer's alpha cap) makes surfaces opaque at once.
+    Measured on small-0, first 100 steps of benchmarks/mapper.py (depth L1 of sum w_i z_i / PSNR):
+    (0.9, 1e-4) 3.02 cm / 27.6 dB; (0.9, 1e-3) 2.07 cm / 27.05 dB; (0.99, 1e-3) 1.78 cm / 27.05 dB;
+    (0.99, 2e-3) 2.03 cm; (0.99, 1e-3, radius 0.6) 2.24 cm (coverage holes); (0.99, 1e-3, w_d = 2)
+    1.71 cm (kept the paper's w_d = 1: within noise).
+
+    Floater pruning (``prune_floater_margin_m``): a Gaussian whose centre the current frame sees as free
+    space (projects in front of the observed depth by more than the margin, where the whole 3x3
+    neighbourhood is valid and farther) is removed; this is how a map with known poses loses
+    Gaussians left by a wrong early depth, and what keeps moved objects from staying in the map.
 
     The eq. 8 / eq. 10 render (``mask_downscale``) runs at half resolution and is upsampled
     (nearest): new Gaussians are placed on a 2-px grid anyway, so a full-resolution render would
@@ -82,7 +99,7 @@ class MapperConfig:
     adam_eps: float = 1e-15  # release / SplaTAM
 
     # --- initialisation (REFERENCE.md sec. 2)
-    init_opacity: float = 0.9  # project: paper/release 0.5 (see class docstring)
+    init_opacity: float = 0.99  # project: paper/release 0.5 (see class docstring)
     pixel_stride: int = 2  # project: one Gaussian per stride x stride pixels (1 = paper)
     init_radius_scale: float = 0.75  # project: radius = scale * stride * depth / focal (paper 1.0)
     min_depth_m: float = 0.05  # project: depth below this is treated as invalid (sensor noise)
@@ -103,6 +120,10 @@ class MapperConfig:
     prune_opacity: float = 0.005  # 3DGS min_opacity
     prune_max_scale_m: float = 0.5  # project: 3DGS uses 0.1 x scene extent; indoor extent ~5 m
     max_gaussians: int = 300_000  # project: hard cap, lowest-opacity Gaussians dropped beyond it
+    # project: floaters = Gaussians whose centre the current frame sees as free space (in front of the
+    # observed depth, min over a 3x3 neighbourhood, by more than the margin); None = off
+    prune_floater_margin_m: float | None = 0.1
+    prune_floater_window_px: int = 1
 
     # --- schedule (release): normal walking, and the denser look-around schedule
     schedule: Schedule = field(default_factory=lambda: Schedule(map_every=5, keyframe_every=5, iterations=2))

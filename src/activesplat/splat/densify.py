@@ -63,6 +63,37 @@ def gaussians_from_pixels(mask: torch.Tensor, rgb: torch.Tensor, depth: torch.Te
     return {k: t.to(rgb.device) for k, t in raw.items()}
 
 
+def free_space_mask(means: torch.Tensor, pose: np.ndarray, K: np.ndarray, obs_depth: torch.Tensor,
+                    margin_m: float, window_px: int) -> torch.Tensor:
+    """Floaters: Gaussians whose centre projects into the current view *in front of* the observed
+    surface by more than ``margin_m``, i.e. sits in space the sensor ray has just seen to be empty.
+
+    The observed depth is the minimum over a (2 ``window_px`` + 1)^2 neighbourhood of valid pixels, so
+    a Gaussian on a depth edge (foreground rim seen one pixel off) is never taken for a floater; a
+    neighbourhood with an invalid pixel (unknown space) never prunes. Returns (N,) bool, True = floater.
+    """
+    h, w = obs_depth.shape
+    rot = torch.from_numpy(pose[:3, :3].astype(np.float32)).to(means.device)
+    t = torch.from_numpy(pose[:3, 3].astype(np.float32)).to(means.device)
+    cam = (means.detach() - t) @ rot  # world -> camera: R^T (p - t)
+    z = cam[:, 2]
+    safe_z = torch.where(z > 1e-6, z, torch.ones_like(z))
+    u = torch.floor(float(K[0, 0]) * cam[:, 0] / safe_z + float(K[0, 2])).long()
+    v = torch.floor(float(K[1, 1]) * cam[:, 1] / safe_z + float(K[1, 2])).long()
+    inside = (z > 1e-6) & (u >= 0) & (u < w) & (v >= 0) & (v < h)
+    observed = torch.where(obs_depth > 0, obs_depth, torch.zeros_like(obs_depth))
+    k = 2 * window_px + 1
+    # min-pool of the depth; any invalid (0) pixel makes the neighbourhood minimum 0 -> never a floater
+    nearest = -torch.nn.functional.max_pool2d(-observed[None, None], k, stride=1, padding=window_px)[0, 0]
+    if window_px > 0:  # max_pool2d pads with -inf, so the border needs the zero padding made explicit
+        nearest[:window_px], nearest[-window_px:] = 0.0, 0.0
+        nearest[:, :window_px], nearest[:, -window_px:] = 0.0, 0.0
+    floater = torch.zeros_like(inside)
+    idx = torch.nonzero(inside, as_tuple=True)[0]
+    floater[idx] = z[idx] < nearest[v[idx], u[idx]] - margin_m
+    return floater
+
+
 def prune_mask(gmap: GaussianMap, cfg: MapperConfig) -> torch.Tensor:
     """Gaussians to keep: drop near-transparent (opacity < prune_opacity) and oversized (largest
     scale > prune_max_scale_m) ones as 3DGS; then, above ``max_gaussians``, the least opaque."""

@@ -28,7 +28,13 @@ import torch
 
 from activesplat.errors import InvalidInputError
 from activesplat.splat.config import LearningRates, MapperConfig, Schedule
-from activesplat.splat.densify import densification_mask, gaussians_from_pixels, high_loss_mask, prune_mask
+from activesplat.splat.densify import (
+    densification_mask,
+    free_space_mask,
+    gaussians_from_pixels,
+    high_loss_mask,
+    prune_mask,
+)
 from activesplat.splat.gaussians import GaussianMap
 from activesplat.splat.keyframes import Keyframe, mapping_window
 from activesplat.splat.losses import mapping_loss
@@ -187,9 +193,19 @@ class Mapper:
         losses = [self._optimize_view(view) for view in views]
         stats.loss = float(np.mean(losses)) if losses else None
         clock.lap("optimize")
-        stats.pruned = self.gaussians.keep(prune_mask(self.gaussians, cfg), self.optimizer)
+        stats.pruned = self.gaussians.keep(self._keep_mask(pose, obs_depth), self.optimizer)
         self.peak_gaussians = max(self.peak_gaussians, len(self.gaussians) + stats.pruned)
         clock.lap("prune")
+
+    def _keep_mask(self, pose: np.ndarray, obs_depth: torch.Tensor) -> torch.Tensor:
+        """Pruning: transparent / oversized / over the cap (:func:`prune_mask`), and floaters in the
+        free space the current frame observes (:func:`free_space_mask`)."""
+        cfg = self.config
+        keep = prune_mask(self.gaussians, cfg)
+        if cfg.prune_floater_margin_m is not None:
+            keep &= ~free_space_mask(self.gaussians.means, pose, self.K, obs_depth,
+                                     cfg.prune_floater_margin_m, cfg.prune_floater_window_px)
+        return keep
 
     def _render_or_blank(self, pose: np.ndarray) -> dict[str, torch.Tensor]:
         """Opacity, depth and median depth of the current view for eqs. 8 and 10, rendered at
