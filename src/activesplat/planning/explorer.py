@@ -112,6 +112,19 @@ class Plan:
     path: np.ndarray | None = None
 
 
+def build_plan(gaussians: Any, floor_height: float, agent_xz: np.ndarray, wcfg: WorkspaceConfig,
+               timers: Timers | None = None, graph: bool = True) -> Plan:
+    """Top-down grids -> workspace -> Voronoi graph -> subregions of the current map (sec. III-A, III-C)."""
+    timers = timers or Timers()
+    plan = Plan()
+    plan.grids = timers.time("workspace", render_topdown, gaussians, floor_height, wcfg, agent_xz)
+    plan.workspace = timers.time("workspace", extract_workspace, plan.grids, agent_xz, wcfg)
+    if graph:
+        plan.graph = timers.time("voronoi", build_voronoi_graph, plan.workspace, wcfg)
+        plan.subregions = timers.time("subregions", partition_subregions, plan.graph, wcfg)
+    return plan
+
+
 class Timers:
     """Mean milliseconds per step of each module (Tab. VI): totals divided by the step count."""
 
@@ -276,12 +289,8 @@ class ActiveSplatExplorer:
     def _replan(self, pose: np.ndarray) -> None:
         cfg = self.cfg
         here = floor_xz(pose)
-        plan = self.plan
-        plan.grids = self.timers.time("workspace", render_topdown, self.world.gaussians, self.floor_height,
-                                      cfg.workspace, here)
-        plan.workspace = self.timers.time("workspace", extract_workspace, plan.grids, here, cfg.workspace)
-        plan.graph = self.timers.time("voronoi", build_voronoi_graph, plan.workspace, cfg.workspace)
-        plan.subregions = self.timers.time("subregions", partition_subregions, plan.graph, cfg.workspace)
+        plan = self.plan = build_plan(self.world.gaussians, self.floor_height, here, cfg.workspace,
+                                      self.timers)
         goal_order = self.timers.time("position_selection", self._rank_goals, here)
         for node in goal_order:
             goal = np.asarray(plan.graph.nodes[node]["pos"], float)

@@ -13,10 +13,8 @@ import cv2
 import numpy as np
 
 from activesplat.planning.controller import PathFollower, floor_xz
-from activesplat.planning.explorer import ActiveSplatExplorer
-from activesplat.workspace.clean import extract_workspace
+from activesplat.planning.explorer import ActiveSplatExplorer, build_plan
 from activesplat.workspace.paths import shortcut
-from activesplat.workspace.topdown import render_topdown
 
 _NEIGHBOURS = np.ones((3, 3), np.uint8)
 
@@ -90,11 +88,10 @@ class FrontierExplorer(ActiveSplatExplorer):
         self.queue.extend(["turn_left"] * self.fcfg.look_around_turns)
 
     def _replan(self, pose: np.ndarray) -> None:
-        cfg, plan = self.cfg, self.plan
+        cfg = self.cfg
         here = floor_xz(pose)
-        plan.grids = self.timers.time("workspace", render_topdown, self.world.gaussians, self.floor_height,
-                                      cfg.workspace, here)
-        plan.workspace = self.timers.time("workspace", extract_workspace, plan.grids, here, cfg.workspace)
+        plan = self.plan = build_plan(self.world.gaussians, self.floor_height, here, cfg.workspace,
+                                      self.timers, graph=False)
         goal_path = self.timers.time("position_selection", self._nearest_frontier_path, here)
         if goal_path is None:
             plan.goal = plan.path = None
