@@ -122,8 +122,8 @@ def test_evaluate_on_a_non_episode_folder(capsys, tmp_path):
 
 @pytest.mark.parametrize("policy", ["fbe", "random"])
 def test_baseline_policies_run_the_same_harness(tmp_path, policy):
-    m = run_exploration("small-0", policy=policy, steps=85, seed=2, out=tmp_path / policy, **TINY)
+    m = run_exploration("small-0", policy=policy, steps=110, seed=2, out=tmp_path / policy, **TINY)
     ep = read_episode(tmp_path / policy)
-    assert ep.complete and len(ep.actions) == 85 and m["policy"] == policy
+    assert ep.complete and len(ep.actions) == 110 and m["policy"] == policy
     # after the bootstrap the policy plans: the agent leaves its start
     assert ep.actions[72:].count("move_forward") > 0
