@@ -4,8 +4,8 @@ within the documented pitch limits, blocked moves leave the pose unchanged, ever
 import numpy as np
 import pytest
 
+from activesplat.geometry import intrinsics
 from activesplat.sim import ACTIONS, SimConfig, Simulator, camera_pose
-from activesplat.sim.sensor import intrinsics
 
 CFG = SimConfig()
 

@@ -9,11 +9,12 @@ obs = sim.step("move_forward")
 ```
 """
 
+from activesplat.geometry import intrinsics
 from activesplat.sim.config import SimConfig
 from activesplat.sim.house import HouseConfig
 from activesplat.sim.navmap import NavMap
 from activesplat.sim.scene import Scene, box_room, describe_builtin_scenes, load_scene
-from activesplat.sim.sensor import RGBDSensor, intrinsics
+from activesplat.sim.sensor import RGBDSensor
 from activesplat.sim.simulator import ACTIONS, AgentState, Observation, Simulator, camera_pose
 
 __all__ = [

@@ -11,12 +11,6 @@ from embreex.mesh_construction import TriangleMesh
 from activesplat.sim.config import SimConfig
 
 
-def intrinsics(width: int, height: int, hfov_deg: float) -> np.ndarray:
-    """Pinhole K, principal point at the image centre, fx = fy = (W/2) / tan(hfov/2)."""
-    f = (width / 2.0) / np.tan(np.deg2rad(hfov_deg) / 2.0)
-    return np.array([[f, 0.0, width / 2.0], [0.0, f, height / 2.0], [0.0, 0.0, 1.0]])
-
-
 def camera_rays(K: np.ndarray, width: int, height: int) -> np.ndarray:
     """(H*W, 3) camera-frame directions through pixel centres with z = 1, so the ray parameter of
     a hit is its z-depth."""

@@ -12,9 +12,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from activesplat.errors import InvalidActionError, InvalidInputError
+from activesplat.geometry import intrinsics
 from activesplat.sim.config import SimConfig
 from activesplat.sim.scene import Scene
-from activesplat.sim.sensor import intrinsics
 
 ACTIONS = ("move_forward", "turn_left", "turn_right", "look_up", "look_down", "stop")
 
