@@ -23,6 +23,8 @@ _NEIGHBOURS = np.ones((3, 3), np.uint8)
 class FrontierConfig:
     min_cluster_cells: int = 8
     """Frontier clusters with fewer cells are noise (0.05 m cells: 8 cells ~ 0.4 m of frontier)."""
+    start_disc_m: float = 0.3
+    """Cells this close to the agent count as passable for the frontier search (it stands there)."""
     look_around_turns: int = 36
     """Turns of the look-around on reaching a frontier (a full circle of 10 deg turns)."""
 
@@ -115,6 +117,13 @@ class FrontierExplorer(ActiveSplatExplorer):
         if not targets.any():
             return None
         start = tuple(int(v) for v in geom.pixel_index(here))
+        # The agent stands on free floor even where the polished workspace is thin (doorways): let the
+        # search leave from a small disc around it, or a door would trap it.
+        r = max(1, int(round(self.fcfg.start_disc_m / geom.resolution)))
+        disc = np.zeros(passable.shape, np.uint8)
+        if geom.contains(np.array(start)):
+            cv2.circle(disc, (start[1], start[0]), r, 1, -1)
+        passable = passable | ((disc > 0) & (ws.mask | grids.free))
         dist = grid_distances(passable, start)
         cand = np.where(targets, dist, np.inf)
         if not np.isfinite(cand).any():
