@@ -23,6 +23,9 @@ _NEIGHBOURS = np.ones((3, 3), np.uint8)
 class FrontierConfig:
     min_cluster_cells: int = 8
     """Frontier clusters with fewer cells are noise (0.05 m cells: 8 cells ~ 0.4 m of frontier)."""
+    skip_radius_m: float = 0.5
+    """Frontier cells within this of the agent, a failed goal or a frontier already reached are not goals
+    (ours: classic FBE re-selects an unobservable frontier forever)."""
     start_disc_m: float = 0.3
     """Cells this close to the agent count as passable for the frontier search (it stands there)."""
     look_around_turns: int = 36
@@ -83,10 +86,14 @@ class FrontierExplorer(ActiveSplatExplorer):
     def __init__(self, *args, frontier: FrontierConfig | None = None, **kwargs):
         super().__init__(*args, **kwargs)
         self.fcfg = frontier or FrontierConfig()
+        self.reached: list[np.ndarray] = []
         self.cfg.rotations = False
         self.cfg.multi_stops = False
 
     def _arrive(self, pose: np.ndarray) -> None:
+        # A frontier that survives a look-around from right next to it cannot be seen from there (e.g. floor
+        # under furniture): remember it so that the agent does not come back to it forever.
+        self.reached.append(floor_xz(pose))
         self.queue.extend(["turn_left"] * self.fcfg.look_around_turns)
 
     def _replan(self, pose: np.ndarray) -> None:
@@ -111,10 +118,17 @@ class FrontierExplorer(ActiveSplatExplorer):
         big = np.zeros(count, bool)
         big[1:] = stats[1:, cv2.CC_STAT_AREA] >= self.fcfg.min_cluster_cells
         targets = big[labels] & passable
-        for p in self.failed:  # frontiers near failed goals are skipped until the fallback clears them
+        # Skip frontiers near failed goals, near frontiers already reached, and right under the agent.
+        blocked = np.zeros(targets.shape, np.uint8)
+        k = max(1, int(round(self.fcfg.skip_radius_m / geom.resolution)))
+        for p in [*self.failed, *self.reached, here]:
             r, c = geom.pixel_index(p)
-            targets[max(r - 4, 0): r + 5, max(c - 4, 0): c + 5] = False
+            cv2.circle(blocked, (int(c), int(r)), k, 1, -1)
+        targets &= blocked == 0
         if not targets.any():
+            if self.reached or self.failed:  # fallback: give every frontier a second chance
+                self.reached.clear()
+                self.failed.clear()
             return None
         start = tuple(int(v) for v in geom.pixel_index(here))
         # The agent stands on free floor even where the polished workspace is thin (doorways): let the
