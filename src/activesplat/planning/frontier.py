@@ -117,7 +117,11 @@ class FrontierExplorer(ActiveSplatExplorer):
         count, labels, stats, _ = cv2.connectedComponentsWithStats(frontier.astype(np.uint8), connectivity=8)
         big = np.zeros(count, bool)
         big[1:] = stats[1:, cv2.CC_STAT_AREA] >= self.fcfg.min_cluster_cells
-        targets = big[labels] & passable
+        # Frontier cells border unknown space, so they never have the agent's clearance themselves: the goals
+        # are the passable cells within reach (clearance + 2 cells) of a frontier cluster.
+        reach = int(np.ceil(self.cfg.workspace.agent_radius / geom.resolution)) + 2
+        kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * reach + 1, 2 * reach + 1))
+        targets = (cv2.dilate(big[labels].astype(np.uint8), kernel) > 0) & passable
         # Skip frontiers near failed goals, near frontiers already reached, and right under the agent.
         blocked = np.zeros(targets.shape, np.uint8)
         k = max(1, int(round(self.fcfg.skip_radius_m / geom.resolution)))
