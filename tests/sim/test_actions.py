@@ -106,3 +106,16 @@ def test_blocked_move_keeps_pose_and_counts(box):
 
 def test_actions_table():
     assert ACTIONS == ("move_forward", "turn_left", "turn_right", "look_up", "look_down", "stop")
+
+
+def test_act_moves_like_step_without_rendering(box, monkeypatch):
+    actions = ["move_forward", "turn_left", "look_down", "move_forward"] + ["move_forward"] * 60
+    stepped = Simulator(box, start=_centre_pose(box))
+    stepped.reset()
+    poses = [stepped.step(a).pose for a in actions]
+    acted = Simulator(box, start=_centre_pose(box))
+    monkeypatch.setattr(acted, "observe", lambda *a, **k: pytest.fail("act() must not render"))
+    collided = [acted.act(a) for a in actions]
+    np.testing.assert_allclose(acted.pose, poses[-1])
+    assert acted.step_count == len(actions)
+    assert any(collided)  # 60 steps forward in a 4 m room reach a wall

@@ -26,11 +26,10 @@ def replay_coverage(scene, start_pose: np.ndarray, actions: Iterable[str], cfg: 
     sim = Simulator(scene, start=start_pose, config=sim_config)
     K = intrinsics(cfg.resolution, cfg.resolution, sim_config.hfov_deg)
     acc = CoverageAccumulator(scene.sample_surface(cfg.n_gt_points, seed=cfg.seed), cfg)
-    sim.reset()
-    poses = [sim.pose]
+    poses = [sim.pose]  # a new simulator stands at its start: the reset pose, no frame rendered
     forward = 0
     for action in actions:
-        sim.step(action)
+        sim.act(action)
         forward += action == "move_forward"
         poses.append(sim.pose)
     for pose in poses:

@@ -121,6 +121,11 @@ class Simulator:
 
     def step(self, action: str) -> Observation:
         """Apply one action (REFERENCE 1 table) and observe; unknown names raise InvalidActionError."""
+        return self.observe(self.act(action))
+
+    def act(self, action: str) -> bool:
+        """Apply one action without rendering (replays, planning); returns whether a forward move was
+        refused. Counts as a step exactly like `step`."""
         if action not in ACTIONS:
             raise InvalidActionError(f"unknown action {action!r}: expected one of {', '.join(ACTIONS)}")
         self.step_count += 1
@@ -133,7 +138,7 @@ class Simulator:
             self.state = replace(self.state, yaw=float(np.arctan2(np.sin(yaw), np.cos(yaw))))
         elif action in ("look_up", "look_down"):
             self._look(1.0 if action == "look_up" else -1.0)
-        return self.observe(collided)
+        return collided
 
     def _move_forward(self) -> bool:
         """Move forward_step along the heading (on the floor, pitch ignored) if the whole segment is
