@@ -64,6 +64,7 @@ def run_exploration(scene="small-0", policy: str = "activesplat", steps: int | N
     timers = Timers()
     # the floor height comes from the agent's own start pose (its sensor height is known), not the mesh
     floor_height = float(obs.pose[1, 3] - sim_config.sensor_height)
+    explorer_config = explorer_config or _explorer_config_for(sim_config)
     explorer = make_policy(policy, mapper, floor_height, cfg=explorer_config, timers=timers)
     cov_cfg = coverage_config or CoverageConfig()
     coverage = CoverageAccumulator(scene_obj.sample_surface(cov_cfg.n_gt_points, seed=cov_cfg.seed), cov_cfg)
@@ -135,6 +136,19 @@ def _observe(obs, mapper, explorer, coverage, sim, K_eval, cov_cfg, timers) -> N
     timers.time("mapper", mapper.add_frame, obs.rgb, obs.depth, obs.pose, dense=explorer.dense_mapping)
     explorer.observe_mapping(obs, sim.K)
     timers.time("evaluation", _count_coverage, coverage, sim, obs.pose, K_eval, cov_cfg)
+
+
+def _explorer_config_for(sim_config):
+    """The planner's knowledge of its own body and actions comes from the robot's configuration."""
+    from activesplat.planning.controller import ControllerConfig
+    from activesplat.planning.explorer import ExplorerConfig
+    from activesplat.workspace.config import WorkspaceConfig
+
+    return ExplorerConfig(
+        controller=ControllerConfig(turn_deg=sim_config.turn_deg, look_deg=sim_config.look_deg,
+                                    forward_m=sim_config.forward_step),
+        workspace=WorkspaceConfig(agent_radius=sim_config.agent_radius, agent_height=sim_config.agent_height),
+        panorama_height_m=sim_config.sensor_height)
 
 
 def _count_coverage(coverage, sim, pose, K_eval, cov_cfg) -> None:
