@@ -12,7 +12,6 @@ from activesplat.planning.config import PanoramaConfig, ScoreConfig
 from activesplat.planning.panorama import render_panorama
 from activesplat.planning.viewpoints import (
     HighLossTracker,
-    high_loss_mask,
     hull_volume,
     invisible_share,
     node_scores,
@@ -84,13 +83,6 @@ def test_hull_volume_grows_with_the_hole():
     window_sr = math.radians(140) * (math.sin(math.radians(50)) * 2)
     total_sr = 2 * math.pi * (math.sin(math.radians(75)) * 2)  # the panorama spans +-75 deg of pitch
     assert invisible_share(big) == pytest.approx(window_sr / total_sr, rel=0.05)
-
-
-def test_high_loss_mask_eq10():
-    opacity = np.array([0.9, 0.9, 0.5, 0.9, 0.9])
-    d_obs = np.array([1.0, 1.0, 1.0, 2.0, 0.0])
-    d_ren = np.array([1.5, 1.2, 1.5, 1.5, 1.5])
-    assert high_loss_mask(opacity, d_obs, d_ren).tolist() == [True, False, False, False, False]
 
 
 def test_high_loss_tracker_adds_then_drops_sample():

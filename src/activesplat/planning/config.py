@@ -61,12 +61,9 @@ class HullConfig:
 
 @dataclass
 class HighLossConfig:
-    """High-loss samples of eq. 10, tracked over time (sec. III-B2)."""
+    """High-loss samples of eq. 10, tracked over time (sec. III-B2). The eq. 10 thresholds themselves
+    (tau_o2 = 0.8, epsilon_1 = 0.3 m) live in the mapper's config, which computes the mask."""
 
-    opacity_threshold: float = 0.8
-    """tau_o2 of eq. 10: rendered opacity above which a depth disagreement counts."""
-    depth_error_m: float = 0.3
-    """epsilon_1 of eq. 10: observed depth in front of the rendered one by more than this."""
     grid: int = 90
     """The mask is downsampled to grid x grid before clustering (release: 90 x 90)."""
     min_pixels: int = 20

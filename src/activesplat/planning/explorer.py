@@ -38,7 +38,7 @@ from activesplat.planning.viewpoints import (
 )
 from activesplat.workspace.clean import Workspace, extract_workspace
 from activesplat.workspace.config import WorkspaceConfig
-from activesplat.workspace.paths import line_of_sight, path_length, plan_safe_path
+from activesplat.workspace.paths import line_of_sight, plan_safe_path
 from activesplat.workspace.subregions import agent_subregion, partition_subregions
 from activesplat.workspace.topdown import TopDownGrids, render_topdown
 from activesplat.workspace.voronoi import build_voronoi_graph
@@ -416,4 +416,4 @@ def _travel_lengths(graph: nx.Graph, ws: Workspace, here: np.ndarray, nodes: lis
     return np.where(np.isfinite(out), out, eu * 3.0)
 
 
-__all__ = ["ActiveSplatExplorer", "ExplorerConfig", "Plan", "Timers", "WorldModel", "path_length"]
+__all__ = ["ActiveSplatExplorer", "ExplorerConfig", "Plan", "Timers", "WorldModel", "build_plan"]

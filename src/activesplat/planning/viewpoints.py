@@ -140,15 +140,6 @@ def _hull_volume(points: np.ndarray) -> float:
 
 
 # --------------------------------------------------------------------------- high-loss samples (eq. 10)
-def high_loss_mask(opacity: np.ndarray, depth_obs: np.ndarray, depth_render: np.ndarray,
-                   cfg: HighLossConfig | None = None) -> np.ndarray:
-    """Eq. 10: M_h = (O > tau_o2) & (D_obs < D_render) & (|D_obs - D_render| > eps_1), on valid depth."""
-    cfg = cfg or HighLossConfig()
-    valid = depth_obs > 0
-    return (valid & (opacity > cfg.opacity_threshold) & (depth_obs < depth_render)
-            & (np.abs(depth_obs - depth_render) > cfg.depth_error_m))
-
-
 @dataclass
 class HighLossSample:
     """A 3D point of a high-loss region, kept until the camera has looked at it."""
@@ -161,7 +152,8 @@ class HighLossSample:
 class HighLossTracker:
     """Keeps the high-loss samples of eq. 10 over time ("clustered with temporal propagation").
 
-    Each mapped frame's mask (computed before densification) is downsampled, clustered with DBSCAN and
+    Each mapped frame's eq. 10 mask (computed by the mapper before densification, see
+    `activesplat.splat.densify.high_loss_mask`) is downsampled, clustered with DBSCAN and
     the largest cluster's centre is back-projected with the observed depth into a world point. A sample is
     forgotten once the camera heading comes within `drop_within_deg` of it.
     """
