@@ -87,8 +87,6 @@ class FrontierExplorer(ActiveSplatExplorer):
         super().__init__(*args, **kwargs)
         self.fcfg = frontier or FrontierConfig()
         self.reached: list[np.ndarray] = []
-        self.cfg.rotations = False
-        self.cfg.multi_stops = False
 
     def _arrive(self, pose: np.ndarray) -> None:
         # A frontier that survives a look-around from right next to it cannot be seen from there (e.g. floor

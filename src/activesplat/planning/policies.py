@@ -32,7 +32,8 @@ _VARIANTS: dict[str, tuple[str, Callable[[ExplorerConfig], ExplorerConfig]]] = {
                         lambda c: _with_scores(c, w_c=0.0)),
     "hull-only": ("full method scoring nodes by 3D hull volume only (w_o = 0)",
                   lambda c: _with_scores(c, w_o=0.0)),
-    "fbe": ("classic frontier-based exploration (Yamauchi 1997), nearest frontier first", lambda c: c),
+    "fbe": ("classic frontier-based exploration (Yamauchi 1997), nearest frontier first",
+            lambda c: dataclasses.replace(c, hierarchical=False, multi_stops=False, rotations=False)),
 }
 
 POLICY_NAMES = tuple(_VARIANTS)
