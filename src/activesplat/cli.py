@@ -57,6 +57,32 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     return 0
 
 
+# --------------------------------------------------------------------------- render-eval / refine
+def _cmd_render_eval(args: argparse.Namespace) -> int:
+    from activesplat.eval.render_eval import render_eval_from_args
+
+    return render_eval_from_args(args)
+
+
+def _cmd_refine(args: argparse.Namespace) -> int:
+    from activesplat.refine import refine_from_args
+
+    return refine_from_args(args)
+
+
+# --------------------------------------------------------------------------- view / benchmark
+def _cmd_view(args: argparse.Namespace) -> int:
+    from activesplat.viz.viewer import view_from_args
+
+    return view_from_args(args)
+
+
+def _cmd_benchmark(args: argparse.Namespace) -> int:
+    from activesplat.bench import benchmark_from_args
+
+    return benchmark_from_args(args)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="activesplat",
@@ -96,12 +122,60 @@ def build_parser() -> argparse.ArgumentParser:
     p_explore.add_argument("--backend", default="auto", choices=("auto", "numba", "torch", "gsplat"),
                            help="rasterizer backend (auto: gsplat with CUDA, else numba)")
     p_explore.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p_explore.add_argument("--viewer", action="store_true",
+                           help="serve a live viser web viewer of the run on localhost")
+    p_explore.add_argument("--viewer-port", type=int, default=8080, help="port of --viewer (default 8080)")
     p_explore.set_defaults(func=_cmd_explore)
 
     # evaluate
     p_eval = sub.add_parser("evaluate", help="recompute completion metrics of an episode from its actions")
     p_eval.add_argument("dir", help="episode folder")
     p_eval.set_defaults(func=_cmd_evaluate)
+
+    # render-eval
+    p_reval = sub.add_parser("render-eval",
+                             help="PSNR / SSIM / LPIPS / depth L1 of a map on train and test views")
+    p_reval.add_argument("dir", help="episode folder (or a refined_<method> folder inside one)")
+    p_reval.add_argument("--n-train", type=int, default=50, help="train views, spread over the trajectory")
+    p_reval.add_argument("--n-test", type=int, default=50, help="test views, random poses in the free space")
+    p_reval.add_argument("--seed", type=int, default=0, help="seed of the test poses")
+    p_reval.add_argument("--backend", default="auto", choices=("auto", "numba", "torch", "gsplat"),
+                         help="rasterizer backend")
+    p_reval.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p_reval.set_defaults(func=_cmd_render_eval)
+
+    # refine
+    p_refine = sub.add_parser("refine", help="offline refinement of an episode's map from its keyframes")
+    p_refine.add_argument("dir", help="episode folder")
+    p_refine.add_argument("--method", default="3dgs", help="3dgs (default) or 2dgs")
+    p_refine.add_argument("--iters", type=int, default=2000, help="optimisation iterations (default 2000)")
+    p_refine.add_argument("--seed", type=int, default=0, help="seed of the view sampling")
+    p_refine.add_argument("--restart", action="store_true",
+                          help="ignore a checkpoint in DIR/refined_METHOD and start again")
+    p_refine.add_argument("--backend", default="auto", choices=("auto", "numba", "torch", "gsplat"),
+                          help="rasterizer backend")
+    p_refine.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p_refine.set_defaults(func=_cmd_refine)
+
+    # view
+    p_view = sub.add_parser("view", help="serve a viser web viewer of a finished episode")
+    p_view.add_argument("dir", help="episode folder")
+    p_view.add_argument("--port", type=int, default=8080, help="port (default 8080)")
+    p_view.set_defaults(func=_cmd_view)
+
+    # benchmark
+    p_bench = sub.add_parser("benchmark", help="scenes x policies x trials -> CSV and paper-style tables")
+    p_bench.add_argument("--scenes", nargs="+", default=["small-0", "small-1", "small-2", "small-3"],
+                         help="scene names or mesh files")
+    p_bench.add_argument("--policies", nargs="+", default=["activesplat", "fbe", "random"], help="policies")
+    p_bench.add_argument("--trials", type=int, default=1, help="trials (seeds 0..trials-1) per scene")
+    p_bench.add_argument("--steps", type=int, default=None, help="step budget (default: per scene size)")
+    p_bench.add_argument("--root", default="runs/benchmark", help="folder of the episodes and tables")
+    p_bench.add_argument("--workers", type=int, default=1, help="parallel processes (local executor)")
+    p_bench.add_argument("--executor", default="local", choices=("local", "ray"),
+                         help="local process pool (default) or a Ray cluster (pip install activesplat[ray])")
+    p_bench.add_argument("--ray-address", default=None, help="Ray cluster address (default: auto / local)")
+    p_bench.set_defaults(func=_cmd_benchmark)
     return parser
 
 
