@@ -34,9 +34,11 @@ def _default_out(scene: str, policy: str, seed: int) -> Path:
 def run_exploration(scene="small-0", policy: str = "activesplat", steps: int | None = None,
                     seed: int = 0, out: str | Path | None = None, overwrite: bool = False, z_up: bool = False,
                     backend: str = "auto", progress: bool = True, explorer_config=None, mapper_config=None,
-                    coverage_config=None, sim_config=None) -> dict:
+                    coverage_config=None, sim_config=None, viewer=None) -> dict:
     """Explore `scene` (a built-in name, a mesh path or a `Scene`) with `policy` for `steps` actions and write
-    the episode folder; returns the metrics (also written to metrics.json)."""
+    the episode folder; returns the metrics (also written to metrics.json). `viewer` (e.g. a
+    `viz.viewer.LiveViewer`) gets `update(step, obs, mapper, explorer, final=...)` after every step; None
+    (the default) costs nothing."""
     import torch
 
     from activesplat.eval.coverage import CoverageAccumulator, CoverageConfig
@@ -90,6 +92,8 @@ def run_exploration(scene="small-0", policy: str = "activesplat", steps: int | N
             obs = sim.step(action)
             forward += action == "move_forward"
             writer.record(step, action, obs.pose)
+            if viewer is not None:
+                viewer.update(step, obs, mapper, explorer, final=step == steps)
             if coverage.frames % cov_cfg.batch_frames == 0 or step == steps:
                 curve.append(timers.time("evaluation", _curve_point, step, coverage, forward, sim_config))
             if bar is not None:
@@ -217,9 +221,20 @@ def _fmt(v) -> str:
 
 def explore_from_args(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else _default_out(args.scene, args.policy, args.seed)
-    metrics = run_exploration(scene=args.scene, policy=args.policy, steps=args.steps, seed=args.seed, out=out,
-                              overwrite=args.overwrite, z_up=args.z_up,
-                              backend=getattr(args, "backend", "auto"),
-                              progress=not getattr(args, "no_progress", False))
-    print(format_summary(metrics, out))
+    viewer = None
+    if getattr(args, "viewer", False):  # viser is imported only here
+        from activesplat.viz.viewer import LiveViewer
+
+        viewer = LiveViewer(port=args.viewer_port)
+    try:
+        metrics = run_exploration(scene=args.scene, policy=args.policy, steps=args.steps, seed=args.seed,
+                                  out=out, overwrite=args.overwrite, z_up=args.z_up,
+                                  backend=getattr(args, "backend", "auto"),
+                                  progress=not getattr(args, "no_progress", False), viewer=viewer)
+        print(format_summary(metrics, out))
+        if viewer is not None:
+            viewer.hold()  # keeps serving the final state until Ctrl-C
+    finally:
+        if viewer is not None:
+            viewer.close()
     return 0
