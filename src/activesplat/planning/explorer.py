@@ -27,7 +27,7 @@ from activesplat.planning.controller import (
     level_actions,
     rotation_actions,
 )
-from activesplat.planning.panorama import render_panorama
+from activesplat.planning.panorama import Panorama, render_panorama
 from activesplat.planning.viewpoints import (
     HighLossTracker,
     RotationTarget,
@@ -112,6 +112,21 @@ class Plan:
     path: np.ndarray | None = None
 
 
+@dataclass(frozen=True)
+class ExplorerView:
+    """A read-only snapshot of the explorer's state for viewers (`ActiveSplatExplorer.view_state`). The
+    objects are the explorer's own, shared not copied: look, do not modify."""
+
+    name: str
+    floor_height: float
+    plan: Plan
+    """The latest plan (a new object after every replan): graph, subregions, scores, goal, path, grids."""
+    panorama: Panorama | None
+    """The latest on-arrival panorama the rotation targets were chosen from (None before the first)."""
+    rotation_targets: tuple[RotationTarget, ...]
+    """Rotation targets still to visit at the current spot."""
+
+
 def build_plan(gaussians: Any, floor_height: float, agent_xz: np.ndarray, wcfg: WorkspaceConfig,
                timers: Timers | None = None, graph: bool = True) -> Plan:
     """Top-down grids -> workspace -> Voronoi graph -> subregions of the current map (sec. III-A, III-C)."""
@@ -165,6 +180,7 @@ class ActiveSplatExplorer:
         self.rotated_at: list[np.ndarray] = []
         self.stopped_multi: list[np.ndarray] = []
         self.dense_mapping = True
+        self.last_panorama: Panorama | None = None
         self._bootstrap()
 
     # ------------------------------------------------------------------ public
@@ -184,6 +200,11 @@ class ActiveSplatExplorer:
         # map densely whenever the agent is not travelling: bootstrap, rotations, escapes (REFERENCE sec. 2)
         self.dense_mapping = self.follower is None
         return action
+
+    def view_state(self) -> ExplorerView:
+        """What a viewer may show (read-only, cheap: no copies)."""
+        return ExplorerView(self.name, self.floor_height, self.plan, self.last_panorama,
+                            tuple(self.rotation_targets))
 
     # ------------------------------------------------------------------ behaviour
     def _bootstrap(self) -> None:
@@ -252,7 +273,7 @@ class ActiveSplatExplorer:
     def _rotation_targets(self, pose: np.ndarray) -> list[RotationTarget]:
         pcfg = self.cfg.planning
         origin = pose[:3, 3]
-        pano = render_panorama(self.world.render, origin, pcfg.panorama)
+        pano = self.last_panorama = render_panorama(self.world.render, origin, pcfg.panorama)
         targets = rotation_candidates(pano, pcfg.rotation) + self.high_loss.targets(origin, max_distance=4.0)
         yaw, _ = pose_yaw_pitch(pose)
         chosen: list[RotationTarget] = []
@@ -416,4 +437,5 @@ def _travel_lengths(graph: nx.Graph, ws: Workspace, here: np.ndarray, nodes: lis
     return np.where(np.isfinite(out), out, eu * 3.0)
 
 
-__all__ = ["ActiveSplatExplorer", "ExplorerConfig", "Plan", "Timers", "WorldModel", "build_plan"]
+__all__ = ["ActiveSplatExplorer", "ExplorerConfig", "ExplorerView", "Plan", "Timers", "WorldModel",
+           "build_plan"]
