@@ -12,3 +12,8 @@ from activesplat.splat.mapper import FrameStats, Mapper  # noqa: E402
 from activesplat.splat.ply import load_ply, save_ply  # noqa: E402
 
 __all__ += ["FrameStats", "GaussianMap", "Keyframe", "Mapper", "MapperConfig", "load_ply", "save_ply"]
+
+# --- 2D Gaussian surfels (issue 7: refine --method 2dgs)
+from activesplat.splat.surfel import SurfelRenderOutput, rasterize_surfels  # noqa: E402
+
+__all__ += ["SurfelRenderOutput", "rasterize_surfels"]
