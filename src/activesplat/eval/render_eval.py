@@ -94,7 +94,7 @@ def train_indices(n_poses: int, n: int) -> np.ndarray:
     return np.unique(np.round(np.linspace(0, n_poses - 1, min(n, n_poses))).astype(np.int64))
 
 
-def test_poses(sim, n: int, seed: int, pitch_deg: float = 0.0) -> np.ndarray:
+def sample_test_poses(sim, n: int, seed: int, pitch_deg: float = 0.0) -> np.ndarray:
     """(n, 4, 4) seeded random camera poses in the scene's free space: a random cell of the largest
     navigable component (as the simulator's random start), sensor height, random yaw, fixed pitch."""
     from activesplat.sim.simulator import camera_pose
@@ -191,7 +191,8 @@ def render_eval(episode_dir: str | Path, gaussians_path: str | Path | None = Non
     K = intrinsics(width, height, sim_config.hfov_deg)
 
     steps = train_indices(len(episode.poses), cfg.n_train)
-    poses = {"train": episode.poses[steps], "test": test_poses(sim, cfg.n_test, cfg.seed, cfg.test_pitch_deg)}
+    poses = {"train": episode.poses[steps],
+             "test": sample_test_poses(sim, cfg.n_test, cfg.seed, cfg.test_pitch_deg)}
     grid_rows = {s: set(train_indices(len(poses[s]), cfg.grid_views).tolist()) for s in SPLITS}
     views: dict[str, list[dict]] = {s: [] for s in SPLITS}
     grid: list[dict] = []

@@ -1,0 +1,158 @@
+"""render-eval on a hand-made episode: a box room (exported to .glb), a 360 degree look-around at 64 x 64,
+and a map built directly from the ground-truth RGB-D (one Gaussian per 2x2 pixels of every third frame)."""
+
+import dataclasses
+import json
+import shutil
+
+import numpy as np
+import pytest
+import torch
+
+from activesplat.cli import main
+from activesplat.episode import EpisodeWriter
+from activesplat.errors import ActiveSplatError
+from activesplat.eval.render_eval import METRIC_KEYS, render_eval, sample_test_poses, train_indices
+from activesplat.sim import SimConfig, Simulator, box_room, load_scene
+from activesplat.splat.config import MapperConfig
+from activesplat.splat.densify import gaussians_from_pixels
+from activesplat.splat.gaussians import GaussianMap
+from activesplat.splat.ply import save_ply
+
+SIM = SimConfig(width=64, height=64)
+FAST = dict(n_train=3, n_test=3, progress=False, backend="numba")
+
+
+def _map_from_ground_truth(frames, K) -> GaussianMap:
+    cfg = MapperConfig()
+    parts = []
+    for rgb, depth, pose in frames:
+        obs_rgb = torch.from_numpy(rgb).float() / 255.0
+        obs_depth = torch.from_numpy(depth)
+        parts.append(gaussians_from_pixels(obs_depth > 0, obs_rgb, obs_depth, pose, K, cfg))
+    return GaussianMap({k: torch.cat([p[k] for p in parts]) for k in parts[0]})
+
+
+@pytest.fixture(scope="module")
+def episode(tmp_path_factory):
+    root = tmp_path_factory.mktemp("render_eval")
+    scene_file = box_room().export(root / "box.glb")
+    scene = load_scene(str(scene_file))
+    sim = Simulator(scene, seed=0, config=SIM)
+    out = root / "episode"
+    writer = EpisodeWriter(out)
+    obs = sim.reset()
+    meta = {"scene": str(scene_file), "z_up": False, "seed": 0, "policy": "scripted",
+            "start_pose": sim.start_pose.tolist(), "config": {"sim": dataclasses.asdict(SIM)}}
+    writer.start(meta, obs.pose)
+    frames = [(obs.rgb, obs.depth, obs.pose)]
+    for step in range(1, 37):
+        obs = sim.step("turn_left")
+        writer.record(step, "turn_left", obs.pose)
+        frames.append((obs.rgb, obs.depth, obs.pose))
+    writer.finish({"steps": 36})
+    gmap = _map_from_ground_truth(frames[::3], sim.K)
+    save_ply(gmap, out / "gaussians.ply")
+    return out, gmap
+
+
+@pytest.fixture(scope="module")
+def result(episode):
+    out, _ = episode
+    return render_eval(out, **FAST)
+
+
+def test_writes_metrics_and_grid(episode, result):
+    out, gmap = episode
+    saved = json.loads((out / "render_metrics.json").read_text())
+    for split in ("train", "test"):
+        for key in ("psnr", "ssim", "ms_ssim", "lpips", "depth_l1_cm", "n_views"):
+            assert key in saved[split], (split, key)
+        assert saved[split]["n_views"] == 3 == len(saved[split]["views"])
+        for key in ("psnr", "ssim", "lpips", "depth_l1_cm", "depth_l1_cm_normalised", "unmapped_pct"):
+            assert np.isfinite(saved[split][key]), (split, key)
+        assert saved[split]["ms_ssim"] is None  # 64 px is below MS-SSIM's 161 px minimum
+    assert saved["n_gaussians"] == len(gmap)
+    assert saved["train"]["psnr"] == pytest.approx(np.mean([v["psnr"] for v in saved["train"]["views"]]))
+    assert (out / "render_grid.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_map_built_from_ground_truth_renders_well(result):
+    train = result["train"]
+    assert train["psnr"] > 18.0
+    assert train["ssim"] > 0.5
+    assert train["lpips"] < 0.5
+    assert train["depth_l1_cm"] < 20.0  # an unoptimised map of 2x2-pixel isotropic blobs at 64 px
+    assert train["unmapped_pct"] < 5.0
+    assert 0.0 <= result["test"]["unmapped_pct"] <= 100.0
+
+
+def test_perturbed_map_scores_worse(episode, result, tmp_path):
+    out, gmap = episode
+    g = torch.Generator().manual_seed(0)
+    raw = {k: v.clone() for k, v in gmap.params.items()}
+    raw["means"] += 0.08 * torch.randn(raw["means"].shape, generator=g)
+    raw["f_dc"] += 0.8 * torch.randn(raw["f_dc"].shape, generator=g)
+    folder = out / "refined_perturbed"
+    save_ply(GaussianMap(raw), folder / "gaussians.ply")
+    worse = render_eval(folder, **FAST)  # a map folder inside an episode is evaluated against the episode
+    assert (folder / "render_metrics.json").is_file() and (folder / "render_grid.png").is_file()
+    assert worse["gaussians"] == str(folder / "gaussians.ply")
+    for split in ("train", "test"):
+        assert worse[split]["psnr"] < result[split]["psnr"] - 1.0
+        assert worse[split]["ssim"] < result[split]["ssim"]
+        assert worse[split]["lpips"] > result[split]["lpips"]
+    assert worse["train"]["depth_l1_cm"] > result["train"]["depth_l1_cm"]
+
+
+def test_explicit_gaussians_and_out_dir(episode, result, tmp_path):
+    out, _ = episode
+    again = render_eval(out, gaussians_path=out / "gaussians.ply", out_dir=tmp_path / "o", **FAST)
+    assert (tmp_path / "o" / "render_metrics.json").is_file()
+    for split in ("train", "test"):  # deterministic: same views, same numbers
+        for key in METRIC_KEYS:
+            assert again[split][key] == pytest.approx(result[split][key], rel=1e-5, abs=1e-6), (split, key)
+
+
+def test_splits(episode):
+    out, _ = episode
+    assert train_indices(37, 4).tolist() == [0, 12, 24, 36]
+    assert train_indices(3, 50).tolist() == [0, 1, 2]
+    scene = load_scene(json.loads((out / "episode.json").read_text())["scene"])
+    sim = Simulator(scene, seed=0, config=SIM)
+    a, b, c = (sample_test_poses(sim, 20, seed=s) for s in (1, 1, 2))
+    assert np.array_equal(a, b) and not np.array_equal(a, c)
+    assert np.all(sim.navmap.is_navigable(a[:, 0, 3], a[:, 2, 3]))
+    assert np.allclose(a[:, 1, 3], scene.floor_height + SIM.sensor_height)
+    assert np.allclose(a[:, 1, 2], 0.0)  # level cameras (pitch 0)
+    assert np.ptp(np.arctan2(a[:, 0, 2], a[:, 2, 2])) > np.pi  # yaws spread over the circle
+
+
+def test_bad_input(episode, tmp_path, capsys):
+    out, _ = episode
+    with pytest.raises(ActiveSplatError, match="not a folder"):
+        render_eval(tmp_path / "missing", **FAST)
+    with pytest.raises(ActiveSplatError, match="not an episode folder"):
+        render_eval(tmp_path, **FAST)
+    with pytest.raises(ActiveSplatError, match="positive"):
+        render_eval(out, n_train=0, n_test=3, progress=False)
+    with pytest.raises(ActiveSplatError, match="positive"):
+        render_eval(out, n_train=3, n_test=-1, progress=False)
+    no_map = tmp_path / "no_map"
+    no_map.mkdir()
+    for name in ("episode.json", "actions.txt", "poses.txt"):
+        (no_map / name).write_bytes((out / name).read_bytes())
+    with pytest.raises(ActiveSplatError, match="no map"):
+        render_eval(no_map, **FAST)
+    assert main(["render-eval", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("activesplat: error:") and "\n" not in err
+
+
+def test_cli_prints_a_table(episode, tmp_path, capsys):
+    out = shutil.copytree(episode[0], tmp_path / "copy")
+    assert main(["render-eval", str(out), "--n-train", "1", "--n-test", "1", "--no-progress",
+                 "--backend", "numba"]) == 0
+    text = capsys.readouterr().out
+    assert "train" in text and "test" in text and "PSNR" in text
+    assert json.loads((out / "render_metrics.json").read_text())["train"]["n_views"] == 1
