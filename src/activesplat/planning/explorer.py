@@ -38,7 +38,7 @@ from activesplat.planning.viewpoints import (
 )
 from activesplat.workspace.clean import Workspace, extract_workspace
 from activesplat.workspace.config import WorkspaceConfig
-from activesplat.workspace.paths import line_of_sight, plan_safe_path
+from activesplat.workspace.paths import line_of_sight, path_length, plan_safe_path
 from activesplat.workspace.subregions import agent_subregion, partition_subregions
 from activesplat.workspace.topdown import TopDownGrids, render_topdown
 from activesplat.workspace.voronoi import build_voronoi_graph
@@ -76,6 +76,8 @@ class ExplorerConfig:
     cost without a value)."""
     long_path_m: float = 13.0
     """Release: a goal path longer than 13 m (200 steps) is kept only if no closer node lies on the way."""
+    on_the_way_m: float = 0.5
+    """A node lies on the way of a long path when it is within this of the path (ours)."""
     max_panoramas: int = 24
     """Most candidate nodes scored by panorama per replan, nearest first (ours: bounds the replan time)."""
     escape_forward_steps: int = 3
@@ -320,6 +322,8 @@ class ActiveSplatExplorer:
             if path is None:
                 self.failed.append(goal)
                 continue
+            if path_length(path) > cfg.long_path_m:
+                goal, path = self._closer_on_the_way(here, goal, path)
             plan.goal, plan.path = goal, path
             self.follower = PathFollower(path[1:], cfg.controller)
             return
@@ -327,6 +331,30 @@ class ActiveSplatExplorer:
         if self.failed:  # fallback: forget failures, look around meanwhile
             self.failed.clear()
         self.queue.extend(["turn_left"] * 6)
+
+    def _closer_on_the_way(self, here: np.ndarray, goal: np.ndarray, path: np.ndarray
+                           ) -> tuple[np.ndarray, np.ndarray]:
+        """The release's long-path rule: a goal more than `long_path_m` away is kept only if no closer,
+        lower-scoring but still worthwhile node (scored above the local threshold, unvisited, not failed)
+        lies on the way (within `on_the_way_m` of the path); otherwise the best such node is the goal."""
+        plan, cfg = self.plan, self.cfg
+        graph = plan.graph
+        best, best_score = None, -np.inf
+        for node, score in plan.scores.items():
+            if score <= cfg.local_score_threshold or score <= best_score:
+                continue
+            pos = np.asarray(graph.nodes[node]["pos"], float)
+            unvisited, failed = self._node_state(pos)
+            if not unvisited or failed or np.hypot(*(pos - goal)) < 1e-6:
+                continue
+            if _distance_to_polyline(pos, path) <= cfg.on_the_way_m:
+                best, best_score = pos, score
+        if best is None:
+            return goal, path
+        closer = self.timers.time("planner", plan_safe_path, graph, plan.workspace, here, best, cfg.workspace)
+        if closer is None or path_length(closer) >= path_length(path):
+            return goal, path
+        return best, closer
 
     def _node_state(self, node_pos: np.ndarray) -> tuple[bool, bool]:
         r = self.cfg.planning.score.unvisited_radius_m
@@ -419,6 +447,16 @@ class ActiveSplatExplorer:
                 best_turns, best_clear = turns, clear
         turn = ["turn_left" if best_turns > 0 else "turn_right"] * abs(best_turns)
         return turn + ["move_forward"] * self.cfg.escape_forward_steps
+
+
+def _distance_to_polyline(p: np.ndarray, path: np.ndarray) -> float:
+    """Shortest distance from the point p (2,) to the polyline path (M,2)."""
+    if len(path) == 1:
+        return float(np.hypot(*(p - path[0])))
+    a, b = path[:-1], path[1:]
+    ab = b - a
+    t = np.clip(np.einsum("ij,ij->i", p - a, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-12), 0, 1)
+    return float(np.min(np.hypot(*(a + t[:, None] * ab - p).T)))
 
 
 def _travel_lengths(graph: nx.Graph, ws: Workspace, here: np.ndarray, nodes: list[int], pos: np.ndarray,

@@ -1,0 +1,55 @@
+"""The release's long-path rule (REFERENCE.md section 5) on a synthetic corridor."""
+
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "workspace"))
+from layouts import RES, corridor  # noqa: E402
+
+from activesplat.planning.explorer import ActiveSplatExplorer, ExplorerConfig, _distance_to_polyline  # noqa: E402
+from activesplat.workspace.clean import extract_workspace  # noqa: E402
+from activesplat.workspace.config import WorkspaceConfig  # noqa: E402
+from activesplat.workspace.paths import plan_safe_path  # noqa: E402
+from activesplat.workspace.voronoi import build_voronoi_graph  # noqa: E402
+
+WCFG = WorkspaceConfig(resolution=RES)
+HERE = np.array([1.0, 1.5])
+
+
+def _explorer(mid_score: float) -> tuple[ActiveSplatExplorer, np.ndarray, np.ndarray]:
+    cfg = ExplorerConfig(workspace=WCFG, long_path_m=3.0)
+    ex = ActiveSplatExplorer(world=None, floor_height=0.0, cfg=cfg)
+    ws = extract_workspace(corridor(), HERE, WCFG)
+    graph = build_voronoi_graph(ws, WCFG)
+    ex.plan.workspace, ex.plan.graph = ws, graph
+    pos = {n: np.asarray(d["pos"], float) for n, d in graph.nodes(data=True)}
+    far = max(pos, key=lambda n: pos[n][0])
+    mid = min(pos, key=lambda n: abs(pos[n][0] - 3.0))
+    ex.plan.scores = {far: 40.0, mid: mid_score}
+    goal = pos[far]
+    return ex, goal, plan_safe_path(graph, ws, HERE, goal, WCFG)
+
+
+def test_a_long_path_stops_at_a_worthwhile_node_on_the_way():
+    ex, goal, path = _explorer(mid_score=25.0)
+    new_goal, new_path = ex._closer_on_the_way(HERE, goal, path)
+    assert abs(new_goal[0] - 3.0) < 0.2 and new_path[-1] @ [1, 0] < goal[0] - 1.0
+
+
+def test_a_long_path_is_kept_when_nothing_on_the_way_is_worth_a_stop():
+    for mid_score in (10.0, 0.0):  # not above the local threshold
+        ex, goal, path = _explorer(mid_score)
+        new_goal, new_path = ex._closer_on_the_way(HERE, goal, path)
+        assert new_goal is goal and new_path is path
+    ex, goal, path = _explorer(mid_score=25.0)
+    ex.visited.append(np.array([3.0, 1.5]))  # the node on the way was visited already
+    assert ex._closer_on_the_way(HERE, goal, path)[0] is goal
+
+
+def test_distance_to_polyline():
+    path = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 2.0]])
+    assert _distance_to_polyline(np.array([1.0, 0.5]), path) == 0.5
+    assert _distance_to_polyline(np.array([3.0, 1.0]), path) == 1.0
+    assert np.isclose(_distance_to_polyline(np.array([-1.0, -1.0]), path), np.sqrt(2))
