@@ -1,0 +1,432 @@
+"""Offline refinement of an episode's map from its keyframe buffer (paper sec. III-D4).
+
+``refine(DIR, method, iters)`` loads the online map (``gaussians.ply``), the keyframes (``keyframes.npz``)
+and the mapper's settings (``mapper.json``: intrinsics, learning rates) of an episode folder and runs
+``iters`` Adam iterations. Each iteration renders one keyframe drawn uniformly at random and minimises
+
+    L = w_c ((1 - lambda) L1(C) + lambda (1 - SSIM(C))) + w_d L1(D)   (+ the 2DGS regularisers)
+
+over the pixels with valid depth (the mapper's :func:`~activesplat.splat.losses.mapping_loss` with the
+3DGS weights of :class:`~activesplat.refine.config.RefineConfig`), with 3DGS adaptive density control
+(:mod:`activesplat.refine.adc`) and the 3DGS position learning-rate decay.
+
+Outputs, in ``DIR/refined_<method>/``: ``gaussians.ply`` (the refined map), ``render_metrics.json``
+(train / test PSNR, SSIM, LPIPS, depth L1 from :func:`activesplat.eval.render_eval.render_eval`),
+``refine.json`` (settings, timing, loss / PSNR history, density-control totals) and ``checkpoint.pt``.
+
+Resuming: a checkpoint (parameters, Adam state, density statistics, iteration, both random generators,
+progress history) is written every ``checkpoint_every`` iterations, at the end, and when Ctrl-C stops
+the run (at the end of the iteration in progress). Running the same command again continues from it and
+gives the same map as an uninterrupted run; ``restart=True`` (``--restart``) starts over.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import signal
+import threading
+import time
+import warnings
+import zipfile
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from activesplat.errors import EpisodeError, InvalidInputError
+from activesplat.refine.adc import DensifyStats, DensityControl, reset_opacity, scene_extent
+from activesplat.refine.config import METHODS, RefineConfig
+from activesplat.refine.methods import make_method
+from activesplat.splat.gaussians import GaussianMap
+from activesplat.splat.losses import mapping_loss
+from activesplat.splat.mapper import Mapper
+from activesplat.splat.ply import save_ply
+
+CHECKPOINT = "checkpoint.pt"
+CHECKPOINT_VERSION = 1
+HISTORY_EVERY = 50  # iterations between entries of refine.json's loss / PSNR history
+OUTPUT_FILES = ("gaussians.ply", "render_metrics.json", "refine.json", CHECKPOINT)
+
+
+@dataclass
+class RefineResult:
+    """What a refinement produced."""
+
+    out_dir: Path
+    method: str
+    iterations: int  # iterations done (== iters unless stopped early)
+    iters: int  # iterations asked for
+    n_gaussians_initial: int
+    n_gaussians: int
+    train_seconds: float  # optimisation wall time, summed over resumed sessions
+    loss: float  # running mean (EMA) of the loss at the end
+    psnr: float  # running mean (EMA) of the PSNR of the trained keyframes (valid-depth pixels)
+    densify: dict = field(default_factory=dict)  # totals: cloned, split, pruned
+    metrics: dict | None = None  # render_metrics.json, None when not evaluated
+
+    @property
+    def complete(self) -> bool:
+        return self.iterations >= self.iters
+
+
+def output_dir(episode_dir: str | Path, method: str) -> Path:
+    """``DIR/refined_<method>``."""
+    return Path(episode_dir) / f"refined_{method}"
+
+
+def check_arguments(episode_dir: str | Path, method: str, iters: int) -> Path:
+    """Validate the command's input before anything slow happens; returns the episode folder.
+
+    Raises InvalidInputError (unknown method, iters <= 0) or EpisodeError (no folder, no keyframes.npz,
+    zero keyframes, no map)."""
+    if method not in METHODS:
+        raise InvalidInputError(f"unknown refinement method {method!r}; expected one of {', '.join(METHODS)}")
+    if isinstance(iters, bool) or not isinstance(iters, (int, np.integer)) or iters <= 0:
+        raise InvalidInputError(f"--iters must be a positive number of iterations, got {iters}")
+    path = Path(episode_dir)
+    if not path.is_dir():
+        raise EpisodeError(f"{path}: no such episode folder")
+    keyframes = path / "keyframes.npz"
+    if not keyframes.is_file():
+        raise EpisodeError(f"{path}: no keyframes.npz, nothing to refine from (not an episode folder?)")
+    try:
+        with np.load(keyframes) as data:
+            count = len(data["step"])
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as err:
+        raise EpisodeError(f"{keyframes}: unreadable keyframe buffer ({err})") from None
+    if count == 0:
+        raise EpisodeError(f"{keyframes}: the keyframe buffer is empty, nothing to refine from")
+    for name in ("mapper.json", "gaussians.ply"):
+        if not (path / name).is_file():
+            raise EpisodeError(f"{path}: no {name} (not an episode folder written by `activesplat explore`?)")
+    return path
+
+
+def _psnr(rgb: torch.Tensor, obs_rgb: torch.Tensor, valid: torch.Tensor) -> float:
+    """PSNR (dB, peak 1) over the ``valid`` pixels of a rendered (clamped) image."""
+    err = ((rgb.detach().clamp(0.0, 1.0) - obs_rgb) ** 2).mean(dim=2)[valid]
+    mse = float(err.mean()) if err.numel() else 0.0
+    return 10.0 * math.log10(1.0 / max(mse, 1e-10))
+
+
+class _DeferredInterrupt:
+    """Turns the first Ctrl-C into a flag checked between iterations (so a checkpoint is consistent);
+    a second Ctrl-C interrupts at once. Only active in the main thread."""
+
+    def __init__(self):
+        self.requested = False
+        self._previous = None
+
+    def __enter__(self):
+        if threading.current_thread() is threading.main_thread():
+            self._previous = signal.signal(signal.SIGINT, self._handler)
+        return self
+
+    def _handler(self, signum, frame):
+        if self.requested:
+            raise KeyboardInterrupt
+        self.requested = True
+
+    def __exit__(self, *exc):
+        if self._previous is not None:
+            signal.signal(signal.SIGINT, self._previous)
+        return False
+
+
+class Refiner:
+    """One refinement run of an episode's map (see the module docstring)."""
+
+    def __init__(self, episode_dir: str | Path, method: str = "3dgs", iters: int = 2000,
+                 config: RefineConfig | None = None, seed: int = 0, backend: str = "auto",
+                 restart: bool = False, progress: bool = True):
+        self.episode_dir = check_arguments(episode_dir, method, iters)
+        self.method_name, self.iters, self.seed = method, int(iters), int(seed)
+        self.cfg = config if config is not None else RefineConfig()
+        self.backend, self.progress = backend, progress
+        self.out_dir = output_dir(self.episode_dir, method)
+        mapper = Mapper.load(self.episode_dir, backend=backend)
+        self.width, self.height = mapper.width, mapper.height
+        self.keyframes = mapper.keyframes
+        self.K = torch.from_numpy(mapper.K.astype(np.float32))
+        poses = np.stack([kf.pose for kf in self.keyframes])
+        self.viewmats = torch.from_numpy(np.linalg.inv(poses).astype(np.float32))
+        lam = self.cfg.lambda_dssim
+        self.loss_cfg = replace(mapper.config, lambda_l1=1.0 - lam, lambda_ssim=lam,
+                                weight_color=self.cfg.weight_color, weight_depth=self.cfg.weight_depth)
+        self.lr, self.adam_eps = mapper.config.lr, mapper.config.adam_eps
+        self.method = make_method(method, self.cfg, self.iters, backend)
+        self.densify_until = self.cfg.densify_until(self.iters)
+        extent = scene_extent(torch.from_numpy(poses[:, :3, 3]), self.cfg.extent_margin)
+        if restart:
+            for name in OUTPUT_FILES:
+                (self.out_dir / name).unlink(missing_ok=True)
+        if (self.out_dir / CHECKPOINT).is_file():
+            self._load_checkpoint(self.out_dir / CHECKPOINT)
+            self.resumed = True
+        else:
+            self._fresh_state(mapper.gaussians, extent)
+            self.resumed = False
+
+    # ------------------------------------------------------------------ state
+    def _fresh_state(self, online: GaussianMap, extent: float) -> None:
+        self.gmap = self.method.prepare(online)
+        self.optimizer = self.gmap.make_optimizer(self.lr, self.adam_eps)
+        self.adc = DensityControl(self.cfg, extent, len(self.gmap))
+        self.iteration = 0
+        self.rng = np.random.default_rng(self.seed)
+        self.generator = torch.Generator().manual_seed(self.seed)
+        self.ema_loss = self.ema_psnr = None
+        self.history: list[dict] = []
+        self.totals = {"cloned": 0, "split": 0, "pruned": 0}
+        self.train_seconds = 0.0
+        self.n_initial = len(self.gmap)
+
+    def _identity(self) -> dict:
+        """What a checkpoint must match to be resumed by this run."""
+        return {"method": self.method_name, "iters": self.iters, "seed": self.seed,
+                "n_keyframes": len(self.keyframes), "config": asdict(self.cfg)}
+
+    def save_checkpoint(self) -> Path:
+        """Write ``checkpoint.pt`` atomically (temporary file, then rename)."""
+        self.out_dir.mkdir(parents=True, exist_ok=True)
+        state = {
+            "version": CHECKPOINT_VERSION, **self._identity(),
+            "iteration": self.iteration,
+            "params": {name: t.detach().clone() for name, t in self.gmap.params.items()},
+            "optimizer": self.optimizer.state_dict(),
+            "adc": self.adc.state_dict(),
+            "rng": self.rng.bit_generator.state,
+            "torch_rng": self.generator.get_state(),
+            "ema": [self.ema_loss, self.ema_psnr],
+            "history": self.history, "totals": self.totals,
+            "train_seconds": self.train_seconds, "n_initial": self.n_initial,
+        }
+        path = self.out_dir / CHECKPOINT
+        tmp = path.with_suffix(".tmp")
+        torch.save(state, tmp)
+        os.replace(tmp, path)
+        return path
+
+    def _load_checkpoint(self, path: Path) -> None:
+        try:
+            state = torch.load(path, weights_only=True)
+        except Exception as err:  # noqa: BLE001 - any unreadable file is bad input here
+            raise EpisodeError(f"{path}: unreadable checkpoint ({type(err).__name__}); use --restart") \
+                from None
+        if state.get("version") != CHECKPOINT_VERSION:
+            raise EpisodeError(f"{path}: checkpoint of another version; use --restart")
+        mine = self._identity()
+        differ = [k for k in mine if state.get(k) != mine[k]]
+        if differ:
+            was = ", ".join(f"{k}={state.get(k)}" for k in differ if k != "config")
+            raise InvalidInputError(
+                f"{path} belongs to another run ({was or 'other settings'}); pass the same arguments "
+                f"to resume it or --restart to start over")
+        self.gmap = GaussianMap(state["params"])
+        self.optimizer = self.gmap.make_optimizer(self.lr, self.adam_eps)
+        self.optimizer.load_state_dict(state["optimizer"])
+        self.adc = DensityControl(self.cfg, 1.0, 0)
+        self.adc.load_state_dict(state["adc"])
+        self.iteration = int(state["iteration"])
+        self.rng = np.random.default_rng()
+        self.rng.bit_generator.state = state["rng"]
+        self.generator = torch.Generator()
+        self.generator.set_state(state["torch_rng"])
+        self.ema_loss, self.ema_psnr = state["ema"]
+        self.history, self.totals = list(state["history"]), dict(state["totals"])
+        self.train_seconds, self.n_initial = float(state["train_seconds"]), int(state["n_initial"])
+
+    # ------------------------------------------------------------------ training
+    def _set_means_lr(self, iteration: int) -> None:
+        """3DGS position schedule: log-linear from the mapper's rate to ``means_lr_final_ratio`` x it."""
+        t = (iteration - 1) / self.iters
+        lr = self.lr.means * self.cfg.means_lr_final_ratio ** t
+        for group in self.optimizer.param_groups:
+            if group["name"] == "means":
+                group["lr"] = lr
+
+    def step(self) -> tuple[float, float]:
+        """One iteration (1-based ``self.iteration`` after it); returns (loss, PSNR) of the view."""
+        cfg, it = self.cfg, self.iteration + 1
+        self._set_means_lr(it)
+        idx = int(self.rng.integers(len(self.keyframes)))
+        kf = self.keyframes[idx]
+        obs_rgb = torch.from_numpy(kf.rgb).to(torch.float32) / 255.0
+        obs_depth = torch.from_numpy(kf.depth)
+        densifying = it < self.densify_until
+        viewmat = self.viewmats[idx]
+        out = self.method.render(self.gmap, viewmat, self.K, self.width, self.height, track_grad2d=densifying)
+        terms = mapping_loss(out.rgb, out.depth, obs_rgb, obs_depth, self.loss_cfg)
+        extra, _ = self.method.regularisers(out, it, self.K)
+        loss = terms.total + extra
+        self.optimizer.zero_grad(set_to_none=True)
+        if torch.isfinite(loss):
+            loss.backward()
+            if densifying:
+                grads, visible = self.method.grad_stats(out, self.gmap, viewmat, self.K, self.width,
+                                                        self.height)
+                self.adc.accumulate(grads, visible)
+            self.optimizer.step()
+        else:
+            warnings.warn(f"refine: non-finite loss at iteration {it}, step skipped", stacklevel=2)
+        if densifying:
+            if it > cfg.densify_from_iter and it % cfg.densify_interval == 0:
+                stats = self.adc.densify_and_prune(self.gmap, self.optimizer, self.generator,
+                                                   prune_big=it > cfg.opacity_reset_interval)
+                self._count(stats)
+            if it % cfg.opacity_reset_interval == 0:
+                reset_opacity(self.gmap, self.optimizer, cfg.opacity_reset_value)
+        self.iteration = it
+        return float(loss.detach()), _psnr(out.rgb, obs_rgb, obs_depth > 0)
+
+    def _count(self, stats: DensifyStats) -> None:
+        for key in self.totals:
+            self.totals[key] += getattr(stats, key)
+
+    def _track(self, loss: float, psnr: float) -> None:
+        a = self.cfg.psnr_ema
+        if math.isfinite(loss):
+            self.ema_loss = loss if self.ema_loss is None else a * self.ema_loss + (1 - a) * loss
+        self.ema_psnr = psnr if self.ema_psnr is None else a * self.ema_psnr + (1 - a) * psnr
+        if self.iteration % HISTORY_EVERY == 0 or self.iteration == self.iters:
+            self.history.append({"iteration": self.iteration, "loss": self.ema_loss, "psnr": self.ema_psnr,
+                                 "n_gaussians": len(self.gmap)})
+
+    def train(self, stop_at: int | None = None) -> None:
+        """Run the remaining iterations (up to ``stop_at`` if given), checkpointing on the way."""
+        from tqdm import tqdm
+
+        end = self.iters if stop_at is None else min(self.iters, int(stop_at))
+        if self.iteration >= end:
+            return
+        bar = tqdm(total=self.iters, initial=self.iteration, desc=f"refine {self.method_name}", unit="it",
+                   disable=not self.progress, dynamic_ncols=True)
+        try:
+            with _DeferredInterrupt() as interrupt:
+                t0 = time.perf_counter()
+                while self.iteration < end:
+                    loss, psnr = self.step()
+                    self._track(loss, psnr)
+                    bar.update(1)
+                    if self.iteration % 10 == 0 or self.iteration == end:
+                        bar.set_postfix(loss=f"{self.ema_loss:.4f}", psnr=f"{self.ema_psnr:.2f}",
+                                        n=len(self.gmap), refresh=False)
+                    checkpoint = self.iteration % self.cfg.checkpoint_every == 0 or self.iteration == end
+                    if checkpoint or interrupt.requested:
+                        now = time.perf_counter()
+                        self.train_seconds += now - t0
+                        t0 = now
+                        self.save_checkpoint()
+                    if interrupt.requested:
+                        raise KeyboardInterrupt
+        finally:
+            bar.close()
+
+    def keyframe_metrics(self, indices=None) -> dict:
+        """Mean PSNR (dB), depth L1 (m) and loss of the current map over keyframes (all by default),
+        valid-depth pixels only, without the regularisers. A diagnostic: renders every view."""
+        psnrs, depth_l1, losses = [], [], []
+        with torch.no_grad():
+            for i in range(len(self.keyframes)) if indices is None else indices:
+                kf = self.keyframes[i]
+                obs_rgb = torch.from_numpy(kf.rgb).to(torch.float32) / 255.0
+                obs_depth = torch.from_numpy(kf.depth)
+                out = self.method.render(self.gmap, self.viewmats[i], self.K, self.width, self.height)
+                terms = mapping_loss(out.rgb, out.depth, obs_rgb, obs_depth, self.loss_cfg)
+                psnrs.append(_psnr(out.rgb, obs_rgb, obs_depth > 0))
+                depth_l1.append(terms.depth_l1)
+                losses.append(float(terms.total))
+        return {"psnr": float(np.mean(psnrs)), "depth_l1_m": float(np.mean(depth_l1)),
+                "loss": float(np.mean(losses))}
+
+    # ------------------------------------------------------------------ outputs
+    def result(self, metrics: dict | None = None) -> RefineResult:
+        return RefineResult(self.out_dir, self.method_name, self.iteration, self.iters, self.n_initial,
+                            len(self.gmap), self.train_seconds, float(self.ema_loss or float("nan")),
+                            float(self.ema_psnr or float("nan")), dict(self.totals), metrics)
+
+    def write_outputs(self) -> Path:
+        """``gaussians.ply`` and ``refine.json``; returns the PLY path."""
+        self.out_dir.mkdir(parents=True, exist_ok=True)
+        ply = save_ply(self.method.export(self.gmap), self.out_dir / "gaussians.ply")
+        res = self.result()
+        rate = self.iteration / res.train_seconds if res.train_seconds else None
+        info = {
+            "method": self.method_name, "iters": self.iters, "iterations": self.iteration, "seed": self.seed,
+            "backend": self.backend, "image_size": [self.width, self.height],
+            "n_keyframes": len(self.keyframes), "n_gaussians_initial": res.n_gaussians_initial,
+            "n_gaussians": res.n_gaussians, "train_seconds": round(res.train_seconds, 3),
+            "iterations_per_second": rate,
+            "densify": res.densify, "densify_until": self.densify_until,
+            "loss_ema": res.loss, "psnr_ema": res.psnr, "ply_layout": self.method.ply_layout,
+            "config": asdict(self.cfg), "history": self.history,
+        }
+        (self.out_dir / "refine.json").write_text(json.dumps(info, indent=1))
+        return ply
+
+    def evaluate(self, ply: Path, **kwargs) -> dict:
+        """Train / test rendering metrics of the refined map, written to ``render_metrics.json``."""
+        from activesplat.eval.render_eval import render_eval
+
+        options = {"backend": self.backend, "progress": self.progress, **self.method.eval_kwargs(), **kwargs}
+        return render_eval(self.episode_dir, gaussians_path=ply, out_dir=self.out_dir, **options)
+
+
+def refine(episode_dir: str | Path, method: str = "3dgs", iters: int = 2000, *,
+           config: RefineConfig | None = None, seed: int = 0, backend: str = "auto", restart: bool = False,
+           progress: bool = True, evaluate: bool = True, stop_at: int | None = None,
+           eval_kwargs: dict | None = None) -> RefineResult:
+    """Refine the map of ``episode_dir`` offline (see the module docstring); returns what it produced.
+
+    ``stop_at`` stops after that iteration with a checkpoint, as Ctrl-C would (a later call resumes);
+    ``evaluate=False`` skips render_metrics.json; ``eval_kwargs`` go to ``render_eval`` (e.g. n_test).
+    """
+    refiner = Refiner(episode_dir, method, iters, config, seed, backend, restart, progress)
+    metrics_path = refiner.out_dir / "render_metrics.json"
+    done_before = refiner.iteration >= refiner.iters and (refiner.out_dir / "gaussians.ply").is_file()
+    refiner.train(stop_at)
+    if refiner.iteration < refiner.iters:
+        return refiner.result()
+    if done_before and (metrics_path.is_file() or not evaluate):
+        metrics = json.loads(metrics_path.read_text()) if metrics_path.is_file() else None
+        return refiner.result(metrics)
+    ply = refiner.write_outputs()
+    metrics = refiner.evaluate(ply, **(eval_kwargs or {})) if evaluate else None
+    return refiner.result(metrics)
+
+
+def refine_from_args(args) -> int:
+    """``activesplat refine DIR [--method 3dgs|2dgs] [--iters N] [--seed S] [--restart] [--backend B]``."""
+    check_arguments(args.dir, args.method, args.iters)
+    res = refine(args.dir, args.method, args.iters, seed=args.seed, backend=args.backend,
+                 restart=args.restart, progress=not args.no_progress)
+    rate = res.iterations / res.train_seconds if res.train_seconds else float("nan")
+    print(f"refined {res.method}: {res.iterations} iterations ({rate:.2f} it/s), "
+          f"{res.n_gaussians_initial} -> {res.n_gaussians} Gaussians "
+          f"(cloned {res.densify.get('cloned', 0)}, split {res.densify.get('split', 0)}, "
+          f"pruned {res.densify.get('pruned', 0)}), keyframe PSNR {res.psnr:.2f} dB -> {res.out_dir}")
+    if res.metrics:
+        print(format_metrics(res.metrics))
+    return 0
+
+
+def format_metrics(metrics: dict) -> str:
+    """One line per split: PSNR / SSIM / LPIPS / depth L1."""
+    lines = []
+    for split in ("train", "test"):
+        m = metrics.get(split)
+        if not m:
+            continue
+        parts = [f"PSNR {m['psnr']:.2f} dB", f"SSIM {m['ssim']:.3f}"]
+        if m.get("lpips") is not None:
+            parts.append(f"LPIPS {m['lpips']:.3f}")
+        parts.append(f"depth L1 {m['depth_l1_cm']:.2f} cm")
+        lines.append(f"{split:5s} " + "  ".join(parts))
+    return "\n".join(lines)
+
+
+__all__ = ["RefineResult", "Refiner", "check_arguments", "output_dir", "refine",
+           "refine_from_args"]

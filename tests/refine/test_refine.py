@@ -1,0 +1,125 @@
+"""``refine`` on a tiny episode rendered from a known Gaussian scene: it improves the map, writes its
+outputs, resumes from a checkpoint to the same result as an uninterrupted run, and rejects bad input."""
+
+import json
+import shutil
+
+import numpy as np
+import pytest
+import torch
+from _refine_scene import make_episode
+
+from activesplat.cli import main
+from activesplat.errors import EpisodeError, InvalidInputError
+from activesplat.refine import RefineConfig, Refiner, refine
+from activesplat.refine.trainer import CHECKPOINT
+from activesplat.splat import load_ply
+
+# density control early and often so that 30 iterations exercise it (and the resume crosses it)
+FAST = RefineConfig(densify_from_iter=4, densify_interval=5, opacity_reset_interval=20, checkpoint_every=7)
+
+
+@pytest.fixture(scope="module")
+def episode(tmp_path_factory):
+    return make_episode(tmp_path_factory.mktemp("refine") / "ep")
+
+
+@pytest.fixture
+def fresh(episode, tmp_path):
+    """A private copy of the episode (refinement writes into it)."""
+    return shutil.copytree(episode, tmp_path / "ep")
+
+
+def test_refinement_improves_the_keyframes(fresh):
+    refiner = Refiner(fresh, "3dgs", 30, backend="numba", progress=False)  # 3DGS schedule: no ADC yet
+    before = refiner.keyframe_metrics()
+    refiner.train()
+    after = refiner.keyframe_metrics()
+    assert after["psnr"] > before["psnr"] + 3.0, (before, after)
+    assert after["loss"] < 0.7 * before["loss"]
+    assert after["depth_l1_m"] < 0.8 * before["depth_l1_m"]
+    assert refiner.history[-1]["iteration"] == 30
+
+
+def test_outputs(fresh):
+    res = refine(fresh, "3dgs", 12, config=FAST, backend="numba", progress=False, evaluate=False)
+    out = fresh / "refined_3dgs"
+    assert res.complete and res.out_dir == out and res.iterations == 12
+    gmap = load_ply(out / "gaussians.ply")
+    assert len(gmap) == res.n_gaussians
+    info = json.loads((out / "refine.json").read_text())
+    assert info["iterations"] == 12 and info["n_gaussians"] == res.n_gaussians and info["method"] == "3dgs"
+    assert (out / CHECKPOINT).is_file()
+    # the online map is left as it was
+    assert len(load_ply(fresh / "gaussians.ply")) == res.n_gaussians_initial
+
+
+def test_resume_gives_the_same_map_as_an_uninterrupted_run(episode, tmp_path):
+    a = shutil.copytree(episode, tmp_path / "a")
+    b = shutil.copytree(episode, tmp_path / "b")
+    whole = refine(a, "3dgs", 30, config=FAST, backend="numba", progress=False, evaluate=False)
+    part = refine(b, "3dgs", 30, config=FAST, backend="numba", progress=False, evaluate=False, stop_at=13)
+    assert part.iterations == 13 and not part.complete
+    assert not (b / "refined_3dgs" / "gaussians.ply").exists()
+    resumed = Refiner(b, "3dgs", 30, config=FAST, backend="numba", progress=False)
+    assert resumed.resumed and resumed.iteration == 13
+    rest = refine(b, "3dgs", 30, config=FAST, backend="numba", progress=False, evaluate=False)
+    assert rest.iterations == 30 and rest.n_gaussians == whole.n_gaussians
+    ga, gb = load_ply(a / "refined_3dgs" / "gaussians.ply"), load_ply(b / "refined_3dgs" / "gaussians.ply")
+    for name in ga.params:
+        assert torch.equal(ga.params[name], gb.params[name]), name
+    assert rest.densify == whole.densify
+    assert whole.densify["cloned"] + whole.densify["split"] > 0  # density control ran (and a reset at 20)
+
+
+def test_checkpoint_of_another_run_needs_restart(fresh):
+    refine(fresh, "3dgs", 10, config=FAST, backend="numba", progress=False, evaluate=False, stop_at=7)
+    with pytest.raises(InvalidInputError, match="--restart"):
+        Refiner(fresh, "3dgs", 20, config=FAST, backend="numba", progress=False)
+    again = Refiner(fresh, "3dgs", 20, config=FAST, backend="numba", progress=False, restart=True)
+    assert again.iteration == 0 and not again.resumed
+    assert not (fresh / "refined_3dgs" / CHECKPOINT).exists()
+
+
+def test_completed_run_is_not_repeated(fresh):
+    first = refine(fresh, "3dgs", 8, config=FAST, backend="numba", progress=False, evaluate=False)
+    ply = fresh / "refined_3dgs" / "gaussians.ply"
+    stamp = ply.stat().st_mtime_ns
+    second = refine(fresh, "3dgs", 8, config=FAST, backend="numba", progress=False, evaluate=False)
+    assert second.iterations == 8 and second.n_gaussians == first.n_gaussians
+    assert ply.stat().st_mtime_ns == stamp
+
+
+# ---------------------------------------------------------------------- bad input
+def _cli(capsys, *argv):
+    code = main(["refine", *map(str, argv), "--no-progress"])
+    err = capsys.readouterr().err.strip()
+    return code, err
+
+
+def test_cli_bad_input_gives_one_line_errors(episode, tmp_path, capsys):
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    cases = [
+        ((empty,), "keyframes.npz"),
+        ((tmp_path / "missing",), "no such episode folder"),
+        ((episode, "--method", "nerf"), "unknown refinement method"),
+        ((episode, "--iters", "0"), "--iters"),
+        ((episode, "--iters", "-5"), "--iters"),
+    ]
+    for argv, message in cases:
+        code, err = _cli(capsys, *argv)
+        assert code == 2, argv
+        assert err.startswith("activesplat: error:") and message in err and "\n" not in err, err
+
+
+def test_empty_keyframe_buffer_is_rejected(episode, tmp_path):
+    ep = shutil.copytree(episode, tmp_path / "ep")
+    np.savez_compressed(ep / "keyframes.npz", rgb=np.zeros((0, 32, 32, 3), np.uint8),
+                        depth=np.zeros((0, 32, 32), np.float32), pose=np.zeros((0, 4, 4)),
+                        step=np.zeros(0, np.int64))
+    with pytest.raises(EpisodeError, match="empty"):
+        refine(ep, "3dgs", 5, progress=False)
+    (ep / "keyframes.npz").write_bytes(b"not a zip")
+    with pytest.raises(EpisodeError, match="unreadable"):
+        refine(ep, "3dgs", 5, progress=False)
