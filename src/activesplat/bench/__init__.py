@@ -1,0 +1,181 @@
+"""`activesplat benchmark`: scenes x policies x trials (seeds) of exploration episodes, then tables and
+curves in the paper's style (Tab. I, II, VI, the supplementary per-scene tables, Fig. 6).
+
+```python
+from activesplat.bench import run_benchmark
+report = run_benchmark(["small-2", "small-3"], ["activesplat", "fbe"], trials=3, workers=2, root="runs/bench")
+print(report.markdown)
+```
+
+Layout of ROOT: ``<scene>/<policy>/s<seed>/`` (one episode folder per run), ``results.csv`` (one row per
+run), ``results.md`` (the tables), ``curves_<scene>.png`` and ``curves_average.png`` (completion ratio and
+path length against steps, mean ± std over trials). Runs already complete are skipped, so running the same
+command again resumes an interrupted benchmark.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import sys
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from activesplat.bench.runner import (
+    EXECUTORS,
+    RunResult,
+    RunSpec,
+    persist,
+    plan_runs,
+    read_metrics,
+    run_local,
+    run_ray,
+    run_serial,
+)
+from activesplat.bench.tables import RunRecord, TableConfig, collect, markdown_report, write_csv
+from activesplat.errors import InvalidInputError
+
+__all__ = ["BenchmarkConfig", "BenchmarkReport", "RunSpec", "TableConfig", "benchmark_from_args",
+           "run_benchmark", "write_report"]
+
+
+@dataclass(frozen=True)
+class BenchmarkConfig:
+    """Settings of a benchmark beyond its runs."""
+
+    ray_cpus_per_run: float = 2.0
+    """CPUs a Ray task reserves: the numba rasterizer and torch use a few threads per episode."""
+    tables: TableConfig = field(default_factory=TableConfig)
+    """Number formats of results.md."""
+
+
+@dataclass
+class BenchmarkReport:
+    """What a benchmark left in ROOT."""
+
+    root: Path
+    records: list[RunRecord]
+    csv: Path
+    markdown_path: Path
+    markdown: str
+    curves: list[Path]
+
+    def count(self, status: str) -> int:
+        return sum(r.status == status for r in self.records)
+
+    @property
+    def failed(self) -> list[RunRecord]:
+        return [r for r in self.records if r.status == "failed"]
+
+
+def _print(line: str) -> None:
+    print(line, flush=True)
+
+
+def run_benchmark(scenes: Sequence[str], policies: Sequence[str], trials: int = 1, steps: int | None = None,
+                  root: str | Path = "runs/benchmark", workers: int = 1, executor: str = "local",
+                  ray_address: str | None = None, seeds: Sequence[int] | None = None,
+                  run_options: dict | None = None, config: BenchmarkConfig | None = None,
+                  log: Callable[[str], None] = _print) -> BenchmarkReport:
+    """Run every (scene, policy, seed) not yet complete under ROOT, then write the tables and curves.
+
+    seeds default to 0..trials-1. `run_options` are extra keyword arguments of
+    `activesplat.explore.run_exploration` (configs, backend). A failed run is reported and shown as n/a; it
+    does not stop the others. Ctrl-C stops the runs, writes the tables of what is complete and re-raises."""
+    config = config or BenchmarkConfig()
+    if trials <= 0:
+        raise InvalidInputError(f"--trials must be a positive number of trials, got {trials}")
+    if workers <= 0:
+        raise InvalidInputError(f"--workers must be a positive number of processes, got {workers}")
+    if executor not in EXECUTORS:
+        raise InvalidInputError(f"unknown executor {executor!r}; choose one of: {', '.join(EXECUTORS)}")
+    if executor == "ray" and importlib.util.find_spec("ray") is None:
+        raise InvalidInputError("--executor ray needs Ray: pip install 'activesplat[ray]'")
+    seeds = list(range(trials)) if seeds is None else [int(s) for s in seeds]
+    specs = plan_runs(scenes, policies, seeds, steps, root)
+    root = Path(root).resolve()
+    root.mkdir(parents=True, exist_ok=True)
+    todo = [s for s in specs if read_metrics(s.out) is None]
+    where = f"Ray ({ray_address or 'auto'})" if executor == "ray" else (
+        "this process" if workers == 1 else f"{workers} worker processes")
+    shape = [len({getattr(s, k) for s in specs}) for k in ("label", "policy", "seed")]
+    log(f"benchmark: {len(specs)} runs ({shape[0]} scenes x {shape[1]} policies x {shape[2]} trials), "
+        f"{len(specs) - len(todo)} already complete, {len(todo)} to run on {where} -> {root}")
+
+    finished = {"n": len(specs) - len(todo)}
+
+    def on_result(spec: RunSpec, result: RunResult) -> None:
+        persist(spec, result)
+        finished["n"] += 1
+        log(f"[{finished['n']}/{len(specs)}] {spec.name}: {_result_line(result)}")
+
+    bar = executor == "local" and workers == 1 and sys.stderr.isatty()  # a progress bar when serial
+    options = {"progress": bar, **(run_options or {})}
+    t0 = time.perf_counter()
+    interrupted = False
+    try:
+        if todo and executor == "ray":
+            run_ray(todo, options, on_result, ray_address, config.ray_cpus_per_run)
+        elif todo and workers == 1:
+            run_serial(todo, options, on_result)
+        elif todo:
+            run_local(todo, options, on_result, workers)
+    except KeyboardInterrupt:
+        interrupted = True
+    report = write_report(root, specs, steps, config.tables)
+    log(f"benchmark: {report.count('complete')} complete, {report.count('failed')} failed, "
+        f"{report.count('missing')} not run ({time.perf_counter() - t0:.0f} s) -> {report.markdown_path}")
+    for r in report.failed:
+        log(f"  failed: {r.spec.name}: {r.error} (see {r.spec.out}/error.txt)")
+    if interrupted:
+        log("benchmark: interrupted; run the same command again to resume")
+        raise KeyboardInterrupt
+    return report
+
+
+def _result_line(result: RunResult) -> str:
+    if result.status != "complete":
+        return f"FAILED after {result.seconds:.0f} s: {result.error_line}"
+    m = result.metrics
+    return (f"completion {m['completion_ratio_pct']:.2f} % | {m['completion_cm']:.2f} cm | "
+            f"path {m['path_length_m']:.1f} m | {result.seconds:.0f} s")
+
+
+def write_report(root: str | Path, specs: Sequence[RunSpec], steps: int | None = None,
+                 cfg: TableConfig | None = None) -> BenchmarkReport:
+    """results.csv, curves_<scene>.png (+ curves_average.png) and results.md from the folders on disk."""
+    from activesplat.viz.plots import draw_completion
+
+    root = Path(root)
+    records = collect(specs)
+    csv_path = write_csv(root / "results.csv", records)
+    scenes = list(dict.fromkeys(r.spec.label for r in records))
+    policies = list(dict.fromkeys(r.spec.policy for r in records))
+
+    def curves(scene: str | None) -> dict[str, list[list[dict]]]:
+        return {p: [r.metrics["curve"] for r in records if r.status == "complete" and r.spec.policy == p
+                    and (scene is None or r.spec.label == scene) and r.metrics.get("curve")]
+                for p in policies}
+
+    pngs = []
+    for scene in [*scenes, *([None] if len(scenes) > 1 else [])]:
+        found = curves(scene)
+        if any(found.values()):
+            name = scene or "average"
+            title = f"{name}: mean ± std over trials" if scene else f"all {len(scenes)} scenes: mean ± std"
+            pngs.append(draw_completion(root / f"curves_{name}.png", found, title=title))
+    markdown = markdown_report(records, cfg, steps=steps, curves=[p.name for p in pngs])
+    md_path = root / "results.md"
+    md_path.write_text(markdown + "\n", encoding="utf-8")
+    return BenchmarkReport(root, records, csv_path, md_path, markdown, pngs)
+
+
+def benchmark_from_args(args: argparse.Namespace) -> int:
+    """`activesplat benchmark`: exit code 0 when every run is complete, 1 when some failed."""
+    report = run_benchmark(scenes=args.scenes, policies=args.policies, trials=args.trials, steps=args.steps,
+                           root=args.root, workers=args.workers, executor=args.executor,
+                           ray_address=args.ray_address)
+    print("\n" + report.markdown)
+    return 1 if report.failed else 0

@@ -1,0 +1,267 @@
+"""Benchmark tables from the episode folders on disk: a CSV with one row per run, and markdown in the
+style of the paper's tables (REFERENCE.md section 6):
+
+- Tab. I   exploration: rows = policies, completion ratio % / completion cm / path length m / ms per step,
+           mean ± std over trials per scene, then the average over scenes;
+- Tab. II  the same for the ablation variants (Random / Position / Viewpoint / w/o HP / visibility-only /
+           hull-only) next to the full method;
+- per-scene table as in the supplementary Tab. S1 / S2: policy x metric rows, one column per scene, Avg.;
+- Tab. VI  mean processing time per step of each module.
+
+Everything is read back from ROOT (metrics.json of complete runs, error.txt of failed ones), so the tables
+of a resumed or partly failed benchmark are the same as those of an uninterrupted one.
+"""
+
+from __future__ import annotations
+
+import csv
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from activesplat.bench.runner import ERROR_FILE, RunSpec, read_metrics
+from activesplat.explore import TIMING_KEYS
+
+PAPER_TAB6_MS = {"mapper": 45.14, "workspace": 43.87, "voronoi": 0.69, "subregions": 1.56,
+                 "rotation_selection": 2.76, "position_selection": 6.46, "planner": 0.20}
+"""Paper Tab. VI: average processing time per step (ms) on an RTX 3090 (visualizer, 67.43 ms, left out)."""
+
+ABLATION_POLICIES = ("random", "position", "viewpoint", "no-hp", "visibility-only", "hull-only")
+"""Variants of the paper's ablations (Tab. II exploration strategy, Tab. III hierarchical planning,
+Tab. IV coverage evaluation): listed in Tab. II next to the full method; every other policy is in Tab. I."""
+
+FULL_METHOD = "activesplat"
+
+LEAD_COLUMNS = ("scene", "policy", "seed", "status", "dir", "error")
+FIRST_METRICS = ("completion_ratio_pct", "completion_cm", "completion_cm_uncapped", "path_length_m", "steps",
+                 "wall_time_s", "ms_per_step", "evaluation_ms_per_step", "n_gaussians")
+"""CSV metric columns that come first; any other scalar of metrics.json follows in alphabetical order."""
+
+
+@dataclass(frozen=True)
+class TableConfig:
+    """How the markdown tables print numbers."""
+
+    ratio_decimals: int = 2
+    """Completion ratio (%), as the paper."""
+    cm_decimals: int = 2
+    """Completion (cm), as the paper."""
+    path_decimals: int = 1
+    """Path length (m)."""
+    ms_decimals: int = 0
+    """Total ms per step in Tab. I."""
+    timing_decimals: int = 2
+    """Per-module ms per step in Tab. VI, as the paper."""
+    std_ddof: int = 0
+    """Delta degrees of freedom of the ± standard deviation over trials (0: population std, numpy's
+    default; 1: sample std)."""
+
+
+@dataclass
+class RunRecord:
+    """One planned run as found on disk."""
+
+    spec: RunSpec
+    status: str
+    """"complete" (metrics.json), "failed" (error.txt) or "missing" (never run, interrupted, partial)."""
+    metrics: dict | None = None
+    error: str = ""
+    """The exception line of a failed run."""
+
+
+def collect(specs: Sequence[RunSpec]) -> list[RunRecord]:
+    """Read back the outcome of every planned run."""
+    records = []
+    for spec in specs:
+        metrics = read_metrics(spec.out)
+        if metrics is not None:
+            records.append(RunRecord(spec, "complete", metrics))
+        elif (spec.out / ERROR_FILE).is_file():
+            line = (spec.out / ERROR_FILE).read_text().strip().splitlines()
+            records.append(RunRecord(spec, "failed", error=line[0] if line else "failed"))
+        else:
+            records.append(RunRecord(spec, "missing"))
+    return records
+
+
+# --------------------------------------------------------------------------- CSV
+def _scalars(metrics: dict) -> dict:
+    """metrics.json scalars (numbers, strings, booleans, None) plus timing_ms as timing_ms.<module>."""
+    row = {k: v for k, v in metrics.items()
+           if k not in LEAD_COLUMNS and (v is None or isinstance(v, (int, float, str, bool)))}
+    for k, v in (metrics.get("timing_ms") or {}).items():
+        row[f"timing_ms.{k}"] = v
+    return row
+
+
+def write_csv(path: str | Path, records: Sequence[RunRecord]) -> Path:
+    """One row per planned run: scene, policy, seed, status, folder, error, then every metric."""
+    rows = [_scalars(r.metrics) if r.metrics else {} for r in records]
+    keys = set().union(*rows) if rows else set()
+    timing = [f"timing_ms.{k}" for k in TIMING_KEYS if f"timing_ms.{k}" in keys]
+    first = [k for k in FIRST_METRICS if k in keys]
+    rest = sorted(keys - set(first) - set(timing))
+    columns = [*LEAD_COLUMNS, *first, *rest, *timing]
+    path = Path(path)
+    with open(path, "w", newline="", encoding="utf-8") as f:
+        writer = csv.DictWriter(f, fieldnames=columns)
+        writer.writeheader()
+        for record, row in zip(records, rows, strict=True):
+            s = record.spec
+            writer.writerow({"scene": s.label, "policy": s.policy, "seed": s.seed, "status": record.status,
+                             "dir": str(s.out), "error": record.error, **row})
+    return path
+
+
+# --------------------------------------------------------------------------- statistics
+class Results:
+    """The records of a benchmark grouped by scene and policy."""
+
+    def __init__(self, records: Sequence[RunRecord], cfg: TableConfig | None = None):
+        self.records = list(records)
+        self.cfg = cfg or TableConfig()
+        self.scenes = list(dict.fromkeys(r.spec.label for r in self.records))
+        self.policies = list(dict.fromkeys(r.spec.policy for r in self.records))
+        self.cells: dict[tuple[str, str], list[RunRecord]] = {}
+        for r in self.records:
+            self.cells.setdefault((r.spec.label, r.spec.policy), []).append(r)
+
+    def complete(self, scene: str | None, policy: str) -> list[dict]:
+        """Metrics of the complete runs of a policy on a scene (all scenes: None)."""
+        return [r.metrics for r in self.records if r.status == "complete" and r.spec.policy == policy
+                and (scene is None or r.spec.label == scene)]
+
+    def values(self, scene: str, policy: str, key: str) -> np.ndarray:
+        return np.array([_get(m, key) for m in self.complete(scene, policy)], float)
+
+    def cell(self, scene: str, policy: str, key: str, decimals: int) -> str:
+        """mean ± std over the complete trials; one trial: the value; none: n/a."""
+        v = self.values(scene, policy, key)
+        return _pm(v.mean() if len(v) else None, _std(v, self.cfg.std_ddof), decimals)
+
+    def average(self, policy: str, key: str, decimals: int, with_std: bool = True) -> str:
+        """Mean over scenes of the per-scene means; ± the std over seeds of the per-seed averages over scenes
+        (seeds complete on every scene). '†': some scene has no complete run and is left out."""
+        means = [v.mean() for v in (self.values(s, policy, key) for s in self.scenes) if len(v)]
+        if not means:
+            return "n/a"
+        per_seed: dict[int, dict[str, float]] = {}
+        for r in self.records:
+            if r.status == "complete" and r.spec.policy == policy:
+                per_seed.setdefault(r.spec.seed, {})[r.spec.label] = _get(r.metrics, key)
+        paired = np.array([np.mean(list(d.values())) for d in per_seed.values()
+                           if len(d) == len(self.scenes)])
+        std = _std(paired, self.cfg.std_ddof) if with_std else None
+        return _pm(float(np.mean(means)), std, decimals) + ("" if len(means) == len(self.scenes) else " †")
+
+    def trials(self, scene: str | None, policy: str) -> str:
+        planned = [r for r in self.records
+                   if r.spec.policy == policy and (scene is None or r.spec.label == scene)]
+        return f"{sum(r.status == 'complete' for r in planned)}/{len(planned)}"
+
+
+def _get(metrics: dict, key: str) -> float:
+    """A metric by name; `timing_ms.<module>` reaches into timing_ms. Missing or None: NaN."""
+    value = metrics.get("timing_ms", {}).get(key[10:]) if key.startswith("timing_ms.") else metrics.get(key)
+    return float("nan") if value is None else float(value)
+
+
+def _std(v: np.ndarray, ddof: int) -> float | None:
+    return float(v.std(ddof=ddof)) if len(v) > max(1, ddof) else None
+
+
+def _pm(mean: float | None, std: float | None, decimals: int) -> str:
+    if mean is None or not np.isfinite(mean):
+        return "n/a"
+    return f"{mean:.{decimals}f}" + ("" if std is None else f" ± {std:.{decimals}f}")
+
+
+# --------------------------------------------------------------------------- markdown
+def _table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> list[str]:
+    return ["| " + " | ".join(header) + " |", "|" + "---|" * len(header),
+            *("| " + " | ".join(row) + " |" for row in rows)]
+
+
+def _metric_columns(cfg: TableConfig) -> list[tuple[str, str, str, int]]:
+    """(metrics.json key, column name, unit as in the paper's per-scene tables, decimals)."""
+    return [("completion_ratio_pct", "completion ratio % ↑", "% ↑", cfg.ratio_decimals),
+            ("completion_cm", "completion cm ↓", "cm ↓", cfg.cm_decimals),
+            ("path_length_m", "path length m", "m", cfg.path_decimals),
+            ("ms_per_step", "ms/step", "ms", cfg.ms_decimals)]
+
+
+def exploration_table(res: Results, policies: Sequence[str]) -> list[str]:
+    """Tab. I / Tab. II layout: a block of rows per scene, then the average over scenes."""
+    cols = _metric_columns(res.cfg)
+    rows = [[scene, p, *(res.cell(scene, p, k, d) for k, _, _, d in cols), res.trials(scene, p)]
+            for scene in res.scenes for p in policies]
+    rows += [[f"**average ({len(res.scenes)} scenes)**", p, *(res.average(p, k, d) for k, _, _, d in cols),
+              res.trials(None, p)] for p in policies]
+    return _table(["scene", "policy", *(name for _, name, _, _ in cols), "trials"], rows)
+
+
+def per_scene_table(res: Results) -> list[str]:
+    """Supplementary Tab. S1 / S2 layout: policy x metric rows, scenes as columns, Avg. without ±."""
+    metrics = [(k, unit, d) for k, _, unit, d in _metric_columns(res.cfg) if k != "ms_per_step"]
+    rows = []
+    for p in res.policies:
+        for i, (k, unit, d) in enumerate(metrics):
+            rows.append([f"**{p}**" if i == 0 else "", unit,
+                         *(res.cell(s, p, k, d) for s in res.scenes), res.average(p, k, d, with_std=False)])
+    return _table(["policy", "metric", *res.scenes, "Avg."], rows)
+
+
+def timing_table(res: Results) -> list[str]:
+    """Tab. VI: mean ms per step of each module over every complete run of a policy; the paper's row first."""
+    d = res.cfg.timing_decimals
+    keys = [*(f"timing_ms.{k}" for k in TIMING_KEYS), "evaluation_ms_per_step", "ms_per_step"]
+    header = ["policy", *(k.replace("_", " ") for k in TIMING_KEYS), "evaluation", "total"]
+    rows = [["paper (RTX 3090)", *(f"{PAPER_TAB6_MS[k]:.2f}" for k in TIMING_KEYS), "–", "–"]]
+    for p in res.policies:
+        ms = res.complete(None, p)
+        rows.append([p, *(_pm(float(np.mean([_get(m, k) for m in ms])) if ms else None, None, d)
+                          for k in keys)])
+    return _table(header, rows)
+
+
+def markdown_report(records: Sequence[RunRecord], cfg: TableConfig | None = None, steps: int | None = None,
+                    curves: Sequence[str] = ()) -> str:
+    """The whole results.md: Tab. I, Tab. II (when ablation variants ran), per-scene table, Tab. VI, and
+    the runs that are not complete."""
+    res = Results(records, cfg)
+    seeds = sorted({r.spec.seed for r in res.records})
+    counts = {s: sum(r.status == s for r in res.records) for s in ("complete", "failed", "missing")}
+    out = [f"# Exploration benchmark: {len(res.scenes)} scene(s) x {len(res.policies)} policies x "
+           f"{len(seeds)} trial(s)", "",
+           f"Scenes: {', '.join(res.scenes)}. Seeds: {', '.join(map(str, seeds))}. "
+           f"Steps: {steps if steps else 'scene default (1000 small, 2000 medium)'}. "
+           f"Runs: {counts['complete']} complete, {counts['failed']} failed, {counts['missing']} missing.",
+           "",
+           f"Cells: mean ± std over trials (std with ddof={res.cfg.std_ddof}; one trial: the value). "
+           "Averages: mean over scenes of the per-scene means, ± the std over seeds of the per-seed averages "
+           "over scenes (seeds complete on every scene); † = some scene has no complete run. Completion "
+           "ratio and completion follow the paper's protocol (REFERENCE.md sec. 6); ms/step is the wall time "
+           "of the whole step including the live evaluation.", ""]
+    main = [p for p in res.policies if p not in ABLATION_POLICIES]
+    ablations = [p for p in res.policies if p in ABLATION_POLICIES]
+    if main:
+        out += ["## Tab. I: exploration", "", *exploration_table(res, main), ""]
+    if ablations:
+        ours = [FULL_METHOD] if FULL_METHOD in res.policies else []
+        out += ["## Tab. II: ablation of the exploration strategy", "",
+                *exploration_table(res, ablations + ours), ""]
+    out += ["## Per scene (supplementary Tab. S1 / S2 style)", "", *per_scene_table(res), "",
+            "## Tab. VI: mean processing time per step (ms)", "", *timing_table(res), "",
+            "Module times are means over all complete runs of a policy; `evaluation` is the live completion "
+            "measurement (not part of the robot's work), `total` the whole step.", ""]
+    if curves:
+        out += ["## Completion curves", "", *(f"![{Path(c).stem}]({Path(c).name})" for c in curves), ""]
+    broken = [r for r in res.records if r.status != "complete"]
+    if broken:
+        out += ["## Runs not complete", "",
+                *_table(["scene", "policy", "seed", "status", "error"],
+                        [[r.spec.label, r.spec.policy, str(r.spec.seed), r.status, r.error.replace("|", "/")]
+                         for r in broken]), ""]
+    return "\n".join(out)
