@@ -58,6 +58,10 @@ class Splatting3D:
         """Extra arguments of ``render_eval`` for maps of this method (3DGS: none, the default renderer)."""
         return {}
 
+    def eval_renderer(self) -> str:
+        """Which rasterizer render_metrics.json is computed with (recorded in refine.json)."""
+        return "3D Gaussian rasterizer"
+
 
 def make_method(name: str, cfg: RefineConfig, iters: int, backend: str = "auto"):
     """The adapter of method ``name`` (validated by the caller)."""

@@ -22,6 +22,10 @@ run 2DGS uses (3000 and 7000 of 30k iterations).
 
 from __future__ import annotations
 
+import inspect
+import warnings
+
+import numpy as np
 import torch
 
 from activesplat.refine.config import RefineConfig
@@ -132,7 +136,41 @@ class Surfels2D(Splatting3D):
         return GaussianMap(raw)
 
     def eval_kwargs(self) -> dict:
-        return {"renderer": "surfel"}
+        """``renderer=render_surfel_view`` when ``render_eval`` takes one; otherwise (older render_eval)
+        the flat-Gaussian PLY is evaluated with the 3D rasterizer, with a warning (see ``eval_renderer``)."""
+        if _render_eval_takes_renderer():
+            return {"renderer": render_surfel_view}
+        warnings.warn("render_eval takes no renderer: the 2dgs map is evaluated as flat 3D Gaussians",
+                      stacklevel=2)
+        return {}
+
+    def eval_renderer(self) -> str:
+        if _render_eval_takes_renderer():
+            return "surfel rasterizer"
+        return "3D rasterizer on the flat-Gaussian PLY (render_eval takes no renderer argument)"
+
+
+def _render_eval_takes_renderer() -> bool:
+    from activesplat.eval.render_eval import render_eval
+
+    return "renderer" in inspect.signature(render_eval).parameters
+
+
+def render_surfel_view(gmap: GaussianMap, pose: np.ndarray, K: np.ndarray, width: int, height: int,
+                       backend: str = "auto") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Render a surfel map (a 2dgs ``gaussians.ply`` loaded as a GaussianMap; the first two scales are
+    the surfel extents) from camera-to-world ``pose``: (rgb clamped to [0,1], depth sum w z, alpha) as
+    numpy arrays, the evaluation's renderer interface."""
+    from activesplat.splat.surfel import rasterize_surfels
+
+    dev = gmap.means.device
+    viewmat = torch.from_numpy(np.linalg.inv(pose).astype(np.float32)).to(dev)
+    Kt = torch.from_numpy(np.asarray(K, dtype=np.float32)).to(dev)
+    with torch.no_grad():
+        out = rasterize_surfels(gmap.means, gmap.quats, gmap.scales[:, :2], gmap.opacities, gmap.colors,
+                                viewmat, Kt, width, height, backend="torch" if backend == "torch" else "auto")
+    return (out.rgb.clamp(0.0, 1.0).cpu().numpy(), out.depth.cpu().numpy().astype(np.float64),
+            out.alpha.cpu().numpy().astype(np.float64))
 
 
 def normal_error(depth: torch.Tensor, alpha: torch.Tensor, normal: torch.Tensor,

@@ -141,12 +141,12 @@ class Refiner:
 
     def __init__(self, episode_dir: str | Path, method: str = "3dgs", iters: int = 2000,
                  config: RefineConfig | None = None, seed: int = 0, backend: str = "auto",
-                 restart: bool = False, progress: bool = True):
+                 restart: bool = False, progress: bool = True, out_dir: str | Path | None = None):
         self.episode_dir = check_arguments(episode_dir, method, iters)
         self.method_name, self.iters, self.seed = method, int(iters), int(seed)
         self.cfg = config if config is not None else RefineConfig()
         self.backend, self.progress = backend, progress
-        self.out_dir = output_dir(self.episode_dir, method)
+        self.out_dir = Path(out_dir) if out_dir is not None else output_dir(self.episode_dir, method)
         mapper = Mapper.load(self.episode_dir, backend=backend)
         self.width, self.height = mapper.width, mapper.height
         self.keyframes = mapper.keyframes
@@ -362,6 +362,7 @@ class Refiner:
             "iterations_per_second": rate,
             "densify": res.densify, "densify_until": self.densify_until,
             "loss_ema": res.loss, "psnr_ema": res.psnr, "ply_layout": self.method.ply_layout,
+            "eval_renderer": self.method.eval_renderer(),
             "config": asdict(self.cfg), "history": self.history,
         }
         (self.out_dir / "refine.json").write_text(json.dumps(info, indent=1))
@@ -378,13 +379,14 @@ class Refiner:
 def refine(episode_dir: str | Path, method: str = "3dgs", iters: int = 2000, *,
            config: RefineConfig | None = None, seed: int = 0, backend: str = "auto", restart: bool = False,
            progress: bool = True, evaluate: bool = True, stop_at: int | None = None,
-           eval_kwargs: dict | None = None) -> RefineResult:
+           eval_kwargs: dict | None = None, out_dir: str | Path | None = None) -> RefineResult:
     """Refine the map of ``episode_dir`` offline (see the module docstring); returns what it produced.
 
     ``stop_at`` stops after that iteration with a checkpoint, as Ctrl-C would (a later call resumes);
-    ``evaluate=False`` skips render_metrics.json; ``eval_kwargs`` go to ``render_eval`` (e.g. n_test).
+    ``evaluate=False`` skips render_metrics.json; ``eval_kwargs`` go to ``render_eval`` (e.g. n_test);
+    ``out_dir`` replaces ``DIR/refined_<method>`` (e.g. one folder per iteration count in a benchmark).
     """
-    refiner = Refiner(episode_dir, method, iters, config, seed, backend, restart, progress)
+    refiner = Refiner(episode_dir, method, iters, config, seed, backend, restart, progress, out_dir)
     metrics_path = refiner.out_dir / "render_metrics.json"
     done_before = refiner.iteration >= refiner.iters and (refiner.out_dir / "gaussians.ply").is_file()
     refiner.train(stop_at)
