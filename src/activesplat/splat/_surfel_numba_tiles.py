@@ -29,7 +29,7 @@ FILTER = F32(SURFEL.filter_inv_square)
 POWER_PAD = F32(SURFEL.power_pad)
 ZERO, HALF, ONE, TWO = F32(0.0), F32(0.5), F32(1.0), F32(2.0)
 # columns of the per-instance feature rows
-U, V, Z, A0, A1, A2, B0, B1, B2, D0, EE, FF, NX, NY, NZ, OP, CR, CG, CB, BX, BY, HX, HY, PMAX = range(24)
+U, V, Z, A0, A1, A2, B0, B1, B2, D0, EE, FF, OP, PMAX, BX, BY, HX, HY, NX, NY, NZ, CR, CG, CB = range(24)
 N_FEAT = 24
 N_GRAD = 16  # v_mean2d (2), v_depth, v_tmat (6: A0 A1 A2 B0 B1 B2), v_normal (3), v_opacity, v_colour (3)
 
@@ -56,34 +56,43 @@ def gather_features(order, ids, means2d, depths, tmat, normals, opacities, color
 
 
 @njit(cache=True, error_model="numpy")
-def surfel_pixel(feat, k, j, i):
-    """(alpha, G, ray_wins, u, v, c_z, z_k, dx, dy) of instance k at pixel (row i, column j).
-    alpha = 0 when skipped (power above the cut-off or alpha < 1/255); forward and backward share it
-    so they skip the same terms. z_k: intersection depth where the ray-splat term wins, else the centre's."""
-    dx = F32(j) + HALF - feat[k, U]
-    dy = F32(i) + HALF - feat[k, V]
-    z = feat[k, Z]
-    den = feat[k, D0] + dx * feat[k, EE] + dy * feat[k, FF]
+def surfel_pixel(s, j, i):
+    """(alpha, G, ray_wins, u, v, c_z, z_k, dx, dy) of the surfel with feature row ``s`` (the tuple
+    of :func:`row`) at pixel (row i, column j). alpha = 0 when skipped (power above the cut-off
+    or alpha < 1/255); forward and backward share it so they skip the same terms. z_k: intersection
+    depth where the ray-splat term wins, else the centre's."""
+    dx = F32(j) + HALF - s[U]
+    dy = F32(i) + HALF - s[V]
+    z = s[Z]
+    den = s[D0] + dx * s[EE] + dy * s[FF]
     su = sv = ZERO
     wins = False
     rho = FILTER * (dx * dx + dy * dy)
     if den != ZERO:
         scale = z / den
-        su = (feat[k, B1] * dx - feat[k, B0] * dy) * scale
-        sv = (feat[k, A0] * dy - feat[k, A1] * dx) * scale
+        su = (s[B1] * dx - s[B0] * dy) * scale
+        sv = (s[A0] * dy - s[A1] * dx) * scale
         rho3d = su * su + sv * sv
         if rho3d <= rho:
             wins = True
             rho = rho3d
     power = HALF * rho
-    zk = z + feat[k, A2] * su + feat[k, B2] * sv if wins else z
-    if power > feat[k, PMAX]:
+    zk = z + s[A2] * su + s[B2] * sv if wins else z
+    if power > s[PMAX]:
         return ZERO, ZERO, wins, su, sv, den, zk, dx, dy
     gauss = np.exp(-power)
-    alpha = min(ALPHA_MAX, feat[k, OP] * gauss)
+    alpha = min(ALPHA_MAX, s[OP] * gauss)
     if alpha < ALPHA_MIN:
         alpha = ZERO
     return alpha, gauss, wins, su, sv, den, zk, dx, dy
+
+
+@njit(cache=True, error_model="numpy")
+def row(feat, k):
+    """The first 18 feature columns (geometry, opacity, cut-off, box) as a tuple held in registers."""
+    return (feat[k, 0], feat[k, 1], feat[k, 2], feat[k, 3], feat[k, 4], feat[k, 5], feat[k, 6], feat[k, 7],
+            feat[k, 8], feat[k, 9], feat[k, 10], feat[k, 11], feat[k, 12], feat[k, 13], feat[k, 14],
+            feat[k, 15], feat[k, 16], feat[k, 17])
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
@@ -106,13 +115,16 @@ def composite_forward(tile_starts, feat, width, height, background, rgb, depth, 
         for k in range(tile_starts[t], tile_starts[t + 1]):
             if n_left == 0:
                 break
-            jx0, jx1 = pixel_range(feat[k, BX], feat[k, HX], x0, x1)
-            iy0, iy1 = pixel_range(feat[k, BY], feat[k, HY], y0, y1)
+            s = row(feat, k)
+            cr, cg, cb = feat[k, CR], feat[k, CG], feat[k, CB]
+            nx, ny, nz = feat[k, NX], feat[k, NY], feat[k, NZ]
+            jx0, jx1 = pixel_range(s[BX], s[HX], x0, x1)
+            iy0, iy1 = pixel_range(s[BY], s[HY], y0, y1)
             for i in range(iy0, iy1 + 1):
                 for j in range(jx0, jx1 + 1):
                     if done[i - y0, j - x0]:
                         continue
-                    alpha, _g, _wins, _su, _sv, _den, zk, _dx, _dy = surfel_pixel(feat, k, j, i)
+                    alpha, _g, _wins, _su, _sv, _den, zk, _dx, _dy = surfel_pixel(s, j, i)
                     if alpha == ZERO:
                         continue
                     t_now = trans[i, j]
@@ -126,12 +138,12 @@ def composite_forward(tile_starts, feat, width, height, background, rgb, depth, 
                     dist[i, j] += w * (zk * zk * (ONE - t_now) - TWO * zk * d1 + d2)
                     depth[i, j] = d1 + w * zk
                     m2[i, j] = d2 + w * zk * zk
-                    rgb[i, j, 0] += w * feat[k, CR]
-                    rgb[i, j, 1] += w * feat[k, CG]
-                    rgb[i, j, 2] += w * feat[k, CB]
-                    normal[i, j, 0] += w * feat[k, NX]
-                    normal[i, j, 1] += w * feat[k, NY]
-                    normal[i, j, 2] += w * feat[k, NZ]
+                    rgb[i, j, 0] += w * cr
+                    rgb[i, j, 1] += w * cg
+                    rgb[i, j, 2] += w * cb
+                    normal[i, j, 0] += w * nx
+                    normal[i, j, 1] += w * ny
+                    normal[i, j, 2] += w * nz
                     if t_now >= T_MEDIAN and t_next < T_MEDIAN:
                         median[i, j] = zk
                     trans[i, j] = t_next
@@ -168,9 +180,10 @@ def composite_backward(tile_starts, feat, width, height, background, trans_final
         acc = np.zeros(24, F32)
         for k in range(k_end, tile_starts[t] - 1, -1):
             acc[:] = ZERO
-            jx0, jx1 = pixel_range(feat[k, BX], feat[k, HX], x0, x1)
-            iy0, iy1 = pixel_range(feat[k, BY], feat[k, HY], y0, y1)
-            o, z, a2, b2 = feat[k, OP], feat[k, Z], feat[k, A2], feat[k, B2]
+            s = row(feat, k)
+            jx0, jx1 = pixel_range(s[BX], s[HX], x0, x1)
+            iy0, iy1 = pixel_range(s[BY], s[HY], y0, y1)
+            o, z, a2, b2 = s[OP], s[Z], s[A2], s[B2]
             cr, cg, cb = feat[k, CR], feat[k, CG], feat[k, CB]
             nx, ny, nz = feat[k, NX], feat[k, NY], feat[k, NZ]
             for i in range(iy0, iy1 + 1):
@@ -178,7 +191,7 @@ def composite_backward(tile_starts, feat, width, height, background, trans_final
                 for j in range(jx0, jx1 + 1):
                     if last[i, j] < k:
                         continue
-                    alpha, gauss, wins, su, sv, den, zk, dx, dy = surfel_pixel(feat, k, j, i)
+                    alpha, gauss, wins, su, sv, den, zk, dx, dy = surfel_pixel(s, j, i)
                     if alpha == ZERO:
                         continue
                     pj = j - x0
@@ -264,5 +277,7 @@ def sum_instance_rows(order, emit_start, slot, grads, n):
     for r in prange(order.shape[0]):
         g = order[r]
         for e in range(emit_start[r], emit_start[r + 1]):
-            out[g] += grads[slot[e]]
+            k = slot[e]
+            for c in range(grads.shape[1]):
+                out[g, c] += grads[k, c]
     return out
