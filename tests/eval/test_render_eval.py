@@ -12,7 +12,13 @@ import torch
 from activesplat.cli import main
 from activesplat.episode import EpisodeWriter
 from activesplat.errors import ActiveSplatError
-from activesplat.eval.render_eval import METRIC_KEYS, render_eval, sample_test_poses, train_indices
+from activesplat.eval.render_eval import (
+    METRIC_KEYS,
+    render_eval,
+    render_gaussians_view,
+    sample_test_poses,
+    train_indices,
+)
 from activesplat.sim import SimConfig, Simulator, box_room, load_scene
 from activesplat.splat.config import MapperConfig
 from activesplat.splat.densify import gaussians_from_pixels
@@ -112,6 +118,23 @@ def test_explicit_gaussians_and_out_dir(episode, result, tmp_path):
     for split in ("train", "test"):  # deterministic: same views, same numbers
         for key in METRIC_KEYS:
             assert again[split][key] == pytest.approx(result[split][key], rel=1e-5, abs=1e-6), (split, key)
+
+
+def test_custom_renderer(episode, result, tmp_path):
+    """Maps of another kind (2DGS surfels) bring their own renderer; here: the default one with the colours
+    halved, which must cost PSNR while leaving the depth error unchanged."""
+    out, _ = episode
+    calls = []
+
+    def darker(gmap, pose, K, width, height, backend):
+        calls.append(pose)
+        rgb, depth, alpha = render_gaussians_view(gmap, pose, K, width, height, backend)
+        return 0.5 * rgb, depth, alpha
+
+    r = render_eval(out, out_dir=tmp_path, renderer=darker, **FAST)
+    assert len(calls) == 6 and r["renderer"].endswith("darker")
+    assert r["train"]["psnr"] < result["train"]["psnr"] - 3.0
+    assert r["train"]["depth_l1_cm"] == pytest.approx(result["train"]["depth_l1_cm"])
 
 
 def test_splits(episode):

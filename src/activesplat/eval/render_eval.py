@@ -32,6 +32,7 @@ import argparse
 import math
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -44,6 +45,8 @@ from activesplat.errors import EpisodeError, InvalidInputError
 METRIC_KEYS = ("psnr", "ssim", "ms_ssim", "lpips", "depth_l1_cm", "depth_l1_cm_normalised", "unmapped_pct")
 """Per-view metrics, averaged per split into render_metrics.json."""
 SPLITS = ("train", "test")
+Renderer = Callable[..., tuple[np.ndarray, np.ndarray, np.ndarray]]
+"""(gmap, pose, K, width, height, backend) -> (rgb (H,W,3) in [0,1], depth sum w_i z_i (H,W), alpha (H,W))."""
 
 
 @dataclass(frozen=True)
@@ -111,7 +114,10 @@ def sample_test_poses(sim, n: int, seed: int, pitch_deg: float = 0.0) -> np.ndar
 
 
 # --------------------------------------------------------------------------- evaluation
-def _render_map(gmap, pose: np.ndarray, K: np.ndarray, width: int, height: int, backend: str):
+def render_gaussians_view(gmap, pose: np.ndarray, K: np.ndarray, width: int, height: int,
+                          backend: str = "auto") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The default renderer of the evaluation: the 3DGS rasterizer seen from camera-to-world ``pose``;
+    returns (rgb clamped to [0, 1], depth sum w_i z_i, alpha) as numpy arrays."""
     from activesplat.splat import rasterize
 
     dev = gmap.means.device
@@ -158,10 +164,13 @@ def summarise(views: list[dict]) -> dict:
 
 def render_eval(episode_dir: str | Path, gaussians_path: str | Path | None = None,
                 out_dir: str | Path | None = None, n_train: int = 50, n_test: int = 50, seed: int = 0,
-                backend: str = "auto", progress: bool = True, config: RenderEvalConfig | None = None) -> dict:
+                backend: str = "auto", progress: bool = True, config: RenderEvalConfig | None = None,
+                renderer: Renderer | None = None) -> dict:
     """Evaluate a map's renders on the train and test splits (module docstring); writes
     ``render_metrics.json`` and ``render_grid.png`` into ``out_dir`` (default: the map's folder) and
-    returns the metrics. ``episode_dir`` may also be a ``refined_<method>`` folder inside an episode."""
+    returns the metrics. ``episode_dir`` may also be a ``refined_<method>`` folder inside an episode.
+    ``renderer(gmap, pose, K, width, height, backend) -> (rgb, depth, alpha)`` replaces the 3DGS
+    rasterizer (:func:`render_gaussians_view`) for maps of another kind (e.g. 2DGS surfels)."""
     from activesplat.eval.evaluate import _sim_config
     from activesplat.eval.lpips import LPIPS
     from activesplat.geometry import intrinsics
@@ -172,6 +181,7 @@ def render_eval(episode_dir: str | Path, gaussians_path: str | Path | None = Non
     for name, value in (("n_train", n_train), ("n_test", n_test)):
         if isinstance(value, bool) or not isinstance(value, int | np.integer) or value <= 0:
             raise InvalidInputError(f"{name} must be a positive number of views, got {value!r}")
+    renderer = renderer or render_gaussians_view
     cfg = RenderEvalConfig(**{**asdict(config or RenderEvalConfig()), "n_train": int(n_train),
                               "n_test": int(n_test), "seed": int(seed)})
     episode_dir, gaussians_path, out = locate(episode_dir, gaussians_path, out_dir)
@@ -204,7 +214,7 @@ def render_eval(episode_dir: str | Path, gaussians_path: str | Path | None = Non
             t1 = time.perf_counter()
             gt_rgb, gt_depth = sim.render(pose, width, height)
             t2 = time.perf_counter()
-            rgb, depth, alpha = _render_map(gmap, pose, K, width, height, backend)
+            rgb, depth, alpha = renderer(gmap, pose, K, width, height, backend)
             t3 = time.perf_counter()
             m = view_metrics(rgb, depth, alpha, gt_rgb, gt_depth, cfg, lpips_model)
             clock["ground_truth"] += t2 - t1
@@ -226,6 +236,7 @@ def render_eval(episode_dir: str | Path, gaussians_path: str | Path | None = Non
         "episode": str(episode_dir), "gaussians": str(gaussians_path), "n_gaussians": len(gmap),
         "scene": meta.get("scene_name", meta["scene"]), "width": width, "height": height,
         "hfov_deg": sim_config.hfov_deg, "seed": cfg.seed, "backend": backend,
+        "renderer": _name_of(renderer),
         "protocol": {
             "train": f"{len(steps)} observations uniformly spread over poses.txt (reset included)",
             "test": f"{cfg.n_test} seeded random navigable positions, sensor height "
@@ -248,6 +259,10 @@ def render_eval(episode_dir: str | Path, gaussians_path: str | Path | None = Non
     draw_render_grid(out / "render_grid.png", grid, cfg.grid_depth_max_cm,
                      title=f"{result['scene']}: {gaussians_path.parent.name}/{gaussians_path.name}")
     return result
+
+
+def _name_of(fn) -> str:
+    return f"{getattr(fn, '__module__', '')}.{getattr(fn, '__qualname__', repr(fn))}"
 
 
 def _describe_view(split: str, pose: np.ndarray, steps: np.ndarray, i: int) -> dict:
