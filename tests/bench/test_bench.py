@@ -88,18 +88,20 @@ def test_tables_mean_std_and_averages_from_handwritten_metrics(tmp_path):
     tab1 = md.split("## Tab. I:")[1].split("## Tab. II")[0]
     rows = {tuple(c.strip() for c in line.strip("|").split("|")[:2]): line for line in tab1.splitlines()
             if line.startswith("|")}
-    # per scene: mean ± population std over the 2 seeds
-    assert "| 90.00 ± 1.00 | 9.00 ± 0.10 | 10.0 ± 0.0 | 100 ± 0 | 2/2 |" in rows[("small-0", "activesplat")]
+    # per scene: mean ± population std over the 2 seeds; the best completion ratio / completion in bold
+    row = rows[("small-0", "activesplat")]
+    assert "| **90.00 ± 1.00** | 9.00 ± 0.10 | 10.0 ± 0.0 | 100 ± 0 | 2/2 |" in row
+    assert "| 71.00 ± 1.00 | **7.10 ± 0.10** |" in rows[("small-0", "fbe")]
     # average over scenes = mean of scene means (90, 82); ± std over seeds of per-seed averages (84.5, 87.5)
-    assert "| 86.00 ± 1.50 |" in rows[("**average (2 scenes)**", "activesplat")]
+    assert "| **86.00 ± 1.50** |" in rows[("**average (2 scenes)**", "activesplat")]
     # fbe: small-1 has one complete trial of two, the seed-1 average is not paired -> no ±
-    assert "| 60.00 | 6.00 |" in rows[("small-1", "fbe")] and "| 1/2 |" in rows[("small-1", "fbe")]
-    assert "| 65.50 | 6.55 |" in rows[("**average (2 scenes)**", "fbe")]
+    assert "| 60.00 | **6.00** |" in rows[("small-1", "fbe")] and "| 1/2 |" in rows[("small-1", "fbe")]
+    assert "| 65.50 | **6.55** |" in rows[("**average (2 scenes)**", "fbe")]
     # random is an ablation variant: Tab. II lists it next to the full method, Tab. I does not
     tab2 = md.split("## Tab. II")[1].split("## Per scene")[0]
     assert "| random |" not in tab1 and "| random |" in tab2 and "| activesplat |" in tab2
     # supplementary layout: scenes as columns, Avg. without ±
-    assert "| **activesplat** | % ↑ | 90.00 ± 1.00 | 82.00 ± 2.00 | 86.00 |" in md
+    assert "| **activesplat** | % ↑ | **90.00 ± 1.00** | **82.00 ± 2.00** | **86.00** |" in md
     # Tab. VI: mean mapper ms over the 4 complete activesplat runs = mean(89, 91, 80, 84) / 2
     tab6 = md.split("## Tab. VI")[1]
     assert "| activesplat | 43.00 | 1.00 |" in tab6 and "| paper (RTX 3090) | 45.14 | 43.87 |" in tab6

@@ -98,7 +98,7 @@ def run_benchmark(scenes: Sequence[str], policies: Sequence[str], trials: int = 
     root = Path(root).resolve()
     root.mkdir(parents=True, exist_ok=True)
     todo = [s for s in specs if read_metrics(s.out) is None]
-    where = f"Ray ({ray_address or 'auto'})" if executor == "ray" else (
+    where = f"Ray ({ray_address or 'default address'})" if executor == "ray" else (
         "this process" if workers == 1 else f"{workers} worker processes")
     shape = [len({getattr(s, k) for s in specs}) for k in ("label", "policy", "seed")]
     log(f"benchmark: {len(specs)} runs ({shape[0]} scenes x {shape[1]} policies x {shape[2]} trials), "

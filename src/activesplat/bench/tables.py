@@ -124,9 +124,6 @@ class Results:
         self.cfg = cfg or TableConfig()
         self.scenes = list(dict.fromkeys(r.spec.label for r in self.records))
         self.policies = list(dict.fromkeys(r.spec.policy for r in self.records))
-        self.cells: dict[tuple[str, str], list[RunRecord]] = {}
-        for r in self.records:
-            self.cells.setdefault((r.spec.label, r.spec.policy), []).append(r)
 
     def complete(self, scene: str | None, policy: str) -> list[dict]:
         """Metrics of the complete runs of a policy on a scene (all scenes: None)."""
@@ -136,17 +133,26 @@ class Results:
     def values(self, scene: str, policy: str, key: str) -> np.ndarray:
         return np.array([_get(m, key) for m in self.complete(scene, policy)], float)
 
+    def mean(self, scene: str | None, policy: str, key: str) -> float | None:
+        """Mean over the complete trials of a scene; scene None: the mean over scenes of those means."""
+        if scene is None:
+            means = [m for s in self.scenes if (m := self.mean(s, policy, key)) is not None]
+            return float(np.mean(means)) if means else None
+        v = self.values(scene, policy, key)
+        return float(v.mean()) if len(v) else None
+
     def cell(self, scene: str, policy: str, key: str, decimals: int) -> str:
         """mean ± std over the complete trials; one trial: the value; none: n/a."""
         v = self.values(scene, policy, key)
-        return _pm(v.mean() if len(v) else None, _std(v, self.cfg.std_ddof), decimals)
+        return _pm(self.mean(scene, policy, key), _std(v, self.cfg.std_ddof), decimals)
 
     def average(self, policy: str, key: str, decimals: int, with_std: bool = True) -> str:
         """Mean over scenes of the per-scene means; ± the std over seeds of the per-seed averages over scenes
         (seeds complete on every scene). '†': some scene has no complete run and is left out."""
-        means = [v.mean() for v in (self.values(s, policy, key) for s in self.scenes) if len(v)]
-        if not means:
+        mean = self.mean(None, policy, key)
+        if mean is None:
             return "n/a"
+        n_scenes = sum(self.mean(s, policy, key) is not None for s in self.scenes)
         per_seed: dict[int, dict[str, float]] = {}
         for r in self.records:
             if r.status == "complete" and r.spec.policy == policy:
@@ -154,7 +160,7 @@ class Results:
         paired = np.array([np.mean(list(d.values())) for d in per_seed.values()
                            if len(d) == len(self.scenes)])
         std = _std(paired, self.cfg.std_ddof) if with_std else None
-        return _pm(float(np.mean(means)), std, decimals) + ("" if len(means) == len(self.scenes) else " †")
+        return _pm(mean, std, decimals) + ("" if n_scenes == len(self.scenes) else " †")
 
     def trials(self, scene: str | None, policy: str) -> str:
         planned = [r for r in self.records
@@ -192,13 +198,29 @@ def _metric_columns(cfg: TableConfig) -> list[tuple[str, str, str, int]]:
             ("ms_per_step", "ms/step", "ms", cfg.ms_decimals)]
 
 
+BETTER = {"completion_ratio_pct": max, "completion_cm": min}
+"""Columns whose best mean is printed bold, as in the paper's tables, and which way is better."""
+
+
+def _cell(res: Results, scene: str | None, policy: str, policies: Sequence[str], key: str, decimals: int,
+          with_std: bool = True) -> str:
+    """The cell of a scene (None: the average over scenes), in bold when `policy` has the best mean of `key`
+    among at least two of `policies` with results."""
+    if scene is None:
+        text = res.average(policy, key, decimals, with_std)
+    else:
+        text = res.cell(scene, policy, key, decimals)
+    means = {p: m for p in policies if (m := res.mean(scene, p, key)) is not None}
+    best = key in BETTER and len(means) > 1 and BETTER[key](means, key=means.__getitem__) == policy
+    return f"**{text}**" if best else text
+
+
 def exploration_table(res: Results, policies: Sequence[str]) -> list[str]:
-    """Tab. I / Tab. II layout: a block of rows per scene, then the average over scenes."""
+    """Tab. I / Tab. II layout: a block of rows per scene, then the average over scenes; best bold."""
     cols = _metric_columns(res.cfg)
-    rows = [[scene, p, *(res.cell(scene, p, k, d) for k, _, _, d in cols), res.trials(scene, p)]
-            for scene in res.scenes for p in policies]
-    rows += [[f"**average ({len(res.scenes)} scenes)**", p, *(res.average(p, k, d) for k, _, _, d in cols),
-              res.trials(None, p)] for p in policies]
+    rows = [[scene or f"**average ({len(res.scenes)} scenes)**", p,
+             *(_cell(res, scene, p, policies, k, d) for k, _, _, d in cols), res.trials(scene, p)]
+            for scene in [*res.scenes, None] for p in policies]
     return _table(["scene", "policy", *(name for _, name, _, _ in cols), "trials"], rows)
 
 
@@ -208,8 +230,8 @@ def per_scene_table(res: Results) -> list[str]:
     rows = []
     for p in res.policies:
         for i, (k, unit, d) in enumerate(metrics):
-            rows.append([f"**{p}**" if i == 0 else "", unit,
-                         *(res.cell(s, p, k, d) for s in res.scenes), res.average(p, k, d, with_std=False)])
+            cells = [_cell(res, s, p, res.policies, k, d, with_std=False) for s in [*res.scenes, None]]
+            rows.append([f"**{p}**" if i == 0 else "", unit, *cells])
     return _table(["policy", "metric", *res.scenes, "Avg."], rows)
 
 
