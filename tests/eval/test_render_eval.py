@@ -149,6 +149,8 @@ def test_splits(episode):
     assert np.allclose(a[:, 1, 3], scene.floor_height + SIM.sensor_height)
     assert np.allclose(a[:, 1, 2], 0.0)  # level cameras (pitch 0)
     assert np.ptp(np.arctan2(a[:, 0, 2], a[:, 2, 2])) > np.pi  # yaws spread over the circle
+    starts = np.stack([Simulator(scene, seed=s, config=SIM).start_pose for s in (1, 2)])
+    assert not np.allclose(a[0], starts[0]) and not np.allclose(c[0], starts[1])  # not the agent's start draw
 
 
 def test_bad_input(episode, tmp_path, capsys):

@@ -45,6 +45,8 @@ from activesplat.errors import EpisodeError, InvalidInputError
 METRIC_KEYS = ("psnr", "ssim", "ms_ssim", "lpips", "depth_l1_cm", "depth_l1_cm_normalised", "unmapped_pct")
 """Per-view metrics, averaged per split into render_metrics.json."""
 SPLITS = ("train", "test")
+TEST_POSE_STREAM = 0x7E57
+"""First entropy word of the test-pose generator; seed alone would replay the agent's start draw."""
 Renderer = Callable[..., tuple[np.ndarray, np.ndarray, np.ndarray]]
 """(gmap, pose, K, width, height, backend) -> (rgb (H,W,3) in [0,1], depth sum w_i z_i (H,W), alpha (H,W))."""
 
@@ -58,7 +60,8 @@ class RenderEvalConfig:
     n_test: int = 50
     """Random test poses in the free space (paper: 50)."""
     seed: int = 0
-    """Seed of the test poses."""
+    """Seed of the test poses (drawn from the stream (TEST_POSE_STREAM, seed), never the stream the simulator
+    draws its random start from, so test pose 0 is not the episode's first view)."""
     test_pitch_deg: float = 0.0
     """Pitch of the test cameras. Ours: level, as the agent looks while it travels; the paper does not say."""
     psnr_max_db: float = 100.0
@@ -102,7 +105,7 @@ def sample_test_poses(sim, n: int, seed: int, pitch_deg: float = 0.0) -> np.ndar
     navigable component (as the simulator's random start), sensor height, random yaw, fixed pitch."""
     from activesplat.sim.simulator import camera_pose
 
-    rng = np.random.default_rng(seed)
+    rng = np.random.default_rng((TEST_POSE_STREAM, seed))
     floor = sim.scene.floor_height
     poses = []
     for _ in range(n):
