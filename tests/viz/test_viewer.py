@@ -8,11 +8,13 @@ import socket
 import sys
 import time
 import urllib.request
+from types import SimpleNamespace
 
 import msgspec
 import networkx as nx
 import numpy as np
 import pytest
+import torch
 import viser
 import zstandard
 from websockets.sync.client import connect
@@ -23,6 +25,7 @@ from activesplat.eval.coverage import CoverageConfig
 from activesplat.explore import run_exploration
 from activesplat.planning.explorer import Plan
 from activesplat.sim import SimConfig
+from activesplat.splat.gaussians import GaussianMap
 from activesplat.splat.ply import load_ply
 from activesplat.viz.viewer import (
     EpisodeViewer,
@@ -30,6 +33,7 @@ from activesplat.viz.viewer import (
     SceneDrawer,
     ViewerConfig,
     free_port,
+    splat_arrays,
     start_server,
 )
 
@@ -155,6 +159,49 @@ def test_replay_viewer_has_a_timeline_over_the_trajectory(live):
         assert viewer.draw.image_handles["ground truth RGB"].image.shape == (64, 64, 3)
     finally:
         viewer.close()
+
+
+def test_splat_arrays_are_the_rasterizer_covariances_and_keep_the_most_opaque():
+    gen = torch.Generator().manual_seed(0)
+    raw = {"means": torch.randn(50, 3, generator=gen), "quats": torch.randn(50, 4, generator=gen),
+           "log_scales": torch.randn(50, 3, generator=gen) - 3,
+           "opacity_logits": torch.randn(50, generator=gen), "f_dc": torch.randn(50, 3, generator=gen)}
+    gmap = GaussianMap(raw)
+    a = splat_arrays(gmap, max_splats=50)
+    q = gmap.quats.detach().double()
+    w, x, y, z = q.unbind(1)  # independent rotation formula (torch, float64)
+    R = torch.stack([torch.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], 1),
+                     torch.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], 1),
+                     torch.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], 1)], 1)
+    cov = R @ torch.diag_embed(gmap.scales.detach().double() ** 2) @ R.transpose(1, 2)
+    assert np.allclose(a["covariances"], cov.numpy(), rtol=1e-4, atol=1e-10)
+    assert np.allclose(a["centers"], raw["means"].numpy())
+    assert np.abs(a["opacities"][:, 0] / 255 - gmap.opacities.detach().numpy()).max() <= 0.5 / 255 + 1e-6
+    top = splat_arrays(gmap, max_splats=10)
+    assert len(top["centers"]) == 10
+    assert top["opacities"].min() >= np.sort(a["opacities"][:, 0])[-10]
+
+
+def test_map_sends_keep_to_the_interval_and_the_cost_budget():
+    """Fake loop: a map send is due every other update by the interval, but a budget of 1e-9 of the wall time
+    allows only the first one, plus the final update's."""
+    gmap = GaussianMap.from_points(torch.rand(20, 3), torch.rand(20, 3), torch.full((20,), 0.05))
+    mapper = SimpleNamespace(gaussians=gmap, K=np.array([[32.0, 0, 32], [0, 32, 32], [0, 0, 1]]), width=64,
+                             height=64, frames=0)
+    obs = SimpleNamespace(pose=np.eye(4), rgb=np.zeros((64, 64, 3), np.uint8),
+                          depth=np.ones((64, 64), np.float32))
+    # due at updates 1, 3, 5, 7 by the interval; no frame is mapped since update 3 when 5 comes, so 6 goes
+    # instead; 8 is final
+    for share, expected in ((1.0, 4), (1e-9, 2)):
+        viewer = LiveViewer(port=free_port(), config=ViewerConfig(max_map_share=share), clock=FakeClock())
+        try:
+            for step in range(1, 9):
+                mapper.frames += step not in (4, 5)  # skipped frames: nothing new to send at update 5
+                viewer.update(step, obs, mapper, object(), final=step == 8)
+            assert viewer.sent["/map/splats"] == expected
+            assert viewer.sent["/agent/frustum"] == 8  # light state: every update at 0.25 s > 0.2 s
+        finally:
+            viewer.close()
 
 
 def test_plan_layers_graph_by_subregion_scores_goal_and_path():

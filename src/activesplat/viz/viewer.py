@@ -42,6 +42,9 @@ class ViewerConfig:
     """Interface the page is served on (localhost only by default)."""
     map_interval_s: float = 0.5
     """Live: the splats are sent at most this often (2 Hz), and only when the map took a new frame."""
+    max_map_share: float = 0.1
+    """Live: after a map send that took t seconds the next waits at least t / this, so sending the splats
+    never takes more than this share of the run's wall time, however large the map or slow the machine."""
     state_interval_s: float = 0.2
     """Live: frustum, trajectory, status and plan (graph, scores, goal, path) at most this often (5 Hz)."""
     image_interval_s: float = 0.5
@@ -124,7 +127,7 @@ def quat_to_rotmat(q: np.ndarray) -> np.ndarray:
 
 
 def splat_arrays(gaussians, max_splats: int) -> dict[str, np.ndarray]:
-    """A GaussianMap as viser's splat arrays: centers, covariances R S S R^T, rgbs in [0, 1], opacities."""
+    """A GaussianMap as viser's splat arrays: centers, covariances R S S R^T, uint8 rgbs and opacities."""
     import torch
 
     with torch.no_grad():
@@ -136,9 +139,14 @@ def splat_arrays(gaussians, max_splats: int) -> dict[str, np.ndarray]:
     if len(means) > max_splats:
         keep = np.argpartition(-opac, max_splats - 1)[:max_splats]
         means, quats, scales, opac, rgbs = means[keep], quats[keep], scales[keep], opac[keep], rgbs[keep]
-    m = quat_to_rotmat(quats) * scales[:, None, :]
-    return {"centers": means.astype(np.float32), "covariances": (m @ m.transpose(0, 2, 1)).astype(np.float32),
-            "rgbs": rgbs.astype(np.float32), "opacities": opac.reshape(-1, 1).astype(np.float32)}
+    m = quat_to_rotmat(quats.astype(np.float32)) * scales.astype(np.float32)[:, None, :]
+    cov = np.empty_like(m)  # M M^T term by term: much faster than a batched 3x3 matmul
+    for i in range(3):
+        for j in range(i, 3):
+            cov[:, i, j] = cov[:, j, i] = np.einsum("nk,nk->n", m[:, i], m[:, j])
+    return {"centers": means.astype(np.float32), "covariances": cov,
+            "rgbs": (255 * rgbs + 0.5).astype(np.uint8),
+            "opacities": (255 * opac + 0.5).astype(np.uint8)[:, None]}
 
 
 def _wxyz(rotation: np.ndarray) -> np.ndarray:
@@ -331,13 +339,15 @@ class LiveViewer:
         self.url = f"http://{self.cfg.host}:{self.port}"
         self.draw = SceneDrawer(self.server, self.cfg, "activesplat explore (live)")
         self._clock = clock
-        self._last = {"map": -math.inf, "state": -math.inf, "images": -math.inf}
+        self._last = {"state": -math.inf, "images": -math.inf}
+        self._next_map = -math.inf
         self._map_frames = -1
         self._plan = None
         self._panorama = None
         self._positions: list[np.ndarray] = []
         self.time_ms = 0.0
         """Wall time spent in update() so far (what the viewer costs the run)."""
+        self.updates = 0
         print(f"viewer: {self.url}", file=sys.stderr)
 
     @property
@@ -355,10 +365,14 @@ class LiveViewer:
             self._last["images"] = now
             self._send_images(obs, explorer)
         frames = getattr(mapper, "frames", step)
-        if frames != self._map_frames and (final or now - self._last["map"] >= self.cfg.map_interval_s):
-            self._last["map"], self._map_frames = now, frames
+        if frames != self._map_frames and (final or now >= self._next_map):
+            t_map = time.perf_counter()
+            self._map_frames = frames
             self.draw.draw_map(mapper.gaussians)
+            spent = time.perf_counter() - t_map
+            self._next_map = now + max(self.cfg.map_interval_s, spent / self.cfg.max_map_share)
         self.time_ms += 1000.0 * (time.perf_counter() - t0)
+        self.updates += 1
 
     def _send_state(self, step: int, obs, mapper, explorer) -> None:
         pose = np.asarray(obs.pose, dtype=np.float64)
@@ -394,7 +408,9 @@ class LiveViewer:
 
     def hold(self) -> None:
         """Keep serving the final state until Ctrl-C."""
-        print(f"viewer: the run is over; still serving {self.url} (Ctrl-C to quit)", file=sys.stderr)
+        cost = self.time_ms / max(self.updates, 1)
+        print(f"viewer: {cost:.1f} ms/step spent updating it; the run is over, still serving {self.url} "
+              "(Ctrl-C to quit)", file=sys.stderr)
         try:
             while True:
                 time.sleep(0.5)
