@@ -9,7 +9,13 @@ import torch
 from _refine_scene import make_episode
 
 from activesplat.refine import RefineConfig, Refiner, refine
-from activesplat.refine.surfels import depth_normals, normal_error, rotmat_to_quat, surfel_raw_from_gaussians
+from activesplat.refine.surfels import (
+    depth_normals,
+    frame_from_normal,
+    normal_error,
+    rotmat_to_quat,
+    surfel_raw_from_gaussians,
+)
 from activesplat.splat import GaussianMap, load_ply
 from activesplat.splat._raster_torch import quat_to_rotmat
 
@@ -36,7 +42,7 @@ def test_surfel_spans_the_two_largest_axes_and_its_normal_is_the_smallest():
         "log_scales": torch.randn(n, 3, generator=gen), "opacity_logits": torch.zeros(n),
         "f_dc": torch.zeros(n, 3),
     }
-    surf = surfel_raw_from_gaussians(raw, log_thickness=math.log(1e-6))
+    surf = surfel_raw_from_gaussians(raw, log_thickness=math.log(1e-6), flat_ratio=1.01)  # own axes only
     r0, r1 = quat_to_rotmat(raw["quats"].double()), quat_to_rotmat(surf["quats"].double())
     assert torch.allclose(torch.linalg.det(r1), torch.ones(n, dtype=torch.float64), atol=1e-6)
     order = torch.argsort(raw["log_scales"], dim=1, descending=True)
@@ -48,6 +54,35 @@ def test_surfel_spans_the_two_largest_axes_and_its_normal_is_the_smallest():
         assert torch.allclose(cos, torch.ones(n, dtype=torch.float64), atol=1e-5)
     for name in ("means", "opacity_logits", "f_dc"):
         assert torch.equal(surf[name], raw[name])
+
+
+def test_round_gaussians_take_the_normal_of_their_neighbourhood():
+    """Isotropic Gaussians spread on a tilted plane become surfels lying in that plane; a clearly flat
+    Gaussian keeps its own smallest axis."""
+    gen = torch.Generator().manual_seed(3)
+    normal = torch.nn.functional.normalize(torch.tensor([0.2, 1.0, -0.4], dtype=torch.float64), dim=0)
+    t1 = frame_from_normal(normal[None])[0][:, 0]
+    t2 = torch.linalg.cross(normal, t1, dim=0)
+    uv = torch.rand(300, 2, generator=gen, dtype=torch.float64) * 2 - 1
+    means = (uv[:, :1] * t1 + uv[:, 1:] * t2 + 0.001 * torch.randn(300, 1, generator=gen) * normal).float()
+    gmap = GaussianMap.from_points(means, torch.full((300, 3), 0.5), torch.full((300,), 0.03))
+    raw = gmap.raw()
+    raw["log_scales"][0] = torch.log(torch.tensor([0.05, 0.04, 0.005]))  # flat along its local z
+    surf = surfel_raw_from_gaussians(raw, -10.0, flat_ratio=0.8, neighbours=16)
+    normals = quat_to_rotmat(surf["quats"].double())[:, :, 2]
+    cos = (normals[1:] @ normal).abs()
+    assert float(cos.min()) > 0.99
+    assert float(normals[0].abs() @ torch.tensor([0.0, 0, 1], dtype=torch.float64)) > 0.999
+
+
+def test_frame_from_normal_is_a_rotation_with_that_normal():
+    n = torch.nn.functional.normalize(torch.randn(40, 3, generator=torch.Generator().manual_seed(4),
+                                                  dtype=torch.float64), dim=1)
+    rot = frame_from_normal(n)
+    assert torch.allclose(rot[:, :, 2], n)
+    assert torch.allclose(rot.transpose(1, 2) @ rot, torch.eye(3, dtype=torch.float64).expand(40, 3, 3),
+                          atol=1e-12)
+    assert torch.allclose(torch.linalg.det(rot), torch.ones(40, dtype=torch.float64))
 
 
 def test_depth_normals_of_a_tilted_plane_face_the_camera():

@@ -67,8 +67,8 @@ class DensityControl:
     # ------------------------------------------------------------------ statistics
     def accumulate(self, grad_ndc_norm: torch.Tensor, visible: torch.Tensor) -> None:
         """Add one view: ``grad_ndc_norm`` (N,) from :func:`ndc_grad_norm`, ``visible`` (N,) bool."""
-        self.grad_accum[visible] += grad_ndc_norm[visible].to(self.grad_accum)
-        self.denom[visible] += 1
+        self.grad_accum += torch.where(visible, grad_ndc_norm.to(self.grad_accum), 0.0)
+        self.denom += visible.to(self.denom.dtype)
 
     def mean_grads(self) -> torch.Tensor:
         return self.grad_accum / self.denom.clamp_min(1)

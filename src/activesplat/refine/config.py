@@ -75,6 +75,13 @@ class RefineConfig:
     dist_from_frac: float = 0.1  # 2DGS: distortion from iteration 3000 of 30k
     normal_from_frac: float = 7000 / 30000  # 2DGS: normal consistency from iteration 7000 of 30k
     surfel_ply_log_thickness: float = -13.815510557964274  # log(1e-6 m): scale_2 of a surfel in the PLY
+    # project: surfel orientation at initialisation. A Gaussian clearly flatter along one axis (smallest /
+    # middle scale < surfel_flat_ratio) keeps that axis as the normal; a near-isotropic one (the online
+    # map's Gaussians start isotropic and stay within a few % of it) takes the normal of the plane fitted
+    # (PCA) to its surfel_normal_neighbours nearest centres. 2DGS starts from random rotations and has
+    # 30k GPU iterations to turn them; a CPU run of a few thousand iterations does not.
+    surfel_flat_ratio: float = 0.8
+    surfel_normal_neighbours: int = 16
 
     # --- bookkeeping
     checkpoint_every: int = 500  # iterations between checkpoints (also written at the end and on Ctrl-C)
@@ -87,7 +94,8 @@ class RefineConfig:
                 continue
             if isinstance(value, (int, float)) and not isinstance(value, bool) and value < 0:
                 raise InvalidInputError(f"RefineConfig.{f.name} must be >= 0, got {value}")
-        for name in ("densify_interval", "checkpoint_every", "split_samples", "opacity_reset_interval"):
+        for name in ("densify_interval", "checkpoint_every", "split_samples", "opacity_reset_interval",
+                     "surfel_normal_neighbours"):
             if getattr(self, name) < 1:
                 raise InvalidInputError(f"RefineConfig.{name} must be >= 1, got {getattr(self, name)}")
         if not 0.0 <= self.lambda_dssim <= 1.0:

@@ -3,9 +3,12 @@
 **From the 3D map.** Each 3D Gaussian becomes a surfel spanned by its two largest axes: the columns of
 its rotation are reordered so that the two largest scales come first and the smallest axis becomes the
 third column, the surfel normal (flipped if needed to keep a proper rotation), and the quaternion is
-recomputed from that matrix. The parameters stay a :class:`~activesplat.splat.gaussians.GaussianMap`
-with three log-scales, of which the surfel rasterizer reads the first two; the third is not used (it
-receives no gradient) and is written to the PLY as ``surfel_ply_log_thickness``.
+recomputed from that matrix. A near-isotropic Gaussian has no meaningful smallest axis (the online
+map's Gaussians start isotropic and stay within a few per cent of it), so there the normal is that of
+the plane fitted to its nearest centres (``RefineConfig.surfel_flat_ratio``, ``surfel_normal_neighbours``).
+The parameters stay a :class:`~activesplat.splat.gaussians.GaussianMap` with three log-scales, of
+which the surfel rasterizer reads the first two; the third is not used (it receives no gradient) and
+is written to the PLY as ``surfel_ply_log_thickness``.
 
 **PLY layout.** ``gaussians.ply`` of a 2dgs run is the standard 3DGS layout with ``scale_2`` =
 log(1e-6 m): a flat Gaussian, the common way to show 2DGS surfels in 3DGS viewers. Rendered with the 3D
@@ -21,9 +24,6 @@ run 2DGS uses (3000 and 7000 of 30k iterations).
 """
 
 from __future__ import annotations
-
-import inspect
-import warnings
 
 import numpy as np
 import torch
@@ -60,17 +60,51 @@ def rotmat_to_quat(rot: torch.Tensor) -> torch.Tensor:
     return q.to(rot.dtype)
 
 
-def surfel_raw_from_gaussians(raw: dict[str, torch.Tensor], log_thickness: float) -> dict[str, torch.Tensor]:
-    """Raw parameters of the surfels spanned by the two largest axes of each Gaussian (module docstring)."""
+def neighbour_normals(points: np.ndarray, k: int) -> np.ndarray:
+    """(N,3) unit normals of the planes fitted (PCA: the eigenvector of the smallest eigenvalue of the
+    neighbourhood covariance) to each point's ``k`` nearest points (itself included)."""
+    from scipy.spatial import cKDTree
+
+    points = np.asarray(points, dtype=np.float64)
+    k = min(k, len(points))
+    if k < 3:
+        return np.tile([0.0, 0.0, 1.0], (len(points), 1))
+    _, idx = cKDTree(points).query(points, k=k)
+    nb = points[idx] - points[idx].mean(axis=1, keepdims=True)
+    cov = np.einsum("nki,nkj->nij", nb, nb)
+    return np.linalg.eigh(cov)[1][:, :, 0]
+
+
+def frame_from_normal(normal: torch.Tensor) -> torch.Tensor:
+    """(N,3,3) rotations whose third column is ``normal`` (N,3, unit): t1 = normalise(n x a) with a the
+    coordinate axis least aligned with n, t2 = n x t1, R = [t1 t2 n] (so t1 x t2 = n)."""
+    axis = torch.zeros_like(normal)
+    axis[torch.arange(len(normal)), normal.abs().argmin(dim=1)] = 1.0
+    t1 = torch.nn.functional.normalize(torch.linalg.cross(normal, axis, dim=1), dim=1)
+    t2 = torch.linalg.cross(normal, t1, dim=1)
+    return torch.stack([t1, t2, normal], dim=2)
+
+
+def surfel_raw_from_gaussians(raw: dict[str, torch.Tensor], log_thickness: float, flat_ratio: float = 0.8,
+                              neighbours: int = 16) -> dict[str, torch.Tensor]:
+    """Raw parameters of the surfels made from 3D Gaussians (module docstring): extents = the two largest
+    scales; normal = the smallest axis where the Gaussian is flat (smallest / middle scale <
+    ``flat_ratio``), else the PCA normal of its ``neighbours`` nearest centres."""
     log_scales = raw["log_scales"]
     order = torch.argsort(log_scales, dim=1, descending=True, stable=True)  # largest first
     rot = quat_to_rotmat(raw["quats"].to(torch.float64))
     rot = torch.gather(rot, 2, order.unsqueeze(1).expand(-1, 3, 3))  # reorder the columns
     flip = torch.linalg.det(rot) < 0
     rot[flip, :, 2] = -rot[flip, :, 2]
+    sorted_scales = torch.gather(log_scales, 1, order)
+    round_ = torch.exp(sorted_scales[:, 2] - sorted_scales[:, 1]) >= flat_ratio
+    if bool(round_.any()):
+        normals = neighbour_normals(raw["means"].detach().cpu().numpy(), neighbours)
+        normals_t = torch.from_numpy(normals).to(rot)
+        rot[round_] = frame_from_normal(normals_t[round_.to(normals_t.device)])
     out = {k: v.clone() for k, v in raw.items()}
     out["quats"] = rotmat_to_quat(rot).to(raw["quats"].dtype)
-    out["log_scales"] = torch.gather(log_scales, 1, order)
+    out["log_scales"] = sorted_scales.clone()
     out["log_scales"][:, 2] = log_thickness
     return out
 
@@ -104,7 +138,9 @@ class Surfels2D(Splatting3D):
         self.dist_from, self.normal_from = cfg.regulariser_start(iters)
 
     def prepare(self, gmap: GaussianMap) -> GaussianMap:
-        return GaussianMap(surfel_raw_from_gaussians(gmap.raw(), self.cfg.surfel_ply_log_thickness))
+        cfg = self.cfg
+        return GaussianMap(surfel_raw_from_gaussians(gmap.raw(), cfg.surfel_ply_log_thickness,
+                                                     cfg.surfel_flat_ratio, cfg.surfel_normal_neighbours))
 
     def render(self, gmap: GaussianMap, viewmat: torch.Tensor, K: torch.Tensor, width: int, height: int,
                track_grad2d: bool = False):
@@ -136,24 +172,11 @@ class Surfels2D(Splatting3D):
         return GaussianMap(raw)
 
     def eval_kwargs(self) -> dict:
-        """``renderer=render_surfel_view`` when ``render_eval`` takes one; otherwise (older render_eval)
-        the flat-Gaussian PLY is evaluated with the 3D rasterizer, with a warning (see ``eval_renderer``)."""
-        if _render_eval_takes_renderer():
-            return {"renderer": render_surfel_view}
-        warnings.warn("render_eval takes no renderer: the 2dgs map is evaluated as flat 3D Gaussians",
-                      stacklevel=2)
-        return {}
+        """Render the evaluation views with the surfel rasterizer (not the 3D one the flat PLY suggests)."""
+        return {"renderer": render_surfel_view}
 
     def eval_renderer(self) -> str:
-        if _render_eval_takes_renderer():
-            return "surfel rasterizer"
-        return "3D rasterizer on the flat-Gaussian PLY (render_eval takes no renderer argument)"
-
-
-def _render_eval_takes_renderer() -> bool:
-    from activesplat.eval.render_eval import render_eval
-
-    return "renderer" in inspect.signature(render_eval).parameters
+        return "surfel rasterizer"
 
 
 def render_surfel_view(gmap: GaussianMap, pose: np.ndarray, K: np.ndarray, width: int, height: int,

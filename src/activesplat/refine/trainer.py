@@ -40,10 +40,11 @@ from activesplat.errors import EpisodeError, InvalidInputError
 from activesplat.refine.adc import DensifyStats, DensityControl, reset_opacity, scene_extent
 from activesplat.refine.config import METHODS, RefineConfig
 from activesplat.refine.methods import make_method
+from activesplat.splat.config import MapperConfig
 from activesplat.splat.gaussians import GaussianMap
 from activesplat.splat.losses import mapping_loss
-from activesplat.splat.mapper import Mapper
-from activesplat.splat.ply import save_ply
+from activesplat.splat.mapper import _config_from_dict
+from activesplat.splat.ply import load_ply, save_ply
 
 CHECKPOINT = "checkpoint.pt"
 CHECKPOINT_VERSION = 1
@@ -105,6 +106,41 @@ def check_arguments(episode_dir: str | Path, method: str, iters: int) -> Path:
     return path
 
 
+@dataclass
+class EpisodeMap:
+    """What refinement reads from an episode folder: the online map, the mapper's settings and the
+    keyframe buffer as stacked arrays (rgb (N,H,W,3) uint8, depth (N,H,W) float32 m, poses (N,4,4)
+    camera-to-world)."""
+
+    K: np.ndarray
+    width: int
+    height: int
+    config: MapperConfig
+    gaussians: GaussianMap
+    rgb: np.ndarray
+    depth: np.ndarray
+    poses: np.ndarray
+
+
+def load_episode_map(episode_dir: str | Path) -> EpisodeMap:
+    """Read gaussians.ply, mapper.json and keyframes.npz (each keyframe array read once, so the buffer
+    costs its own size in memory; EpisodeError on inconsistent files)."""
+    path = Path(episode_dir)
+    try:
+        meta = json.loads((path / "mapper.json").read_text())
+        K, width, height = np.asarray(meta["K"], dtype=np.float64), int(meta["width"]), int(meta["height"])
+        config = _config_from_dict(meta["config"])
+    except (ValueError, KeyError, TypeError) as err:
+        raise EpisodeError(f"{path / 'mapper.json'}: unreadable mapper settings ({err})") from None
+    with np.load(path / "keyframes.npz") as data:
+        rgb, depth, poses = data["rgb"], data["depth"].astype(np.float32), data["pose"].astype(np.float64)
+    n = len(rgb)
+    if rgb.shape != (n, height, width, 3) or depth.shape != (n, height, width) or poses.shape != (n, 4, 4):
+        raise EpisodeError(f"{path / 'keyframes.npz'}: keyframes of shape {rgb.shape} / {depth.shape} / "
+                           f"{poses.shape} do not match the {width}x{height} camera of mapper.json")
+    return EpisodeMap(K, width, height, config, load_ply(path / "gaussians.ply"), rgb, depth, poses)
+
+
 def _psnr(rgb: torch.Tensor, obs_rgb: torch.Tensor, valid: torch.Tensor) -> float:
     """PSNR (dB, peak 1) over the ``valid`` pixels of a rendered (clamped) image."""
     err = ((rgb.detach().clamp(0.0, 1.0) - obs_rgb) ** 2).mean(dim=2)[valid]
@@ -147,11 +183,11 @@ class Refiner:
         self.cfg = config if config is not None else RefineConfig()
         self.backend, self.progress = backend, progress
         self.out_dir = Path(out_dir) if out_dir is not None else output_dir(self.episode_dir, method)
-        mapper = Mapper.load(self.episode_dir, backend=backend)
+        mapper = load_episode_map(self.episode_dir)
         self.width, self.height = mapper.width, mapper.height
-        self.keyframes = mapper.keyframes
+        self.rgb, self.depth, poses = mapper.rgb, mapper.depth, mapper.poses
+        self.n_keyframes = len(poses)
         self.K = torch.from_numpy(mapper.K.astype(np.float32))
-        poses = np.stack([kf.pose for kf in self.keyframes])
         self.viewmats = torch.from_numpy(np.linalg.inv(poses).astype(np.float32))
         lam = self.cfg.lambda_dssim
         self.loss_cfg = replace(mapper.config, lambda_l1=1.0 - lam, lambda_ssim=lam,
@@ -187,7 +223,7 @@ class Refiner:
     def _identity(self) -> dict:
         """What a checkpoint must match to be resumed by this run."""
         return {"method": self.method_name, "iters": self.iters, "seed": self.seed,
-                "n_keyframes": len(self.keyframes), "config": asdict(self.cfg)}
+                "n_keyframes": self.n_keyframes, "config": asdict(self.cfg)}
 
     def save_checkpoint(self) -> Path:
         """Write ``checkpoint.pt`` atomically (temporary file, then rename)."""
@@ -248,14 +284,16 @@ class Refiner:
             if group["name"] == "means":
                 group["lr"] = lr
 
+    def _observation(self, i: int) -> tuple[torch.Tensor, torch.Tensor]:
+        """Keyframe ``i``: rgb (H,W,3) in [0,1] and depth (H,W) in metres (0 = invalid)."""
+        return torch.from_numpy(self.rgb[i]).to(torch.float32) / 255.0, torch.from_numpy(self.depth[i])
+
     def step(self) -> tuple[float, float]:
         """One iteration (1-based ``self.iteration`` after it); returns (loss, PSNR) of the view."""
         cfg, it = self.cfg, self.iteration + 1
         self._set_means_lr(it)
-        idx = int(self.rng.integers(len(self.keyframes)))
-        kf = self.keyframes[idx]
-        obs_rgb = torch.from_numpy(kf.rgb).to(torch.float32) / 255.0
-        obs_depth = torch.from_numpy(kf.depth)
+        idx = int(self.rng.integers(self.n_keyframes))
+        obs_rgb, obs_depth = self._observation(idx)
         densifying = it < self.densify_until
         viewmat = self.viewmats[idx]
         out = self.method.render(self.gmap, viewmat, self.K, self.width, self.height, track_grad2d=densifying)
@@ -330,10 +368,8 @@ class Refiner:
         valid-depth pixels only, without the regularisers. A diagnostic: renders every view."""
         psnrs, depth_l1, losses = [], [], []
         with torch.no_grad():
-            for i in range(len(self.keyframes)) if indices is None else indices:
-                kf = self.keyframes[i]
-                obs_rgb = torch.from_numpy(kf.rgb).to(torch.float32) / 255.0
-                obs_depth = torch.from_numpy(kf.depth)
+            for i in range(self.n_keyframes) if indices is None else indices:
+                obs_rgb, obs_depth = self._observation(i)
                 out = self.method.render(self.gmap, self.viewmats[i], self.K, self.width, self.height)
                 terms = mapping_loss(out.rgb, out.depth, obs_rgb, obs_depth, self.loss_cfg)
                 psnrs.append(_psnr(out.rgb, obs_rgb, obs_depth > 0))
@@ -357,7 +393,7 @@ class Refiner:
         info = {
             "method": self.method_name, "iters": self.iters, "iterations": self.iteration, "seed": self.seed,
             "backend": self.backend, "image_size": [self.width, self.height],
-            "n_keyframes": len(self.keyframes), "n_gaussians_initial": res.n_gaussians_initial,
+            "n_keyframes": self.n_keyframes, "n_gaussians_initial": res.n_gaussians_initial,
             "n_gaussians": res.n_gaussians, "train_seconds": round(res.train_seconds, 3),
             "iterations_per_second": rate,
             "densify": res.densify, "densify_until": self.densify_until,
