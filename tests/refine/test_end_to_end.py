@@ -30,19 +30,19 @@ def episode(tmp_path_factory):
     writer.start(meta, obs.pose)
     mapper = Mapper(sim.K, sim.width, sim.height, backend="numba")
     mapper.add_frame(obs.rgb, obs.depth, obs.pose, dense=True)
-    for step in range(1, 19):
+    for step in range(1, 10):
         obs = sim.step("turn_left")
         writer.record(step, "turn_left", obs.pose)
         mapper.add_frame(obs.rgb, obs.depth, obs.pose, dense=True)
     mapper.save(out)
-    writer.finish({"steps": 18})
+    writer.finish({"steps": 9})
     return out
 
 
 @pytest.mark.parametrize("method, renderer",
                          [("3dgs", "render_gaussians_view"), ("2dgs", "render_surfel_view")])
 def test_refine_then_render_eval(episode, method, renderer):
-    res = refine(episode, method, 6, backend="numba", progress=False, eval_kwargs=EVAL)
+    res = refine(episode, method, 4, backend="numba", progress=False, eval_kwargs=EVAL)
     out = episode / f"refined_{method}"
     assert res.complete and res.metrics is not None
     saved = json.loads((out / "render_metrics.json").read_text())
@@ -50,7 +50,7 @@ def test_refine_then_render_eval(episode, method, renderer):
     assert renderer in saved["renderer"]
     assert saved["train"]["psnr"] > 15.0  # a real map of the room, not noise
     info = json.loads((out / "refine.json").read_text())
-    assert info["iterations"] == 6 and info["n_keyframes"] == 19
+    assert info["iterations"] == 4 and info["n_keyframes"] == 10
 
 
 def test_cli_runs_resumes_and_restarts(episode, tmp_path, capsys, monkeypatch):
@@ -58,15 +58,15 @@ def test_cli_runs_resumes_and_restarts(episode, tmp_path, capsys, monkeypatch):
 
     ep = shutil.copytree(episode, tmp_path / "ep", ignore=shutil.ignore_patterns("refined_*"))
     monkeypatch.setattr(trainer.Refiner, "evaluate", lambda self, ply, **kw: None)  # views: tested above
-    argv = ["refine", str(ep), "--method", "3dgs", "--iters", "3", "--no-progress", "--backend", "numba"]
+    argv = ["refine", str(ep), "--method", "3dgs", "--iters", "2", "--no-progress", "--backend", "numba"]
     assert main(argv) == 0
     first = capsys.readouterr().out
-    assert "refined 3dgs: 3 iterations" in first and "refined_3dgs" in first
+    assert "refined 3dgs: 2 iterations" in first and "refined_3dgs" in first
     assert main(argv) == 0  # complete: nothing is trained again
-    assert "refined 3dgs: 3 iterations" in capsys.readouterr().out
-    longer = [*argv[:5], "4", *argv[6:]]
-    assert main(longer) == 2  # a checkpoint of a 3-iteration run
+    assert "refined 3dgs: 2 iterations" in capsys.readouterr().out
+    longer = [*argv[:5], "3", *argv[6:]]
+    assert main(longer) == 2  # a checkpoint of a 2-iteration run
     err = capsys.readouterr().err.strip()
     assert err.startswith("activesplat: error:") and "--restart" in err and "\n" not in err
     assert main([*longer, "--restart"]) == 0
-    assert "refined 3dgs: 4 iterations" in capsys.readouterr().out
+    assert "refined 3dgs: 3 iterations" in capsys.readouterr().out
