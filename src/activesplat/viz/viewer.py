@@ -7,8 +7,9 @@ panorama. The world frame is used as is: y up (`set_up_direction("+y")`), camera
 also viser's frustum convention, so no conversion is needed anywhere.
 
 Live (`LiveViewer.update` after every step) is rate-limited: the splats (the expensive part) are sent at
-most every `ViewerConfig.map_interval_s` and only when the mapper took a frame since the last send; the
-frustum, trajectory, plan and images follow at their own bounded rates. Without `--viewer` nothing here
+most every `ViewerConfig.map_interval_s`, only when the mapper took a frame since the last send, and never
+for more than `max_map_share` of the wall time; the frustum, trajectory, plan and images follow at their
+own bounded rates. Without `--viewer` nothing here
 is imported (the exploration loop checks `viewer is not None` and nothing else).
 
 Replay (`EpisodeViewer`) loads gaussians.ply and poses.txt, rebuilds the workspace and Voronoi graph from
@@ -42,9 +43,10 @@ class ViewerConfig:
     """Interface the page is served on (localhost only by default)."""
     map_interval_s: float = 0.5
     """Live: the splats are sent at most this often (2 Hz), and only when the map took a new frame."""
-    max_map_share: float = 0.1
+    max_map_share: float = 0.05
     """Live: after a map send that took t seconds the next waits at least t / this, so sending the splats
-    never takes more than this share of the run's wall time, however large the map or slow the machine."""
+    never takes more than this share of the run's wall time, however large the map or slow the machine
+    (a 250k-Gaussian map takes ~110 ms of CPU to send: then about one send every 2 s)."""
     state_interval_s: float = 0.2
     """Live: frustum, trajectory, status and plan (graph, scores, goal, path) at most this often (5 Hz)."""
     image_interval_s: float = 0.5
