@@ -16,6 +16,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
+from activesplat.errors import InvalidInputError
 from activesplat.splat import _raster_numba_project as proj
 from activesplat.splat import _raster_numba_tiles as tiles
 from activesplat.splat._raster_common import RASTER
@@ -67,6 +68,9 @@ class _Composite(torch.autograd.Function):
         order = tiles.stable_depth_order(visible, depth_np)
         grid_x, grid_y = math.ceil(width / RASTER.tile_size), math.ceil(height / RASTER.tile_size)
         tile_starts, ids, emit_start, slot = tiles.build_tile_lists(order, rects, grid_x, grid_x * grid_y)
+        if np.diff(tile_starts).max(initial=0) >= tiles.MAX_TILE_LIST:
+            raise InvalidInputError(f"rasterize: more than {tiles.MAX_TILE_LIST} Gaussians overlap one "
+                                    "16x16 tile, which the numba backend cannot composite")
         feat = tiles.gather_features(order, ids, _np(means2d), _np(conics), _np(opacities), _np(colors),
                                      depth_np)
         bg = _np(background)

@@ -1,10 +1,14 @@
 """numba kernels: tile binning, front-to-back compositing and its reverse-order backward pass.
 
 Every instance (Gaussian, tile) is one entry of the per-tile lists, depth-sorted with a stable sort.
-Within a tile each Gaussian only visits the pixels where alpha can reach 1/255 (the bounding box of
-the ellipse o exp(-power) = 1/255), which gives exactly the 3DGS result with far less work than
-testing all 256 pixels. Tiles run in parallel (prange, static schedule); the backward pass writes
-one gradient row per instance and a second parallel loop sums them per Gaussian (no atomics).
+Within a tile each Gaussian only visits the rows where alpha can reach 1/255 (the bounding box of
+the ellipse o exp(-power) = 1/255) and, of those rows, the 8-pixel-wide half tiles the box touches.
+The per-pixel work is branch-free so that LLVM vectorises it (SIMD over pixels): a tile keeps its
+running state in one local float32 array, each half tile stored row-major, so the pixels a Gaussian
+visits in one half are a single contiguous run; skips (alpha < 1/255, finished pixels) are masks,
+not branches, and exp is an inline polynomial. Pixels outside the box would be skipped anyway, so
+the result is the 3DGS one. Tiles run in parallel (prange, static schedule); the backward pass
+writes one gradient row per instance and a second parallel loop sums them per Gaussian (no atomics).
 """
 
 from __future__ import annotations
@@ -28,6 +32,21 @@ MX, MY, CA, CB, CC, OP, CR, CG, CBL, DZ, HX, HY, PMAX = range(13)
 N_FEAT = 13
 POWER_PAD = F32(1e-3)  # margin on the power cut-off so rounding never skips a term the exact test keeps
 N_GRAD = 10  # v_mean2d (2), v_conic (3), v_opacity, v_colour (3), v_depth
+NEG1 = F32(-1.0)
+HW = 8  # width of a half tile: its pixel q sits at row q >> 3, column q & 7
+NH = TILE // HW  # half tiles per tile
+HP = TILE * HW  # pixels per half tile
+POWER_CAP = F32(16.0)  # exp_neg is valid on [0, 16]: covers the cut-off ln(255 o) for o up to 3e4
+# exp(-x) on [0, 1] (x = power / 16): Chebyshev fit of degree 7 in the power basis, constant first
+EXP_C = tuple(F32(v) for v in (1.00000000e00, -9.99999939e-01, 4.99998700e-01, -1.66656130e-01,
+                                4.16245036e-02, -8.24086645e-03, 1.27445920e-03, -1.21286891e-04))
+SIXTEENTH = F32(1.0 / 16.0)
+# rows of the per-tile state arrays (each (rows, NH, HP) float32)
+F_T, F_R, F_G, F_B, F_D, F_MED, F_LAST, F_LIVE = range(8)  # forward: T, rgb, depth, median, last, alive
+N_FWD = 8
+B_T, B_SR, B_SG, B_SB, B_SD, B_VR, B_VG, B_VB, B_VD, B_Q, B_LAST = range(11)
+N_BWD = 11  # backward: T, suffix sums (rgb, depth), output gradients (rgb, depth), Q, last
+MAX_TILE_LIST = 1 << 24  # list positions are held as float32 in the tile state: exact below 2^24
 
 
 @njit(cache=True, error_model="numpy")
@@ -87,7 +106,7 @@ def stable_depth_order(candidates, depths):
 def gather_features(order, ids, means2d, conics, opacities, colors, depths):
     """Instance rows (n_inst, 13), contiguous per tile: mean2d, conic, opacity, colour, depth, the
     half extents of the box where alpha can reach 1/255 (|dx| <= sqrt(2 ln(255 o) Sigma_xx)) and the
-    power above which alpha < 1/255 for sure (ln(255 o) plus a margin), saving most skipped exps."""
+    power above which alpha < 1/255 for sure (ln(255 o) plus a margin, at most ``POWER_CAP``)."""
     aux = np.zeros((means2d.shape[0], 3), F32)
     for r in prange(order.shape[0]):
         g = order[r]
@@ -96,7 +115,7 @@ def gather_features(order, ids, means2d, conics, opacities, colors, depths):
         det = a * c - b * b
         aux[g, 0] = np.sqrt(max(ZERO, level * c / det)) + BOX_PAD
         aux[g, 1] = np.sqrt(max(ZERO, level * a / det)) + BOX_PAD
-        aux[g, 2] = HALF * level + POWER_PAD
+        aux[g, 2] = min(HALF * level + POWER_PAD, POWER_CAP)
     feat = np.empty((ids.shape[0], N_FEAT), F32)
     for k in prange(ids.shape[0]):
         g = ids[k]
@@ -117,19 +136,54 @@ def pixel_range(centre, half, lo, hi):
 
 
 @njit(cache=True, error_model="numpy")
-def splat_alpha(mx, my, a, b, c, o, pmax, j, i):
-    """(alpha, G, dx, dy) of one Gaussian at pixel (row i, column j); alpha = 0 when skipped
-    (power < 0 or alpha < 1/255). Forward and backward share it so they skip the same terms."""
-    dx = mx - (F32(j) + HALF)
-    dy = my - (F32(i) + HALF)
-    power = HALF * (a * dx * dx + c * dy * dy) + b * dx * dy
-    if power < ZERO or power > pmax:
-        return ZERO, ZERO, dx, dy
-    gauss = np.exp(-power)
+def exp_neg(power):
+    """exp(-power) for 0 <= power <= 16, vectorisable (no libm call): p(power / 16)^16 with p the
+    degree-7 fit of exp(-x) on [0, 1]; relative error below 5e-6 in float32 (below 2e-6 up to 5.6)."""
+    x = power * SIXTEENTH
+    p = EXP_C[7]
+    p = p * x + EXP_C[6]
+    p = p * x + EXP_C[5]
+    p = p * x + EXP_C[4]
+    p = p * x + EXP_C[3]
+    p = p * x + EXP_C[2]
+    p = p * x + EXP_C[1]
+    p = p * x + EXP_C[0]
+    p = p * p
+    p = p * p
+    p = p * p
+    return p * p
+
+
+@njit(cache=True, error_model="numpy")
+def pixel_alpha(q, mxl, myl, ha, b, hc, o, pmax):
+    """(alpha, G, dx, dy) of one Gaussian at pixel q of a half tile, with (mxl, myl) its mean relative
+    to the centre of the half tile's pixel 0, ha = a / 2, hc = c / 2; alpha = 0 when skipped (power
+    < 0 or above the cut-off, alpha < 1/255). Forward and backward share it (compiled without
+    fastmath) so they make bit-identical skip decisions."""
+    dx = mxl - F32(q & 7)
+    dy = myl - F32(q >> 3)
+    power = (ha * dx + b * dy) * dx + hc * dy * dy
+    gauss = exp_neg(min(max(power, ZERO), POWER_CAP))
     alpha = min(ALPHA_MAX, o * gauss)
-    if alpha < ALPHA_MIN:
-        return ZERO, gauss, dx, dy
-    return alpha, gauss, dx, dy
+    keep = (power >= ZERO) & (power <= pmax) & (alpha >= ALPHA_MIN)
+    return (alpha if keep else ZERO), gauss, dx, dy
+
+
+@njit(cache=True, error_model="numpy")
+def half_q(i, j, x0, y0):
+    """(half tile, pixel index q) of image pixel (i, j) in the tile at (x0, y0)."""
+    return (j - x0) // HW, (i - y0) * HW + (j - x0) % HW
+
+
+@njit(cache=True, error_model="numpy")
+def visit_range(feat, k, x0, x1, y0, y1):
+    """Half tiles [h0, h1] and the run [q0, q1) of half-tile pixels (whole rows) that instance k
+    visits; h1 < h0 when its alpha >= 1/255 box misses the tile's pixel centres."""
+    jx0, jx1 = pixel_range(feat[k, MX], feat[k, HX], x0, x1)
+    iy0, iy1 = pixel_range(feat[k, MY], feat[k, HY], y0, y1)
+    if jx1 < jx0 or iy1 < iy0:
+        return 1, 0, np.uint64(0), np.uint64(0)
+    return (jx0 - x0) // HW, (jx1 - x0) // HW, np.uint64((iy0 - y0) * HW), np.uint64((iy1 - y0 + 1) * HW)
 
 
 @njit(cache=True, error_model="numpy")
@@ -145,48 +199,55 @@ def composite_forward(tile_starts, feat, width, height, background, rgb, depth, 
     grid_x = (width + TILE - 1) // TILE
     for t in prange(tile_starts.shape[0] - 1):
         x0, x1, y0, y1 = tile_bounds(t, grid_x, width, height)
-        for i in range(y0, y1):
-            for j in range(x0, x1):
-                trans[i, j], depth[i, j], median[i, j], last[i, j] = ONE, ZERO, ZERO, -1
-                rgb[i, j, 0], rgb[i, j, 1], rgb[i, j, 2] = ZERO, ZERO, ZERO
-        done = np.zeros((TILE, TILE), np.bool_)
+        k0 = tile_starts[t]
+        s = np.zeros((N_FWD, NH, HP), F32)
+        for h in range(NH):
+            for q in range(HP):
+                s[F_T, h, q], s[F_LAST, h, q] = ONE, NEG1
+                inside = (q >> 3) < y1 - y0 and h * HW + (q & 7) < x1 - x0
+                s[F_LIVE, h, q] = ONE if inside else ZERO
         n_left = (x1 - x0) * (y1 - y0)
-        for k in range(tile_starts[t], tile_starts[t + 1]):
+        for k in range(k0, tile_starts[t + 1]):
             if n_left == 0:
                 break
-            mx, my, a, b, c, o = feat[k, MX], feat[k, MY], feat[k, CA], feat[k, CB], feat[k, CC], feat[k, OP]
-            cr, cg, cb, z, pmax = feat[k, CR], feat[k, CG], feat[k, CBL], feat[k, DZ], feat[k, PMAX]
-            jx0, jx1 = pixel_range(mx, feat[k, HX], x0, x1)
-            iy0, iy1 = pixel_range(my, feat[k, HY], y0, y1)
-            for i in range(iy0, iy1 + 1):
-                for j in range(jx0, jx1 + 1):
-                    if done[i - y0, j - x0]:
-                        continue
-                    alpha, _g, _dx, _dy = splat_alpha(mx, my, a, b, c, o, pmax, j, i)
-                    if alpha == ZERO:
-                        continue
-                    t_now = trans[i, j]
+            h0, h1, q0, q1 = visit_range(feat, k, x0, x1, y0, y1)
+            b, o, pmax, kk = feat[k, CB], feat[k, OP], feat[k, PMAX], F32(k - k0)
+            ha, hc, myl = HALF * feat[k, CA], HALF * feat[k, CC], feat[k, MY] - F32(y0) - HALF
+            cr, cg, cb, z = feat[k, CR], feat[k, CG], feat[k, CBL], feat[k, DZ]
+            for h in range(h0, h1 + 1):
+                mxl = feat[k, MX] - F32(x0 + h * HW) - HALF
+                stopped = 0
+                for q in range(q0, q1):
+                    alpha, _g, _dx, _dy = pixel_alpha(q, mxl, myl, ha, b, hc, o, pmax)
+                    hit = (s[F_LIVE, h, q] != ZERO) & (alpha != ZERO)
+                    t_now = s[F_T, h, q]
                     t_next = t_now * (ONE - alpha)
-                    if t_next < T_MIN:
-                        done[i - y0, j - x0] = True
-                        n_left -= 1
-                        continue
-                    w = alpha * t_now
-                    rgb[i, j, 0] += w * cr
-                    rgb[i, j, 1] += w * cg
-                    rgb[i, j, 2] += w * cb
-                    depth[i, j] += w * z
-                    if t_now >= T_MEDIAN and t_next < T_MEDIAN:
-                        median[i, j] = z
-                    trans[i, j] = t_next
-                    last[i, j] = k
+                    stop = hit & (t_next < T_MIN)  # the pixel is finished, this Gaussian not blended
+                    blend = hit & (t_next >= T_MIN)
+                    w = alpha * t_now if blend else ZERO
+                    s[F_R, h, q] += w * cr
+                    s[F_G, h, q] += w * cg
+                    s[F_B, h, q] += w * cb
+                    s[F_D, h, q] += w * z
+                    crosses = blend & (t_now >= T_MEDIAN) & (t_next < T_MEDIAN)
+                    s[F_MED, h, q] = z if crosses else s[F_MED, h, q]
+                    s[F_T, h, q] = t_next if blend else t_now
+                    s[F_LAST, h, q] = kk if blend else s[F_LAST, h, q]
+                    s[F_LIVE, h, q] = ZERO if stop else s[F_LIVE, h, q]
+                    stopped += np.int64(stop)
+                n_left -= stopped
         for i in range(y0, y1):
             for j in range(x0, x1):
-                for ch in range(3):
-                    rgb[i, j, ch] += background[ch] * trans[i, j]
+                h, q = half_q(i, j, x0, y0)
+                tr = s[F_T, h, q]
+                trans[i, j], depth[i, j], median[i, j] = tr, s[F_D, h, q], s[F_MED, h, q]
+                last[i, j] = k0 + int(s[F_LAST, h, q]) if s[F_LAST, h, q] >= ZERO else -1
+                rgb[i, j, 0] = s[F_R, h, q] + background[0] * tr
+                rgb[i, j, 1] = s[F_G, h, q] + background[1] * tr
+                rgb[i, j, 2] = s[F_B, h, q] + background[2] * tr
 
 
-@njit(cache=True, parallel=True, error_model="numpy")
+@njit(cache=True, parallel=True, error_model="numpy", fastmath={"reassoc"})
 def composite_backward(tile_starts, feat, width, height, background, trans_final, last,
                        v_rgb, v_depth, v_alpha):
     """Reverse-order pass of :func:`composite_forward` (3DGS ``renderCUDA`` backward). Returns one
@@ -195,62 +256,67 @@ def composite_backward(tile_starts, feat, width, height, background, trans_final
     Per pixel, with T_i the transmittance before Gaussian i and S_i the sums of w_j c_j (w_j z_j)
     over the Gaussians behind it: dC/dalpha_i = c_i T_i - (S_i + bg T_final) / (1 - alpha_i),
     dD/dalpha_i = z_i T_i - S_i / (1 - alpha_i), d(1 - T_final)/dalpha_i = T_final / (1 - alpha_i).
+    A skipped pixel has alpha = 0, which leaves T and S unchanged and adds nothing. ``reassoc`` lets
+    LLVM vectorise the per-instance gradient sums; alpha itself comes from :func:`pixel_alpha`,
+    compiled without it, so the skips are those of the forward pass.
     """
     grid_x = (width + TILE - 1) // TILE
     grads = np.zeros((feat.shape[0], N_GRAD), F32)
     for t in prange(tile_starts.shape[0] - 1):
         x0, x1, y0, y1 = tile_bounds(t, grid_x, width, height)
-        trans = np.empty((TILE, TILE), F32)
-        suffix = np.zeros((4, TILE, TILE), F32)  # S for r, g, b and depth
-        k_end = tile_starts[t] - 1
+        k0 = tile_starts[t]
+        s = np.zeros((N_BWD, NH, HP), F32)
+        s[B_LAST] = NEG1
+        k_end = k0 - 1
         for i in range(y0, y1):
             for j in range(x0, x1):
-                trans[i - y0, j - x0] = trans_final[i, j]
+                h, q = half_q(i, j, x0, y0)
+                t_fin, vr, vg, vb = trans_final[i, j], v_rgb[i, j, 0], v_rgb[i, j, 1], v_rgb[i, j, 2]
+                s[B_T, h, q], s[B_VR, h, q], s[B_VG, h, q], s[B_VB, h, q] = t_fin, vr, vg, vb
+                s[B_VD, h, q] = v_depth[i, j]
+                # the T_final terms of dL/dalpha: (v_alpha - v_rgb . bg) T_final, divided by 1 - alpha_i
+                s[B_Q, h, q] = t_fin * (v_alpha[i, j] - vr * background[0] - vg * background[1]
+                                        - vb * background[2])
+                s[B_LAST, h, q] = F32(last[i, j] - k0) if last[i, j] >= k0 else NEG1
                 k_end = max(k_end, last[i, j])
-        for k in range(k_end, tile_starts[t] - 1, -1):
-            mx, my, a, b, c, o = feat[k, MX], feat[k, MY], feat[k, CA], feat[k, CB], feat[k, CC], feat[k, OP]
-            cr, cg, cb, z, pmax = feat[k, CR], feat[k, CG], feat[k, CBL], feat[k, DZ], feat[k, PMAX]
-            jx0, jx1 = pixel_range(mx, feat[k, HX], x0, x1)
-            iy0, iy1 = pixel_range(my, feat[k, HY], y0, y1)
+        for k in range(k_end, k0 - 1, -1):
+            h0, h1, q0, q1 = visit_range(feat, k, x0, x1, y0, y1)
+            a, b, c, o, pmax = feat[k, CA], feat[k, CB], feat[k, CC], feat[k, OP], feat[k, PMAX]
+            kk = F32(k - k0)
+            ha, hc, myl = HALF * a, HALF * c, feat[k, MY] - F32(y0) - HALF
+            cr, cg, cb, z = feat[k, CR], feat[k, CG], feat[k, CBL], feat[k, DZ]
             g_mx = g_my = g_a = g_b = g_c = g_o = g_r = g_g = g_bl = g_z = ZERO
-            for i in range(iy0, iy1 + 1):
-                pi = i - y0
-                for j in range(jx0, jx1 + 1):
-                    if last[i, j] < k:
-                        continue
-                    alpha, gauss, dx, dy = splat_alpha(mx, my, a, b, c, o, pmax, j, i)
-                    if alpha == ZERO:
-                        continue
-                    pj = j - x0
+            for h in range(h0, h1 + 1):
+                mxl = feat[k, MX] - F32(x0 + h * HW) - HALF
+                for q in range(q0, q1):
+                    alpha, gauss, dx, dy = pixel_alpha(q, mxl, myl, ha, b, hc, o, pmax)
+                    alpha = alpha if s[B_LAST, h, q] >= kk else ZERO  # behind the pixel's last blend
                     inv_one_minus = ONE / (ONE - alpha)
-                    t_before = trans[pi, pj] * inv_one_minus
-                    trans[pi, pj] = t_before
+                    t_before = s[B_T, h, q] * inv_one_minus
+                    s[B_T, h, q] = t_before
                     w = alpha * t_before
-                    t_fin = trans_final[i, j]
-                    vr, vg, vb, vd = v_rgb[i, j, 0], v_rgb[i, j, 1], v_rgb[i, j, 2], v_depth[i, j]
-                    sr, sg = suffix[0, pi, pj], suffix[1, pi, pj]
-                    sb, sd = suffix[2, pi, pj], suffix[3, pi, pj]
-                    v_al = (v_alpha[i, j] * t_fin
-                            - vr * (sr + background[0] * t_fin) - vg * (sg + background[1] * t_fin)
-                            - vb * (sb + background[2] * t_fin) - vd * sd) * inv_one_minus
-                    v_al += (vr * cr + vg * cg + vb * cb + vd * z) * t_before
+                    vr, vg, vb, vd = s[B_VR, h, q], s[B_VG, h, q], s[B_VB, h, q], s[B_VD, h, q]
+                    sr, sg, sb, sd = s[B_SR, h, q], s[B_SG, h, q], s[B_SB, h, q], s[B_SD, h, q]
+                    v_al = ((s[B_Q, h, q] - vr * sr - vg * sg - vb * sb - vd * sd) * inv_one_minus
+                            + (vr * cr + vg * cg + vb * cb + vd * z) * t_before)
                     g_r += w * vr
                     g_g += w * vg
                     g_bl += w * vb
                     g_z += w * vd
-                    suffix[0, pi, pj], suffix[1, pi, pj] = sr + w * cr, sg + w * cg
-                    suffix[2, pi, pj], suffix[3, pi, pj] = sb + w * cb, sd + w * z
-                    if o * gauss > ALPHA_MAX:
-                        continue  # alpha clamped at 0.99: no gradient to opacity or the footprint
+                    s[B_SR, h, q], s[B_SG, h, q] = sr + w * cr, sg + w * cg
+                    s[B_SB, h, q], s[B_SD, h, q] = sb + w * cb, sd + w * z
+                    # alpha clamped at 0.99: no gradient to opacity or the footprint
+                    v_al = v_al if (alpha != ZERO) & (o * gauss <= ALPHA_MAX) else ZERO
                     g_o += gauss * v_al
                     v_pow = -alpha * v_al
                     g_mx += v_pow * (a * dx + b * dy)
                     g_my += v_pow * (b * dx + c * dy)
-                    g_a += v_pow * HALF * dx * dx
+                    g_a += v_pow * dx * dx
                     g_b += v_pow * dx * dy
-                    g_c += v_pow * HALF * dy * dy
-            grads[k, 0], grads[k, 1], grads[k, 2], grads[k, 3], grads[k, 4] = g_mx, g_my, g_a, g_b, g_c
-            grads[k, 5], grads[k, 6], grads[k, 7], grads[k, 8], grads[k, 9] = g_o, g_r, g_g, g_bl, g_z
+                    g_c += v_pow * dy * dy
+            grads[k, 0], grads[k, 1], grads[k, 2], grads[k, 3] = g_mx, g_my, HALF * g_a, g_b
+            grads[k, 4], grads[k, 5], grads[k, 6], grads[k, 7] = HALF * g_c, g_o, g_r, g_g
+            grads[k, 8], grads[k, 9] = g_bl, g_z
     return grads
 
 
