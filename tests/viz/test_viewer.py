@@ -23,7 +23,8 @@ from activesplat.cli import main
 from activesplat.errors import EpisodeError, InvalidInputError
 from activesplat.eval.coverage import CoverageConfig
 from activesplat.explore import run_exploration
-from activesplat.planning.explorer import Plan
+from activesplat.planning.explorer import ExplorerView, Plan
+from activesplat.planning.viewpoints import RotationTarget
 from activesplat.sim import SimConfig
 from activesplat.splat.gaussians import GaussianMap
 from activesplat.splat.ply import load_ply
@@ -182,14 +183,19 @@ def test_splat_arrays_are_the_rasterizer_covariances_and_keep_the_most_opaque():
     assert top["opacities"].min() >= np.sort(a["opacities"][:, 0])[-10]
 
 
-def test_map_sends_keep_to_the_interval_and_the_cost_budget():
-    """Fake loop: a map send is due every other update by the interval, but a budget of 1e-9 of the wall time
-    allows only the first one, plus the final update's."""
+def fake_mapper_and_obs():
     gmap = GaussianMap.from_points(torch.rand(20, 3), torch.rand(20, 3), torch.full((20,), 0.05))
     mapper = SimpleNamespace(gaussians=gmap, K=np.array([[32.0, 0, 32], [0, 32, 32], [0, 0, 1]]), width=64,
                              height=64, frames=0)
     obs = SimpleNamespace(pose=np.eye(4), rgb=np.zeros((64, 64, 3), np.uint8),
                           depth=np.ones((64, 64), np.float32))
+    return mapper, obs
+
+
+def test_map_sends_keep_to_the_interval_and_the_cost_budget():
+    """Fake loop: a map send is due every other update by the interval, but a budget of 1e-9 of the wall time
+    allows only the first one, plus the final update's."""
+    mapper, obs = fake_mapper_and_obs()
     # due at updates 1, 3, 5, 7 by the interval; no frame is mapped since update 3 when 5 comes, so 6 goes
     # instead; 8 is final
     for share, expected in ((1.0, 4), (1e-9, 2)):
@@ -204,14 +210,49 @@ def test_map_sends_keep_to_the_interval_and_the_cost_budget():
             viewer.close()
 
 
-def test_plan_layers_graph_by_subregion_scores_goal_and_path():
-    """A hand-made plan: two subregions, scored nodes, a goal and a path -> the scene nodes that show them."""
+def hand_made_plan() -> Plan:
+    """Two subregions of two nodes each, two scored nodes, a goal and a path."""
     graph = nx.Graph()
     for n, (x, z, sub) in enumerate([(0, 0, 0), (1, 0, 0), (4, 0, 1), (5, 0, 1)]):
         graph.add_node(n, pos=np.array([x, z], float), subregion=sub)
     graph.add_edges_from([(0, 1), (1, 2), (2, 3)])
-    plan = Plan(graph=graph, subregions={0: 0, 1: 0, 2: 1, 3: 1}, scores={0: 2.0, 3: 8.0},
+    return Plan(graph=graph, subregions={0: 0, 1: 0, 2: 1, 3: 1}, scores={0: 2.0, 3: 8.0},
                 goal=np.array([5.0, 0.0]), path=np.array([[0.0, 0.0], [1.0, 0.0], [5.0, 0.0]]))
+
+
+def test_live_viewer_shows_the_explorer_state():
+    """What `view_state()` exposes reaches the page: plan layers once per new plan, the panorama once per new
+    panorama, rotation targets as rays from the camera."""
+    mapper, obs = fake_mapper_and_obs()
+    pano = SimpleNamespace(invisibility=np.linspace(0, 1, 150 * 360).reshape(150, 360),
+                           median_depth=np.full((150, 360), 2.0))
+    state = ExplorerView("activesplat", 0.0, hand_made_plan(), pano,
+                         (RotationTarget(0.0, 0.0, 1.0), RotationTarget(np.pi / 2, 0.2, 1.0)))
+    explorer = SimpleNamespace(view_state=lambda: state)
+    viewer = LiveViewer(port=free_port(), config=ViewerConfig(state_interval_s=0, image_interval_s=0),
+                        clock=FakeClock())
+    try:
+        for step in (1, 2, 3):
+            mapper.frames += 1
+            viewer.update(step, obs, mapper, explorer)
+        assert viewer.sent["/graph/nodes"] == viewer.sent["/plan/goal"] == 1  # the plan did not change
+        assert viewer.sent["image:panorama (invisibility / depth)"] == 1
+        assert viewer.draw.image_handles["panorama (invisibility / depth)"].image.shape == (300, 360, 3)
+        targets = {h.name: h for h in viewer.draw.handles["goal and path"]}["/agent/targets"]
+        assert targets.points.shape == (2, 2, 3)
+        assert "**policy** activesplat" in viewer.draw.status.content
+        state = ExplorerView("activesplat", 0.0, hand_made_plan(), pano, ())  # a replan, targets done
+        viewer.update(4, obs, mapper, explorer)
+        assert viewer.sent["/graph/nodes"] == 2
+        assert "/agent/targets" not in {h.name for h in viewer.draw.handles["goal and path"]}
+    finally:
+        viewer.close()
+
+
+def test_plan_layers_graph_by_subregion_scores_goal_and_path():
+    """A hand-made plan: two subregions, scored nodes, a goal and a path -> the scene nodes that show them."""
+    plan = hand_made_plan()
+    graph = plan.graph
     cfg = ViewerConfig()
     server = start_server(free_port(), cfg)
     try:
