@@ -67,18 +67,18 @@ class _Composite(torch.autograd.Function):
         visible = np.flatnonzero(radii.numpy() > 0)
         order = tiles.stable_depth_order(visible, depth_np)
         grid_x, grid_y = math.ceil(width / RASTER.tile_size), math.ceil(height / RASTER.tile_size)
-        tile_starts, ids, emit_start, slot = tiles.build_tile_lists(order, rects, grid_x, grid_x * grid_y)
+        tile_starts, feat, emit_start, slot = tiles.bin_features(order, rects, grid_x, grid_x * grid_y,
+                                                                 _np(means2d), _np(conics), _np(opacities),
+                                                                 _np(colors), depth_np)
         if np.diff(tile_starts).max(initial=0) >= tiles.MAX_TILE_LIST:
             raise InvalidInputError(f"rasterize: more than {tiles.MAX_TILE_LIST} Gaussians overlap one "
                                     "16x16 tile, which the numba backend cannot composite")
-        feat = tiles.gather_features(order, ids, _np(means2d), _np(conics), _np(opacities), _np(colors),
-                                     depth_np)
         bg = _np(background)
         rgb = np.empty((height, width, 3), np.float32)
         depth, trans, median = (np.empty((height, width), np.float32) for _ in range(3))
         last = np.empty((height, width), np.int64)
         tiles.composite_forward(tile_starts, feat, width, height, bg, rgb, depth, trans, median, last)
-        ctx.saved = (order, tile_starts, ids, emit_start, slot, feat, bg, trans, last, width, height)
+        ctx.saved = (order, tile_starts, emit_start, slot, feat, bg, trans, last, width, height)
         ctx.n = means2d.shape[0]
         median_t = torch.from_numpy(median)
         ctx.mark_non_differentiable(median_t)
@@ -86,7 +86,7 @@ class _Composite(torch.autograd.Function):
 
     @staticmethod
     def backward(ctx, v_rgb, v_depth, v_alpha, _v_median):
-        order, tile_starts, ids, emit_start, slot, feat, bg, trans, last, width, height = ctx.saved
+        order, tile_starts, emit_start, slot, feat, bg, trans, last, width, height = ctx.saved
         v_rgb_np = _np(v_rgb)
         grads = tiles.composite_backward(tile_starts, feat, width, height, bg, trans, last,
                                          v_rgb_np, _np(v_depth), _np(v_alpha))

@@ -46,38 +46,65 @@ F_T, F_R, F_G, F_B, F_D, F_MED, F_LAST, F_LIVE = range(8)  # forward: T, rgb, de
 N_FWD = 8
 B_T, B_SR, B_SG, B_SB, B_SD, B_VR, B_VG, B_VB, B_VD, B_Q, B_LAST = range(11)
 N_BWD = 11  # backward: T, suffix sums (rgb, depth), output gradients (rgb, depth), Q, last
+MAX_CHUNKS = 16  # chunks of the depth order in the parallel tile-list build (fixed: deterministic)
+MIN_CHUNK = 2048  # Gaussians per chunk at least
 MAX_TILE_LIST = 1 << 24  # list positions are held as float32 in the tile state: exact below 2^24
 
 
-@njit(cache=True, error_model="numpy")
-def build_tile_lists(order, rects, grid_x, n_tiles):
-    """Counting sort of (Gaussian, tile) instances by tile. ``order`` lists the rendered Gaussians
-    front to back, so each tile's list stays depth-sorted (the sort is stable). Returns
-    tile_starts (n_tiles+1,), ids (n_inst,) and, per Gaussian in ``order``, the CSR emit_start with
-    slot[e] = list position of its e-th instance (used to sum instance gradients per Gaussian)."""
+@njit(cache=True, parallel=True, error_model="numpy")
+def tile_offsets(order, rects, grid_x, n_tiles):
+    """Counting pass of a stable, parallel counting sort of (Gaussian, tile) instances by tile.
+
+    ``order`` (the rendered Gaussians front to back) is cut into chunks counted in parallel.
+    Returns tile_starts (n_tiles+1,), the CSR emit_start (per Gaussian in ``order``: its first
+    instance), chunk bounds and fill (n_chunks, n_tiles): the list position where each chunk's
+    first instance in each tile goes, so that chunks filled in parallel keep the depth order."""
     n_vis = order.shape[0]
-    emit_start = np.zeros(n_vis + 1, np.int64)
-    counts = np.zeros(n_tiles + 1, np.int64)
-    for r in range(n_vis):
-        g = order[r]
-        emit_start[r + 1] = emit_start[r] + (rects[g, 1] - rects[g, 0]) * (rects[g, 3] - rects[g, 2])
-        for ty in range(rects[g, 2], rects[g, 3]):
-            for tx in range(rects[g, 0], rects[g, 1]):
-                counts[ty * grid_x + tx + 1] += 1
-    tile_starts = np.cumsum(counts)
-    fill = tile_starts[:-1].copy()
+    n_chunks = max(1, min(MAX_CHUNKS, n_vis // MIN_CHUNK))
+    bounds = np.empty(n_chunks + 1, np.int64)
+    for c in range(n_chunks + 1):
+        bounds[c] = (n_vis * c) // n_chunks
+    per_gauss = np.zeros(n_vis + 1, np.int64)
+    counts = np.zeros((n_chunks, n_tiles), np.int64)
+    for c in prange(n_chunks):
+        for r in range(bounds[c], bounds[c + 1]):
+            g = order[r]
+            per_gauss[r + 1] = (rects[g, 1] - rects[g, 0]) * (rects[g, 3] - rects[g, 2])
+            for ty in range(rects[g, 2], rects[g, 3]):
+                for tx in range(rects[g, 0], rects[g, 1]):
+                    counts[c, ty * grid_x + tx] += 1
+    emit_start = np.cumsum(per_gauss)
+    tile_starts = np.zeros(n_tiles + 1, np.int64)
+    fill = np.empty((n_chunks, n_tiles), np.int64)
+    for t in range(n_tiles):
+        pos = tile_starts[t]
+        for c in range(n_chunks):
+            fill[c, t] = pos
+            pos += counts[c, t]
+        tile_starts[t + 1] = pos
+    return tile_starts, emit_start, bounds, fill
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def build_tile_lists(order, rects, grid_x, n_tiles):
+    """Stable counting sort of (Gaussian, tile) instances by tile (parallel, see :func:`tile_offsets`).
+    ``order`` lists the rendered Gaussians front to back, so each tile's list stays depth-sorted.
+    Returns tile_starts (n_tiles+1,), ids (n_inst,) and, per Gaussian in ``order``, the CSR emit_start
+    with slot[e] = list position of its e-th instance (used to sum instance gradients per Gaussian)."""
+    tile_starts, emit_start, bounds, fill = tile_offsets(order, rects, grid_x, n_tiles)
     ids = np.empty(emit_start[-1], np.int64)
     slot = np.empty(emit_start[-1], np.int64)
-    e = 0
-    for r in range(n_vis):
-        g = order[r]
-        for ty in range(rects[g, 2], rects[g, 3]):
-            for tx in range(rects[g, 0], rects[g, 1]):
-                t = ty * grid_x + tx
-                ids[fill[t]] = g
-                slot[e] = fill[t]
-                fill[t] += 1
-                e += 1
+    for c in prange(bounds.shape[0] - 1):
+        for r in range(bounds[c], bounds[c + 1]):
+            g = order[r]
+            e = emit_start[r]
+            for ty in range(rects[g, 2], rects[g, 3]):
+                for tx in range(rects[g, 0], rects[g, 1]):
+                    t = ty * grid_x + tx
+                    ids[fill[c, t]] = g
+                    slot[e] = fill[c, t]
+                    fill[c, t] += 1
+                    e += 1
     return tile_starts, ids, emit_start, slot
 
 
@@ -103,28 +130,45 @@ def stable_depth_order(candidates, depths):
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def gather_features(order, ids, means2d, conics, opacities, colors, depths):
-    """Instance rows (n_inst, 13), contiguous per tile: mean2d, conic, opacity, colour, depth, the
-    half extents of the box where alpha can reach 1/255 (|dx| <= sqrt(2 ln(255 o) Sigma_xx)) and the
-    power above which alpha < 1/255 for sure (ln(255 o) plus a margin, at most ``POWER_CAP``)."""
-    aux = np.zeros((means2d.shape[0], 3), F32)
-    for r in prange(order.shape[0]):
+def bin_features(order, rects, grid_x, n_tiles, means2d, conics, opacities, colors, depths):
+    """:func:`build_tile_lists` that writes the instance rows directly: feat (n_inst, 13), contiguous
+    per tile: mean2d, conic, opacity, colour, depth, the half extents of the box where alpha can reach
+    1/255 (|dx| <= sqrt(2 ln(255 o) Sigma_xx)) and the power above which alpha < 1/255 for sure
+    (ln(255 o) plus a margin, at most ``POWER_CAP``). Returns tile_starts, feat, emit_start, slot.
+
+    The rows are first gathered in depth order (independent random reads, in parallel), so the
+    counting and filling passes read them sequentially."""
+    n_vis = order.shape[0]
+    rows = np.empty((n_vis, N_FEAT), F32)
+    rects_o = np.empty((n_vis, 4), rects.dtype)
+    for r in prange(n_vis):
         g = order[r]
-        a, b, c = conics[g, 0], conics[g, 1], conics[g, 2]
-        level = TWO * (np.log(max(opacities[g], ALPHA_MIN)) + LOG_255)
+        a, b, c, o = conics[g, 0], conics[g, 1], conics[g, 2], opacities[g]
+        level = TWO * (np.log(max(o, ALPHA_MIN)) + LOG_255)
         det = a * c - b * b
-        aux[g, 0] = np.sqrt(max(ZERO, level * c / det)) + BOX_PAD
-        aux[g, 1] = np.sqrt(max(ZERO, level * a / det)) + BOX_PAD
-        aux[g, 2] = min(HALF * level + POWER_PAD, POWER_CAP)
-    feat = np.empty((ids.shape[0], N_FEAT), F32)
-    for k in prange(ids.shape[0]):
-        g = ids[k]
-        feat[k, MX], feat[k, MY] = means2d[g, 0], means2d[g, 1]
-        feat[k, CA], feat[k, CB], feat[k, CC] = conics[g, 0], conics[g, 1], conics[g, 2]
-        feat[k, OP], feat[k, CR], feat[k, CG] = opacities[g], colors[g, 0], colors[g, 1]
-        feat[k, CBL], feat[k, DZ] = colors[g, 2], depths[g]
-        feat[k, HX], feat[k, HY], feat[k, PMAX] = aux[g, 0], aux[g, 1], aux[g, 2]
-    return feat
+        rows[r, MX], rows[r, MY], rows[r, DZ] = means2d[g, 0], means2d[g, 1], depths[g]
+        rows[r, CA], rows[r, CB], rows[r, CC] = a, b, c
+        rows[r, OP], rows[r, CR], rows[r, CG], rows[r, CBL] = o, colors[g, 0], colors[g, 1], colors[g, 2]
+        rows[r, HX] = np.sqrt(max(ZERO, level * c / det)) + BOX_PAD
+        rows[r, HY] = np.sqrt(max(ZERO, level * a / det)) + BOX_PAD
+        rows[r, PMAX] = min(HALF * level + POWER_PAD, POWER_CAP)
+        for m in range(4):
+            rects_o[r, m] = rects[g, m]
+    tile_starts, emit_start, bounds, fill = tile_offsets(np.arange(n_vis), rects_o, grid_x, n_tiles)
+    feat = np.empty((emit_start[-1], N_FEAT), F32)
+    slot = np.empty(emit_start[-1], np.int64)
+    for ch in prange(bounds.shape[0] - 1):
+        for r in range(bounds[ch], bounds[ch + 1]):
+            e = emit_start[r]
+            for ty in range(rects_o[r, 2], rects_o[r, 3]):
+                for tx in range(rects_o[r, 0], rects_o[r, 1]):
+                    k = fill[ch, ty * grid_x + tx]
+                    for m in range(N_FEAT):
+                        feat[k, m] = rows[r, m]
+                    slot[e] = k
+                    fill[ch, ty * grid_x + tx] = k + 1
+                    e += 1
+    return tile_starts, feat, emit_start, slot
 
 
 @njit(cache=True, error_model="numpy")
