@@ -289,11 +289,9 @@ class Mapper:
         mapper.gaussians = load_ply(directory / "gaussians.ply", device)
         mapper.optimizer = mapper.gaussians.make_optimizer(mapper.config.lr, mapper.config.adam_eps)
         mapper.peak_gaussians = len(mapper.gaussians)
-        with np.load(directory / "keyframes.npz") as data:
-            mapper.keyframes = [
-                Keyframe(data["rgb"][i], data["depth"][i], data["pose"][i], int(data["step"][i]))
-                for i in range(len(data["step"]))
-            ]
+        with np.load(directory / "keyframes.npz") as data:  # each data[key] decompresses: read once
+            rgb, depth, pose, step = data["rgb"], data["depth"], data["pose"], data["step"]
+        mapper.keyframes = [Keyframe(rgb[i], depth[i], pose[i], int(step[i])) for i in range(len(step))]
         mapper.frames = int(meta["frames"])
         return mapper
 
