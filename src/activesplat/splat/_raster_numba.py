@@ -90,9 +90,10 @@ class _Composite(torch.autograd.Function):
         v_rgb_np = _np(v_rgb)
         grads = tiles.composite_backward(tile_starts, feat, width, height, bg, trans, last,
                                          v_rgb_np, _np(v_depth), _np(v_alpha))
-        g = torch.from_numpy(tiles.sum_instance_grads(order, emit_start, slot, grads, ctx.n))
+        v_means2d, v_conics, v_opacities, v_colors, v_depths = (
+            torch.from_numpy(a) for a in tiles.sum_instance_grads(order, emit_start, slot, grads, ctx.n))
         v_bg = torch.from_numpy((v_rgb_np * trans[..., None]).sum(axis=(0, 1)))
-        return g[:, 0:2], g[:, 2:5], g[:, 9], g[:, 5], g[:, 6:9], v_bg, None, None, None, None
+        return v_means2d, v_conics, v_depths, v_opacities, v_colors, v_bg, None, None, None, None
 
 
 def rasterize_numba(means, quats, scales, opacities, colors, viewmat, K, width, height, background, mask):

@@ -366,12 +366,22 @@ def composite_backward(tile_starts, feat, width, height, background, trans_final
 
 @njit(cache=True, parallel=True, error_model="numpy")
 def sum_instance_grads(order, emit_start, slot, grads, n):
-    """Per-Gaussian sums of the instance gradient rows, parallel over Gaussians (no atomics)."""
-    out = np.zeros((n, N_GRAD), F32)
+    """Per-Gaussian sums of the instance gradient rows, parallel over Gaussians (no atomics), as the
+    contiguous arrays v_means2d (n,2), v_conics (n,3), v_opacities (n,), v_colors (n,3), v_depths (n,);
+    zero for Gaussians that were not rendered."""
+    v_means2d, v_conics = np.zeros((n, 2), F32), np.zeros((n, 3), F32)
+    v_opacities, v_colors, v_depths = np.zeros(n, F32), np.zeros((n, 3), F32), np.zeros(n, F32)
     for r in prange(order.shape[0]):
-        g = order[r]
+        s0 = s1 = s2 = s3 = s4 = s5 = s6 = s7 = s8 = s9 = ZERO
         for e in range(emit_start[r], emit_start[r + 1]):
             k = slot[e]
-            for c in range(N_GRAD):
-                out[g, c] += grads[k, c]
-    return out
+            s0, s1, s2 = s0 + grads[k, 0], s1 + grads[k, 1], s2 + grads[k, 2]
+            s3, s4, s5 = s3 + grads[k, 3], s4 + grads[k, 4], s5 + grads[k, 5]
+            s6, s7, s8, s9 = s6 + grads[k, 6], s7 + grads[k, 7], s8 + grads[k, 8], s9 + grads[k, 9]
+        g = order[r]
+        v_means2d[g, 0], v_means2d[g, 1] = s0, s1
+        v_conics[g, 0], v_conics[g, 1], v_conics[g, 2] = s2, s3, s4
+        v_opacities[g] = s5
+        v_colors[g, 0], v_colors[g, 1], v_colors[g, 2] = s6, s7, s8
+        v_depths[g] = s9
+    return v_means2d, v_conics, v_opacities, v_colors, v_depths
