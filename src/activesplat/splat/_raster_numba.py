@@ -40,9 +40,9 @@ class _Project(torch.autograd.Function):
     def forward(ctx, means, quats, scales, view, intr, width, height, mask):
         n = means.shape[0]
         arrays = [_np(means), _np(quats), _np(scales)]
-        means2d, conics = np.zeros((n, 2), np.float32), np.zeros((n, 3), np.float32)
-        depths, radii = np.zeros(n, np.float32), np.zeros(n, np.int32)
-        rects = np.zeros((n, 4), np.int32)
+        means2d, conics = np.empty((n, 2), np.float32), np.empty((n, 3), np.float32)
+        depths, radii = np.empty(n, np.float32), np.empty(n, np.int32)
+        rects = np.empty((n, 4), np.int32)
         proj.project_forward(*arrays, view, intr, width, height, mask, means2d, conics, depths, radii, rects)
         ctx.arrays, ctx.view, ctx.intr, ctx.radii, ctx.conics = arrays, view, intr, radii, conics
         radii_t, rects_t = torch.from_numpy(radii), torch.from_numpy(rects)
@@ -52,7 +52,7 @@ class _Project(torch.autograd.Function):
     @staticmethod
     def backward(ctx, v_means2d, v_conics, v_depths, _v_radii, _v_rects):
         means, quats, scales = ctx.arrays
-        v_means, v_quats, v_scales = np.zeros_like(means), np.zeros_like(quats), np.zeros_like(scales)
+        v_means, v_quats, v_scales = np.empty_like(means), np.empty_like(quats), np.empty_like(scales)
         proj.project_backward(means, quats, scales, ctx.view, ctx.intr, ctx.radii, ctx.conics,
                               _np(v_means2d), _np(v_conics), _np(v_depths), v_means, v_quats, v_scales)
         return (torch.from_numpy(v_means), torch.from_numpy(v_quats), torch.from_numpy(v_scales),
