@@ -3,20 +3,26 @@
 Scene: N anisotropic Gaussians of 1-3 cm on the walls, floor and ceiling of a 6 x 4 x 2.8 m room,
 camera inside at 1.25 m looking along the long axis; 256x256, 90 deg hfov. Prints a markdown table
 of forward and forward+backward milliseconds (median of repeats) and the numba compile/warm time.
+``--stages`` adds a table of the numba backend's CPU milliseconds per stage on one thread (minimum
+over repeats, ``time.process_time``), which stays meaningful on a busy machine; "other" is the rest
+of the forward+backward (Python, torch autograd, input checks).
 
-    python benchmarks/raster.py [--sizes 10000 50000 200000] [--repeats 5] [--torch-max 200000]
+    python benchmarks/raster.py [--sizes 10000 50000 200000] [--repeats 5] [--torch-max 200000] [--stages]
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+import os
 import statistics
+import subprocess
+import sys
 import time
 
 import torch
 
-from activesplat.splat import rasterize
+from activesplat.splat import _raster_numba, rasterize
 
 WIDTH = HEIGHT = 256
 ROOM = (6.0, 2.8, 4.0)  # x, y (up), z extents in metres
@@ -68,6 +74,50 @@ def time_backend(params, backend: str, repeats: int) -> tuple[float, float, int]
     return statistics.median(fwd), statistics.median(both), visible
 
 
+STAGES = ("project", "sort", "bin", "composite", "composite_backward", "sum_grads", "project_backward")
+
+
+def numba_stage_cpu(params, repeats: int) -> dict[str, float]:
+    """Minimum CPU ms of each numba stage, and of the whole forward+backward. Only meaningful in a
+    process with one thread (see :func:`print_stage_table`): process_time counts every thread."""
+    view, K = camera()
+    leaves = [p.clone().requires_grad_(True) for p in params]
+    best: dict[str, float] = {}
+    try:
+        for _ in range(repeats + 1):  # the first run only warms caches
+            _raster_numba.STAGE_CPU_MS = {}
+            t0 = time.process_time()
+            out = rasterize(*leaves, view, K, WIDTH, HEIGHT, backend="numba")
+            (out.rgb.sum() + out.depth.sum() + out.alpha.sum()).backward()
+            times = dict(_raster_numba.STAGE_CPU_MS, total=1e3 * (time.process_time() - t0))
+            times["other"] = times["total"] - sum(times[k] for k in STAGES)
+            best = times if not best else {k: min(v, times[k]) for k, v in best.items()}
+    finally:
+        _raster_numba.STAGE_CPU_MS = None
+    return best
+
+
+def stage_table_in_child(sizes, repeats: int) -> None:
+    """Run :func:`print_stage_table` in a fresh process with one numba / torch / OpenMP thread (idle
+    pool threads would otherwise add their spin-waiting to the process CPU time)."""
+    env = dict(os.environ, NUMBA_NUM_THREADS="1", OMP_NUM_THREADS="1")
+    cmd = [sys.executable, __file__, "--stage-table-only", "--repeats", str(repeats),
+           "--sizes", *map(str, sizes)]
+    subprocess.run(cmd, env=env, check=True)
+
+
+def print_stage_table(sizes, repeats: int) -> None:
+    torch.set_num_threads(1)
+    warm_time()
+    print("\nnumba CPU ms per stage, one thread (min of repeats):\n")
+    cols = (*STAGES, "other", "total")
+    print("| N | " + " | ".join(cols) + " |")
+    print("|" + "---|" * (len(cols) + 1))
+    for n in sizes:
+        best = numba_stage_cpu(room_gaussians(n), repeats)
+        print(f"| {n} | " + " | ".join(f"{best[c]:.1f}" for c in cols) + " |", flush=True)
+
+
 def warm_time() -> float:
     """Seconds to compile (or load from the disk cache) the numba kernels in this process."""
     from activesplat.splat._raster_numba import warm_up
@@ -83,7 +133,12 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--torch-max", type=int, default=200_000, help="largest N timed with torch")
     parser.add_argument("--torch-repeats", type=int, default=1)
+    parser.add_argument("--stages", action="store_true", help="also print per-stage CPU ms on one thread")
+    parser.add_argument("--stage-table-only", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
+    if args.stage_table_only:
+        print_stage_table(args.sizes, args.repeats)
+        return
     warm = warm_time()
     cuda = torch.cuda.is_available()
     print(f"numba warm-up (compile or cache load): {warm:.2f} s; torch threads {torch.get_num_threads()}\n")
@@ -105,6 +160,8 @@ def main() -> None:
             gf, gb, _ = time_backend(gparams, "gsplat", args.repeats)
             row += f" {gf:.2f} | {gb:.2f} |"
         print(row, flush=True)
+    if args.stages:
+        stage_table_in_child(args.sizes, args.repeats)
 
 
 if __name__ == "__main__":

@@ -11,6 +11,8 @@ also through ``out.means2d`` / ``out.depths`` (the torch reference would still d
 from __future__ import annotations
 
 import math
+import time
+from contextlib import contextmanager
 
 import numpy as np
 import torch
@@ -22,6 +24,21 @@ from activesplat.splat import _raster_numba_tiles as tiles
 from activesplat.splat._raster_common import RASTER
 from activesplat.splat._raster_torch import fov_limits
 from activesplat.splat.rasterize import RenderOutput
+
+STAGE_CPU_MS: dict[str, float] | None = None
+"""When a dict, every stage adds its CPU milliseconds (``time.process_time``) under its name:
+project, sort, bin, composite, composite_backward, sum_grads, project_backward
+(``benchmarks/raster.py --stages``). None (the default) times nothing."""
+
+
+@contextmanager
+def _stage(name: str):
+    if STAGE_CPU_MS is None:
+        yield
+        return
+    t0 = time.process_time()
+    yield
+    STAGE_CPU_MS[name] = STAGE_CPU_MS.get(name, 0.0) + 1e3 * (time.process_time() - t0)
 
 
 def _np(t: Tensor) -> np.ndarray:
@@ -43,7 +60,9 @@ class _Project(torch.autograd.Function):
         means2d, conics = np.empty((n, 2), np.float32), np.empty((n, 3), np.float32)
         depths, radii = np.empty(n, np.float32), np.empty(n, np.int32)
         rects = np.empty((n, 4), np.int32)
-        proj.project_forward(*arrays, view, intr, width, height, mask, means2d, conics, depths, radii, rects)
+        with _stage("project"):
+            proj.project_forward(*arrays, view, intr, width, height, mask, means2d, conics, depths, radii,
+                                 rects)
         ctx.arrays, ctx.view, ctx.intr, ctx.radii, ctx.conics = arrays, view, intr, radii, conics
         radii_t, rects_t = torch.from_numpy(radii), torch.from_numpy(rects)
         ctx.mark_non_differentiable(radii_t, rects_t)
@@ -53,8 +72,9 @@ class _Project(torch.autograd.Function):
     def backward(ctx, v_means2d, v_conics, v_depths, _v_radii, _v_rects):
         means, quats, scales = ctx.arrays
         v_means, v_quats, v_scales = np.empty_like(means), np.empty_like(quats), np.empty_like(scales)
-        proj.project_backward(means, quats, scales, ctx.view, ctx.intr, ctx.radii, ctx.conics,
-                              _np(v_means2d), _np(v_conics), _np(v_depths), v_means, v_quats, v_scales)
+        with _stage("project_backward"):
+            proj.project_backward(means, quats, scales, ctx.view, ctx.intr, ctx.radii, ctx.conics,
+                                  _np(v_means2d), _np(v_conics), _np(v_depths), v_means, v_quats, v_scales)
         return (torch.from_numpy(v_means), torch.from_numpy(v_quats), torch.from_numpy(v_scales),
                 None, None, None, None, None)
 
@@ -64,12 +84,13 @@ class _Composite(torch.autograd.Function):
     def forward(ctx, means2d, conics, depths, opacities, colors, background, radii, rects, width, height):
         rects = rects.numpy()
         depth_np = _np(depths)
-        visible = np.flatnonzero(radii.numpy() > 0)
-        order = tiles.stable_depth_order(visible, depth_np)
+        with _stage("sort"):
+            order = tiles.stable_depth_order(np.flatnonzero(radii.numpy() > 0), depth_np)
         grid_x, grid_y = math.ceil(width / RASTER.tile_size), math.ceil(height / RASTER.tile_size)
-        tile_starts, feat, emit_start, slot = tiles.bin_features(order, rects, grid_x, grid_x * grid_y,
-                                                                 _np(means2d), _np(conics), _np(opacities),
-                                                                 _np(colors), depth_np)
+        with _stage("bin"):
+            tile_starts, feat, emit_start, slot = tiles.bin_features(
+                order, rects, grid_x, grid_x * grid_y, _np(means2d), _np(conics), _np(opacities), _np(colors),
+                depth_np)
         if np.diff(tile_starts).max(initial=0) >= tiles.MAX_TILE_LIST:
             raise InvalidInputError(f"rasterize: more than {tiles.MAX_TILE_LIST} Gaussians overlap one "
                                     "16x16 tile, which the numba backend cannot composite")
@@ -77,7 +98,8 @@ class _Composite(torch.autograd.Function):
         rgb = np.empty((height, width, 3), np.float32)
         depth, trans, median = (np.empty((height, width), np.float32) for _ in range(3))
         last = np.empty((height, width), np.int64)
-        tiles.composite_forward(tile_starts, feat, width, height, bg, rgb, depth, trans, median, last)
+        with _stage("composite"):
+            tiles.composite_forward(tile_starts, feat, width, height, bg, rgb, depth, trans, median, last)
         ctx.saved = (order, tile_starts, emit_start, slot, feat, bg, trans, last, width, height)
         ctx.n = means2d.shape[0]
         median_t = torch.from_numpy(median)
@@ -88,10 +110,12 @@ class _Composite(torch.autograd.Function):
     def backward(ctx, v_rgb, v_depth, v_alpha, _v_median):
         order, tile_starts, emit_start, slot, feat, bg, trans, last, width, height = ctx.saved
         v_rgb_np = _np(v_rgb)
-        grads = tiles.composite_backward(tile_starts, feat, width, height, bg, trans, last,
-                                         v_rgb_np, _np(v_depth), _np(v_alpha))
-        v_means2d, v_conics, v_opacities, v_colors, v_depths = (
-            torch.from_numpy(a) for a in tiles.sum_instance_grads(order, emit_start, slot, grads, ctx.n))
+        with _stage("composite_backward"):
+            grads = tiles.composite_backward(tile_starts, feat, width, height, bg, trans, last,
+                                             v_rgb_np, _np(v_depth), _np(v_alpha))
+        with _stage("sum_grads"):
+            sums = tiles.sum_instance_grads(order, emit_start, slot, grads, ctx.n)
+        v_means2d, v_conics, v_opacities, v_colors, v_depths = (torch.from_numpy(a) for a in sums)
         v_bg = torch.from_numpy((v_rgb_np * trans[..., None]).sum(axis=(0, 1)))
         return v_means2d, v_conics, v_depths, v_opacities, v_colors, v_bg, None, None, None, None
 
