@@ -53,3 +53,25 @@ def test_distance_to_polyline():
     assert _distance_to_polyline(np.array([1.0, 0.5]), path) == 0.5
     assert _distance_to_polyline(np.array([3.0, 1.0]), path) == 1.0
     assert np.isclose(_distance_to_polyline(np.array([-1.0, -1.0]), path), np.sqrt(2))
+
+
+def _follower_to(ex: ActiveSplatExplorer, here: np.ndarray, target: np.ndarray) -> np.ndarray:
+    from activesplat.planning.controller import PathFollower
+
+    ex.plan.workspace = extract_workspace(corridor(), HERE, WCFG)
+    ex.follower = PathFollower(np.array([target]), ex.cfg.controller)
+    pose = np.eye(4)
+    pose[0, 3], pose[2, 3] = here
+    return pose
+
+
+def test_path_ahead_is_blocked_only_where_it_gets_narrower_than_the_agent_and_than_here():
+    ex = ActiveSplatExplorer(world=None, floor_height=0.0, cfg=ExplorerConfig(workspace=WCFG))
+    # from the corridor's middle toward its wall: blocked
+    assert not ex._path_ahead_clear(_follower_to(ex, np.array([2.0, 1.5]), np.array([2.0, 1.02])))
+    # along the middle: clear
+    assert ex._path_ahead_clear(_follower_to(ex, np.array([2.0, 1.5]), np.array([3.5, 1.5])))
+    # standing closer to the wall than the agent radius (thin polished workspace), a way out is clear
+    pose = _follower_to(ex, np.array([2.0, 1.06]), np.array([2.6, 1.5]))
+    assert ex.plan.workspace.clearance_at(np.array([2.0, 1.06])) < WCFG.agent_radius
+    assert ex._path_ahead_clear(pose)

@@ -407,7 +407,9 @@ class ActiveSplatExplorer:
 
     # ------------------------------------------------------------------ failures
     def _path_ahead_clear(self, pose: np.ndarray) -> bool:
-        """Re-check the next `lookahead_m` of the path (release) on the current workspace."""
+        """Re-check the next `lookahead_m` of the path (release) on the current workspace: blocked when it
+        gets narrower than the agent and narrower than where the agent already stands (the polished
+        workspace can be thinner than the agent in a doorway it stands in; a path out of there is fine)."""
         ws = self.plan.workspace
         if ws is None or ws.empty or self.follower is None or self.follower.done:
             return True
@@ -416,7 +418,8 @@ class ActiveSplatExplorer:
         d = target - here
         n = float(np.hypot(*d))
         ahead = here + d * min(1.0, self.cfg.lookahead_m / max(n, 1e-9))
-        return bool(ws.segments_clearance(here[None], ahead[None])[0] >= self.cfg.workspace.agent_radius)
+        need = min(self.cfg.workspace.agent_radius, float(ws.clearance_at(here)) - 1e-6)
+        return bool(ws.segments_clearance(here[None], ahead[None])[0] >= need)
 
     def _fail_goal(self) -> None:
         if self.plan.goal is not None:
