@@ -18,7 +18,7 @@ WCFG = WorkspaceConfig(resolution=RES)
 HERE = np.array([1.0, 1.5])
 
 
-def _explorer(mid_score: float) -> tuple[ActiveSplatExplorer, np.ndarray, np.ndarray]:
+def _explorer(mid_info: float) -> tuple[ActiveSplatExplorer, np.ndarray, np.ndarray]:
     cfg = ExplorerConfig(workspace=WCFG, long_path_m=3.0)
     ex = ActiveSplatExplorer(world=None, floor_height=0.0, cfg=cfg)
     ws = extract_workspace(corridor(), HERE, WCFG)
@@ -27,23 +27,24 @@ def _explorer(mid_score: float) -> tuple[ActiveSplatExplorer, np.ndarray, np.nda
     pos = {n: np.asarray(d["pos"], float) for n, d in graph.nodes(data=True)}
     far = max(pos, key=lambda n: pos[n][0])
     mid = min(pos, key=lambda n: abs(pos[n][0] - 3.0))
-    ex.plan.scores = {far: 40.0, mid: mid_score}
+    ex.plan.scores = {far: 40.0, mid: 20.0 + mid_info}
+    ex.plan.info = {far: 20.0, mid: mid_info}
     goal = pos[far]
     return ex, goal, plan_safe_path(graph, ws, HERE, goal, WCFG)
 
 
 def test_a_long_path_stops_at_a_worthwhile_node_on_the_way():
-    ex, goal, path = _explorer(mid_score=25.0)
+    ex, goal, path = _explorer(mid_info=10.0)
     new_goal, new_path = ex._closer_on_the_way(HERE, goal, path)
     assert abs(new_goal[0] - 3.0) < 0.2 and new_path[-1] @ [1, 0] < goal[0] - 1.0
 
 
 def test_a_long_path_is_kept_when_nothing_on_the_way_is_worth_a_stop():
-    for mid_score in (10.0, 0.0):  # not above the local threshold
-        ex, goal, path = _explorer(mid_score)
+    for mid_info in (5.0, 0.0):  # no information above the local threshold
+        ex, goal, path = _explorer(mid_info)
         new_goal, new_path = ex._closer_on_the_way(HERE, goal, path)
         assert new_goal is goal and new_path is path
-    ex, goal, path = _explorer(mid_score=25.0)
+    ex, goal, path = _explorer(mid_info=10.0)
     ex.visited.append(np.array([3.0, 1.5]))  # the node on the way was visited already
     assert ex._closer_on_the_way(HERE, goal, path)[0] is goal
 

@@ -32,6 +32,7 @@ from activesplat.planning.viewpoints import (
     HighLossTracker,
     RotationTarget,
     hull_volume,
+    information_scores,
     invisible_share,
     node_scores,
     rotation_candidates,
@@ -68,9 +69,10 @@ class ExplorerConfig:
     """No on-the-spot rotations within this many agent radii of a spot already rotated at (release)."""
     multi_node_radius_m: float = 0.3
     """Passing within this of a multi-connected node forces a short rotation stop there (ours)."""
-    local_score_threshold: float = 10.0
-    """Local planning keeps picking nodes of the current subregion while their score exceeds this (ours:
-    an unvisited node with no visible gap scores exactly w_u = 10 and is not worth a local detour)."""
+    local_score_threshold: float = 5.0
+    """Local planning keeps picking nodes of the current subregion while their information score
+    w_o s_o + w_c s_c (eq. 12 without the unvisited / in-horizon flags) exceeds this (ours: 5 = a quarter of
+    the best invisible share anywhere; with the flags counted an agent revisits a seen room node by node)."""
     global_distance_weight: float = 1.0
     """Global goal score = node score - this x path length in metres (ours; the paper names a distance
     cost without a value)."""
@@ -110,6 +112,8 @@ class Plan:
     graph: nx.Graph = field(default_factory=nx.Graph)
     subregions: dict[int, int] = field(default_factory=dict)
     scores: dict[int, float] = field(default_factory=dict)
+    info: dict[int, float] = field(default_factory=dict)
+    """The information part of each node's score (w_o s_o + w_c s_c), see `information_scores`."""
     goal: np.ndarray | None = None
     path: np.ndarray | None = None
 
@@ -341,7 +345,7 @@ class ActiveSplatExplorer:
         graph = plan.graph
         best, best_score = None, -np.inf
         for node, score in plan.scores.items():
-            if score <= cfg.local_score_threshold or score <= best_score:
+            if plan.info.get(node, 0.0) <= cfg.local_score_threshold or score <= best_score:
                 continue
             pos = np.asarray(graph.nodes[node]["pos"], float)
             unvisited, failed = self._node_state(pos)
@@ -383,7 +387,7 @@ class ActiveSplatExplorer:
         inv = np.zeros(len(nodes))
         vol = np.zeros(len(nodes))
         pcfg = cfg.planning
-        cand = [i for i in np.argsort(dist) if unvisited[i] and not failed[i]][: cfg.max_panoramas]
+        cand = self._panorama_candidates(nodes, dist, unvisited & ~failed)
         height = self.floor_height + cfg.panorama_height_m
         for i in cand:
             pano = render_panorama(self.world.render, [pos[i][0], height, pos[i][1]], pcfg.panorama)
@@ -396,14 +400,34 @@ class ActiveSplatExplorer:
         order = sorted(range(len(nodes)), key=lambda i: (-scores[i], travel[i]))
         if cfg.hierarchical and plan.subregions:
             local = agent_subregion(graph, plan.subregions, here)
+            # stay local while a node of this subregion promises something to see: its information terms
+            # (w_o s_o + w_c s_c, shares relative to the best node anywhere) exceed the threshold; the
+            # unvisited / in-horizon flags alone do not keep the agent in a room it has seen
+            info = information_scores(inv, vol, pcfg.score)
+            plan.info = {n: float(v) for n, v in zip(nodes, info, strict=True)}
             local_best = [i for i in order if plan.subregions.get(nodes[i]) == local and unvisited[i]
-                          and not failed[i] and scores[i] > cfg.local_score_threshold]
+                          and not failed[i] and info[i] > cfg.local_score_threshold]
             if local_best:
                 rest = [i for i in order if i not in local_best]
                 return [nodes[i] for i in local_best + rest]
             global_score = scores - cfg.global_distance_weight * travel
             order = sorted(range(len(nodes)), key=lambda i: (-global_score[i], travel[i]))
         return [nodes[i] for i in order]
+
+    def _panorama_candidates(self, nodes: list[int], dist: np.ndarray, open_: np.ndarray) -> list[int]:
+        """Indices of the nodes scored by panorama (at most `max_panoramas`): the nearest open node of every
+        subregion first, so that rooms farther away are weighed too, then the nearest open nodes."""
+        order = [int(i) for i in np.argsort(dist, kind="stable") if open_[i]]
+        chosen: list[int] = []
+        seen: set[int] = set()
+        for i in order:
+            region = self.plan.subregions.get(nodes[i])
+            if region is not None and region not in seen:
+                seen.add(region)
+                chosen.append(i)
+        chosen = chosen[: self.cfg.max_panoramas]
+        chosen += [i for i in order if i not in set(chosen)][: self.cfg.max_panoramas - len(chosen)]
+        return chosen
 
     # ------------------------------------------------------------------ failures
     def _path_ahead_clear(self, pose: np.ndarray) -> bool:

@@ -212,6 +212,22 @@ class HighLossTracker:
 
 
 # --------------------------------------------------------------------------- node score (eq. 12)
+def information_scores(inv_share, hull_vol, cfg: ScoreConfig | None = None) -> np.ndarray:
+    """The information part of eq. 12 (what a node promises to show): w_o s_o + w_c s_c, with s_o and s_c
+    the invisible share and hull volume divided by their maximum over the candidates (release:
+    2*ceil(10*inv/max) + 1*ceil(10*vol/max))."""
+    cfg = cfg or ScoreConfig()
+    inv = np.asarray(inv_share, float)
+    vol = np.asarray(hull_vol, float)
+    s_o = inv / inv.max() if inv.size and inv.max() > 0 else np.zeros_like(inv)
+    s_c = vol / vol.max() if vol.size and vol.max() > 0 else np.zeros_like(vol)
+    if cfg.preset == "release":
+        return 2 * np.ceil(10 * s_o) + 1 * np.ceil(10 * s_c)
+    if cfg.preset != "paper":
+        raise ValueError(f"unknown score preset {cfg.preset!r} (expected 'paper' or 'release')")
+    return cfg.w_o * s_o + cfg.w_c * s_c
+
+
 def node_scores(inv_share, hull_vol, unvisited, in_horizon, failed,
                 cfg: ScoreConfig | None = None) -> np.ndarray:
     """Eq. 12 for a set of candidate nodes (1D arrays of equal length).
@@ -220,15 +236,10 @@ def node_scores(inv_share, hull_vol, unvisited, in_horizon, failed,
     release: S = 20*unvisited + 10*in_horizon + 2*ceil(10*inv/max) + 1*ceil(10*vol/max) - 60*failed
     """
     cfg = cfg or ScoreConfig()
-    inv = np.asarray(inv_share, float)
-    vol = np.asarray(hull_vol, float)
-    s_o = inv / inv.max() if inv.size and inv.max() > 0 else np.zeros_like(inv)
-    s_c = vol / vol.max() if vol.size and vol.max() > 0 else np.zeros_like(vol)
+    info = information_scores(inv_share, hull_vol, cfg)
     s_u = np.asarray(unvisited, float)
     s_h = np.asarray(in_horizon, float)
     pen = cfg.failed_penalty * np.asarray(failed, float)
     if cfg.preset == "release":
-        return 20 * s_u + 10 * s_h + 2 * np.ceil(10 * s_o) + 1 * np.ceil(10 * s_c) - pen
-    if cfg.preset != "paper":
-        raise ValueError(f"unknown score preset {cfg.preset!r} (expected 'paper' or 'release')")
-    return cfg.w_o * s_o + cfg.w_c * s_c + cfg.w_u * s_u + cfg.w_h * s_h - pen
+        return info + 20 * s_u + 10 * s_h - pen
+    return info + cfg.w_u * s_u + cfg.w_h * s_h - pen
