@@ -116,16 +116,23 @@ def main() -> None:
     rows = [{"name": "online", "metrics": online, "n_gaussians": online["n_gaussians"]}]
     short = {m: refined(episode, m, args.iters, args) for m in args.methods}
     rows += list(short.values())
+    notes = []
     for method, row in short.items():
         n = long_iterations(row["rate"], args.budget_min, args.iters)
         if n is not None:
             rows.append(refined(episode, method, n, args))
+        elif args.budget_min > 0:
+            fit = int((row["rate"] or 0.0) * args.budget_min * 60.0)
+            notes.append(f"{method}: no longer run, {args.budget_min:g} min at {row['rate']:.2f} it/s fit "
+                         f"~{fit} iterations, not more than --iters {args.iters}")
     print(f"\n{episode}: {args.n_train} train / {args.n_test} test views\n")
     print(table(rows))
     print()
     for row in rows[1:]:
         print(f"{row['name']}: {row['rate']:.2f} it/s over {row['train_s'] / 60:.1f} min of optimisation; "
               f"evaluated with the {row['eval_renderer']}")
+    for note in notes:
+        print(note)
 
 
 if __name__ == "__main__":
