@@ -181,3 +181,31 @@ def test_cli_prints_a_table(episode, tmp_path, capsys):
     text = capsys.readouterr().out
     assert "train" in text and "test" in text and "PSNR" in text
     assert json.loads((out / "render_metrics.json").read_text())["train"]["n_views"] == 1
+
+
+def test_cli_renders_a_refined_2dgs_folder_with_the_surfel_rasterizer(tmp_path, monkeypatch):
+    import argparse
+
+    from activesplat.eval import render_eval as reval
+    from activesplat.refine.surfels import render_surfel_view
+
+    (tmp_path / "episode.json").write_text("{}")
+    refined = tmp_path / "refined_2dgs"
+    refined.mkdir()
+    (refined / "gaussians.ply").write_text("")
+    seen = {}
+
+    def fake_render_eval(path, **kwargs):
+        seen.update(kwargs)
+        return {}
+
+    monkeypatch.setattr(reval, "render_eval", fake_render_eval)
+    monkeypatch.setattr(reval, "format_table", lambda result, out: "")
+    args = argparse.Namespace(dir=str(refined), n_train=1, n_test=1, seed=0, backend="numba",
+                              no_progress=True)
+    (refined / "refine.json").write_text(json.dumps({"method": "3dgs"}))
+    reval.render_eval_from_args(args)
+    assert seen["renderer"] is None
+    (refined / "refine.json").write_text(json.dumps({"method": "2dgs"}))
+    reval.render_eval_from_args(args)
+    assert seen["renderer"] is render_surfel_view

@@ -29,6 +29,7 @@ render, depth error heat map with its colour bar).
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import sys
 import time
@@ -342,7 +343,14 @@ def format_table(result: dict, out: Path) -> str:
 
 def render_eval_from_args(args: argparse.Namespace) -> int:
     _, _, out = locate(args.dir)
+    renderer = None
+    refine_meta = Path(out) / "refine.json"
+    if refine_meta.is_file() and json.loads(refine_meta.read_text()).get("method") == "2dgs":
+        # a 2dgs map holds surfels, not 3D Gaussians
+        from activesplat.refine.surfels import render_surfel_view
+
+        renderer = render_surfel_view
     result = render_eval(args.dir, n_train=args.n_train, n_test=args.n_test, seed=args.seed,
-                         backend=args.backend, progress=not args.no_progress)
+                         backend=args.backend, progress=not args.no_progress, renderer=renderer)
     print(format_table(result, out))
     return 0
