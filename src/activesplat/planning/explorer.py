@@ -426,7 +426,8 @@ class ActiveSplatExplorer:
                 seen.add(region)
                 chosen.append(i)
         chosen = chosen[: self.cfg.max_panoramas]
-        chosen += [i for i in order if i not in set(chosen)][: self.cfg.max_panoramas - len(chosen)]
+        taken = set(chosen)
+        chosen += [i for i in order if i not in taken][: self.cfg.max_panoramas - len(chosen)]
         return chosen
 
     # ------------------------------------------------------------------ failures
@@ -442,8 +443,12 @@ class ActiveSplatExplorer:
         d = target - here
         n = float(np.hypot(*d))
         ahead = here + d * min(1.0, self.cfg.lookahead_m / max(n, 1e-9))
-        need = min(self.cfg.workspace.agent_radius, float(ws.clearance_at(here)) - 1e-6)
-        return bool(ws.segments_clearance(here[None], ahead[None])[0] >= need)
+        return bool(ws.segments_clearance(here[None], ahead[None])[0] >= self._needed_clearance(here))
+
+    def _needed_clearance(self, here: np.ndarray) -> float:
+        """Clearance a path from `here` must keep: the agent's radius, or less where the agent already
+        stands closer to the workspace border (shared by the path-ahead check and FBE's route search)."""
+        return min(self.cfg.workspace.agent_radius, float(self.plan.workspace.clearance_at(here)) - 1e-6)
 
     def _fail_goal(self) -> None:
         if self.plan.goal is not None:

@@ -141,9 +141,7 @@ class FrontierExplorer(ActiveSplatExplorer):
             cv2.circle(disc, (start[1], start[0]), r, 1, -1)
         # Never through obstacle cells (floor seen under a table is free but not walkable), nor closer to the
         # workspace border than the agent already is: the path-ahead check would refuse that route.
-        here_clear = float(ws.clearance_at(here))
-        need = min(self.cfg.workspace.agent_radius, here_clear) - 1e-6
-        near = (ws.mask | grids.free) & (ws.clearance >= need)
+        near = (ws.mask | grids.free) & (ws.clearance >= self._needed_clearance(here))
         passable = passable | ((disc > 0) & near & ~grids.obstacle)
         dist = grid_distances(passable, start)
         cand = np.where(targets, dist, np.inf)
