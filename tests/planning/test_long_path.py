@@ -76,3 +76,31 @@ def test_path_ahead_is_blocked_only_where_it_gets_narrower_than_the_agent_and_th
     pose = _follower_to(ex, np.array([2.0, 1.06]), np.array([2.6, 1.5]))
     assert ex.plan.workspace.clearance_at(np.array([2.0, 1.06])) < WCFG.agent_radius
     assert ex._path_ahead_clear(pose)
+
+
+def test_path_ahead_forgives_one_cell_but_not_a_wall():
+    """Beside a wall the checked segment starts off the planned one and clearance is quantised to cells:
+    a dip of less than `ahead_tolerance_m` below the agent radius passes, a heading into the wall does not."""
+    ex = ActiveSplatExplorer(world=None, floor_height=0.0, cfg=ExplorerConfig(workspace=WCFG))
+    here = np.array([2.0, 1.5])
+    graze = np.array([2.3, 1.06])  # ends just closer to the wall than the agent radius
+    pose = _follower_to(ex, here, graze)
+    ws = ex.plan.workspace
+    dip = float(ws.segments_clearance(here[None], graze[None])[0])
+    assert WCFG.agent_radius - ex.cfg.ahead_tolerance_m <= dip < WCFG.agent_radius
+    assert ex._path_ahead_clear(pose)
+    ex.cfg.ahead_tolerance_m = 0.0
+    assert not ex._path_ahead_clear(pose)
+    ex.cfg.ahead_tolerance_m = 0.05
+    assert not ex._path_ahead_clear(_follower_to(ex, here, np.array([2.3, 1.0])))
+
+
+def test_an_agent_whose_goals_all_failed_escapes_before_looking_around():
+    ex = ActiveSplatExplorer(world=None, floor_height=0.0, cfg=ExplorerConfig(workspace=WCFG))
+    pose = _follower_to(ex, np.array([2.0, 1.2]), np.array([3.0, 1.5]))
+    ex.queue.clear()
+    ex._idle(pose, stuck=False)
+    assert ex.queue == ["turn_left"] * 6
+    ex.queue.clear()
+    ex._idle(pose, stuck=True)
+    assert ex.queue[-6:] == ["turn_left"] * 6 and "move_forward" in ex.queue

@@ -86,6 +86,11 @@ class ExplorerConfig:
     """Forward steps of a collision escape after turning to the clearest heading."""
     lookahead_m: float = 0.65
     """Re-check this much of the path ahead at every step (release: 10 forward steps)."""
+    ahead_tolerance_m: float = 0.05
+    """The path-ahead check forgives this much clearance (ours: one workspace cell). The agent follows its
+    path only to within the arrival radius, so the segment it checks starts up to ~0.1 m off the planned
+    one, and clearance is quantised to cells: without it an agent beside a wall corner fails every goal at
+    its first forward step and turns on the spot for hundreds of steps."""
     panorama_height_m: float = 1.25
     """Panoramas are rendered at the sensor height above the floor (REFERENCE.md section 1)."""
     hierarchical: bool = True
@@ -332,8 +337,16 @@ class ActiveSplatExplorer:
             self.follower = PathFollower(path[1:], cfg.controller)
             return
         plan.goal, plan.path = None, None
-        if self.failed:  # fallback: forget failures, look around meanwhile
-            self.failed.clear()
+        stuck = bool(self.failed)
+        self.failed.clear()  # fallback: forget failures, the next replan gives every goal a second chance
+        self._idle(pose, stuck)
+
+    def _idle(self, pose: np.ndarray, stuck: bool) -> None:
+        """No goal to go to: look around on the spot (the map grows, the next replan may find goals). When
+        goals exist but every one failed from here (`stuck`), first escape toward the clearest heading: from
+        the same spot the same goals would fail again."""
+        if stuck:
+            self.queue.extend(self._escape_actions(pose))
         self.queue.extend(["turn_left"] * 6)
 
     def _closer_on_the_way(self, here: np.ndarray, goal: np.ndarray, path: np.ndarray
@@ -434,7 +447,8 @@ class ActiveSplatExplorer:
     def _path_ahead_clear(self, pose: np.ndarray) -> bool:
         """Re-check the next `lookahead_m` of the path (release) on the current workspace: blocked when it
         gets narrower than the agent and narrower than where the agent already stands (the polished
-        workspace can be thinner than the agent in a doorway it stands in; a path out of there is fine)."""
+        workspace can be thinner than the agent in a doorway it stands in; a path out of there is fine),
+        give or take `ahead_tolerance_m`, and always when it leaves the workspace."""
         ws = self.plan.workspace
         if ws is None or ws.empty or self.follower is None or self.follower.done:
             return True
@@ -443,7 +457,8 @@ class ActiveSplatExplorer:
         d = target - here
         n = float(np.hypot(*d))
         ahead = here + d * min(1.0, self.cfg.lookahead_m / max(n, 1e-9))
-        return bool(ws.segments_clearance(here[None], ahead[None])[0] >= self._needed_clearance(here))
+        need = max(self._needed_clearance(here) - self.cfg.ahead_tolerance_m, 1e-6)
+        return bool(ws.segments_clearance(here[None], ahead[None])[0] >= need)
 
     def _needed_clearance(self, here: np.ndarray) -> float:
         """Clearance a path from `here` must keep: the agent's radius, or less where the agent already

@@ -99,10 +99,11 @@ class FrontierExplorer(ActiveSplatExplorer):
         here = floor_xz(pose)
         plan = self.plan = build_plan(self.world.gaussians, self.floor_height, here, cfg.workspace,
                                       self.timers, graph=False)
+        stuck = bool(self.failed)
         goal_path = self.timers.time("position_selection", self._nearest_frontier_path, here)
         if goal_path is None:
             plan.goal = plan.path = None
-            self.queue.extend(["turn_left"] * 6)
+            self._idle(pose, stuck)
             return
         plan.goal, plan.path = goal_path[-1], goal_path
         self.follower = PathFollower(goal_path[1:], cfg.controller)
