@@ -178,3 +178,17 @@ def test_endpoint_outside_the_workspace_gives_no_line_of_sight_through_walls():
     edge = np.array([0.48, 2.0])
     assert workspace.clearance_at(edge) == 0
     assert line_of_sight(workspace, edge, np.array([1.5, 2.0]), CFG)
+
+
+def test_far_away_and_infinite_voronoi_vertices_are_dropped_without_warnings():
+    import warnings
+
+    from activesplat.workspace.voronoi import safe_edges
+
+    workspace = extract_workspace(corridor(), np.array([1.0, 1.5]), CFG)
+    vertices = np.array([[1.0, 1.5], [2.0, 1.5], [1e30, 1.5], [np.inf, np.nan]])
+    ridges = np.array([[0, 1], [1, 2], [2, 3], [0, 3]])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        merged, edges = safe_edges(workspace, vertices, ridges, CFG)
+    assert [merged[e].tolist() for e in edges] == [[[1.0, 1.5], [2.0, 1.5]]]

@@ -51,8 +51,13 @@ def safe_edges(workspace: Workspace, vertices: np.ndarray, ridges: np.ndarray, c
     """Merge duplicate vertices and keep ridges that lie inside the workspace with more than the agent
     radius of clearance at every sample (release checks the two vertices; we check the whole ridge).
     Returns merged vertices (V', 2) and edges (E, 2) into them."""
+    # qhull puts the vertices of nearly collinear sites very far away (or at inf): their ridges cannot be
+    # safe, and their keys would overflow the integer cast below
+    finite = (np.abs(vertices) < 1e6).all(axis=1)
+    ridges = ridges[finite[ridges].all(axis=1)] if len(ridges) else ridges
     if len(ridges) == 0:
         return np.zeros((0, 2)), np.zeros((0, 2), dtype=np.int64)
+    vertices = np.where(finite[:, None], vertices, 0.0)
     keys = np.round(vertices / cfg.merge_distance).astype(np.int64)
     _, first, inverse = np.unique(keys, axis=0, return_index=True, return_inverse=True)
     merged = vertices[first]
