@@ -104,3 +104,26 @@ def test_an_agent_whose_goals_all_failed_escapes_before_looking_around():
     ex.queue.clear()
     ex._idle(pose, stuck=True)
     assert ex.queue[-6:] == ["turn_left"] * 6 and "move_forward" in ex.queue
+
+
+def test_node_information_is_scored_with_and_without_hierarchical_planning():
+    """The long-path rule reads `plan.info`: `no-hp` (hierarchical off) must fill it too."""
+    from types import SimpleNamespace
+
+    class HalfSeen:  # the lower half of every view mapped: an invisible share at every node
+        gaussians = None
+        high_loss_mask = None
+
+        def render(self, pose, K=None, width=None, height=None):
+            alpha = np.zeros((height, width), np.float32)
+            alpha[height // 2:] = 1.0
+            return SimpleNamespace(alpha=alpha, median_depth=np.full((height, width), 2.0, np.float32))
+
+    for hierarchical in (True, False):
+        ex = ActiveSplatExplorer(world=HalfSeen(), floor_height=0.0,
+                                 cfg=ExplorerConfig(workspace=WCFG, hierarchical=hierarchical))
+        ws = extract_workspace(corridor(), HERE, WCFG)
+        ex.plan.workspace, ex.plan.graph = ws, build_voronoi_graph(ws, WCFG)
+        ranked = ex._rank_goals(HERE)
+        assert ranked and set(ex.plan.info) == set(ex.plan.scores)
+        assert max(ex.plan.info.values()) > ex.cfg.local_score_threshold

@@ -411,13 +411,14 @@ class ActiveSplatExplorer:
         plan.scores = {n: float(s) for n, s in zip(nodes, scores, strict=True)}
         travel = _travel_lengths(graph, ws, here, nodes, pos, cfg.workspace)
         order = sorted(range(len(nodes)), key=lambda i: (-scores[i], travel[i]))
+        # the information terms (w_o s_o + w_c s_c, shares relative to the best node anywhere): what keeps
+        # planning local, and what makes a node worth a stop on a long path's way
+        info = information_scores(inv, vol, pcfg.score)
+        plan.info = {n: float(v) for n, v in zip(nodes, info, strict=True)}
         if cfg.hierarchical and plan.subregions:
             local = agent_subregion(graph, plan.subregions, here)
-            # stay local while a node of this subregion promises something to see: its information terms
-            # (w_o s_o + w_c s_c, shares relative to the best node anywhere) exceed the threshold; the
-            # unvisited / in-horizon flags alone do not keep the agent in a room it has seen
-            info = information_scores(inv, vol, pcfg.score)
-            plan.info = {n: float(v) for n, v in zip(nodes, info, strict=True)}
+            # stay local while a node of this subregion promises something to see; the unvisited /
+            # in-horizon flags alone do not keep the agent in a room it has seen
             local_best = [i for i in order if plan.subregions.get(nodes[i]) == local and unvisited[i]
                           and not failed[i] and info[i] > cfg.local_score_threshold]
             if local_best:
