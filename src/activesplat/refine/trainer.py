@@ -43,7 +43,6 @@ from activesplat.refine.methods import make_method
 from activesplat.splat.config import MapperConfig
 from activesplat.splat.gaussians import GaussianMap
 from activesplat.splat.losses import mapping_loss
-from activesplat.splat.mapper import _config_from_dict
 from activesplat.splat.ply import load_ply, save_ply
 
 CHECKPOINT = "checkpoint.pt"
@@ -129,7 +128,7 @@ def load_episode_map(episode_dir: str | Path) -> EpisodeMap:
     try:
         meta = json.loads((path / "mapper.json").read_text())
         K, width, height = np.asarray(meta["K"], dtype=np.float64), int(meta["width"]), int(meta["height"])
-        config = _config_from_dict(meta["config"])
+        config = MapperConfig.from_dict(meta["config"])
     except (ValueError, KeyError, TypeError) as err:
         raise EpisodeError(f"{path / 'mapper.json'}: unreadable mapper settings ({err})") from None
     with np.load(path / "keyframes.npz") as data:

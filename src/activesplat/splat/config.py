@@ -152,3 +152,13 @@ class MapperConfig:
                 raise InvalidInputError(f"MapperConfig.{name} must be >= 1, got {getattr(self, name)}")
         if not 0.0 < self.init_opacity < 1.0:
             raise InvalidInputError(f"MapperConfig.init_opacity must be in (0, 1), got {self.init_opacity}")
+
+    @classmethod
+    def from_dict(cls, d: dict) -> MapperConfig:
+        """The config back from `dataclasses.asdict` output (mapper.json, checkpoints)."""
+        d = dict(d)
+        d["lr"] = LearningRates(**d["lr"])
+        d["schedule"] = Schedule(**d["schedule"])
+        d["dense_schedule"] = Schedule(**d["dense_schedule"])
+        return cls(**d)
+

@@ -27,7 +27,7 @@ import numpy as np
 import torch
 
 from activesplat.errors import InvalidInputError
-from activesplat.splat.config import LearningRates, MapperConfig, Schedule
+from activesplat.splat.config import MapperConfig, Schedule
 from activesplat.splat.densify import (
     densification_mask,
     free_space_mask,
@@ -284,7 +284,7 @@ class Mapper:
         if not meta_path.is_file():
             raise InvalidInputError(f"{directory}: not a mapper folder (no mapper.json)")
         meta = json.loads(meta_path.read_text())
-        mapper = cls(meta["K"], meta["width"], meta["height"], _config_from_dict(meta["config"]),
+        mapper = cls(meta["K"], meta["width"], meta["height"], MapperConfig.from_dict(meta["config"]),
                      backend or meta["backend"], device)
         mapper.gaussians = load_ply(directory / "gaussians.ply", device)
         mapper.optimizer = mapper.gaussians.make_optimizer(mapper.config.lr, mapper.config.adam_eps)
@@ -294,14 +294,6 @@ class Mapper:
         mapper.keyframes = [Keyframe(rgb[i], depth[i], pose[i], int(step[i])) for i in range(len(step))]
         mapper.frames = int(meta["frames"])
         return mapper
-
-
-def _config_from_dict(d: dict) -> MapperConfig:
-    d = dict(d)
-    d["lr"] = LearningRates(**d["lr"])
-    d["schedule"] = Schedule(**d["schedule"])
-    d["dense_schedule"] = Schedule(**d["dense_schedule"])
-    return MapperConfig(**d)
 
 
 class _Clock:
