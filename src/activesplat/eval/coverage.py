@@ -45,6 +45,14 @@ def backproject(depth: np.ndarray, pose: np.ndarray, K: np.ndarray) -> np.ndarra
     return cam @ pose[:3, :3].T + pose[:3, 3]
 
 
+def _tree(points: np.ndarray) -> cKDTree:
+    """A KD-tree split at sliding midpoints. scipy's default median-balanced, compacted tree is pathological
+    on depth-camera points (dense, regularly spaced, on planes): a 1 m bounded nearest-neighbour query of
+    the 200k GT points against one batch of 50 frames (819k points) took 247 s instead of 0.7 s. The
+    distances are exact either way."""
+    return cKDTree(points, balanced_tree=False, compact_nodes=False)
+
+
 def _voxel_keys(pts: np.ndarray, size: float) -> np.ndarray:
     """One int64 per voxel of `size` (21 bits per axis: +-10 km at 1 cm)."""
     v = np.floor(pts / size).astype(np.int64) + (1 << 20)
@@ -87,7 +95,7 @@ class CoverageAccumulator:
         lo, hi = pts.min(axis=0) - cap, pts.max(axis=0) + cap
         near = np.flatnonzero(np.all((self.gt >= lo) & (self.gt <= hi), axis=1))
         if len(near):
-            dist, _ = cKDTree(pts).query(self.gt[near], k=1, distance_upper_bound=cap, workers=-1)
+            dist, _ = _tree(pts).query(self.gt[near], k=1, distance_upper_bound=cap, workers=-1)
             self.min_dist[near] = np.minimum(self.min_dist[near], dist)
         self._keep_thinned(pts)
 
@@ -106,7 +114,7 @@ class CoverageAccumulator:
         out = self.min_dist.copy()
         far = ~(out < self.cfg.cap_m)
         if far.any() and self._thinned:
-            dist, _ = cKDTree(np.concatenate(self._thinned)).query(self.gt[far], k=1, workers=-1)
+            dist, _ = _tree(np.concatenate(self._thinned)).query(self.gt[far], k=1, workers=-1)
             out[far] = dist
         return out
 
