@@ -138,14 +138,21 @@ def rasterize_numba(means, quats, scales, opacities, colors, viewmat, K, width, 
                         means2d=means2d.to(device), depths=depths.to(device))
 
 
+def warm_up_scene(scale_dims: int, n: int = 8) -> tuple[list[Tensor], Tensor]:
+    """The warm-up render of the numba backends: n Gaussians (`scale_dims` = 3) or surfels (2) about 2 m in
+    front of a 32x32 camera at the origin, parameters requiring grad; returns (means, quats, scales,
+    opacities, colors) and K."""
+    gen = torch.Generator().manual_seed(0)
+    means = torch.cat([torch.rand(n, 2, generator=gen) - 0.5, torch.full((n, 1), 2.0)], dim=1)
+    params = [means, torch.randn(n, 4, generator=gen), torch.full((n, scale_dims), 0.2),
+              torch.full((n,), 0.5), torch.rand(n, 3, generator=gen)]
+    K = torch.tensor([[16.0, 0, 16], [0, 16, 16], [0, 0, 1]])
+    return [p.requires_grad_(True) for p in params], K
+
+
 def warm_up() -> None:
     """Compile (or load from the on-disk cache) every numba kernel: one tiny forward + backward."""
-    gen = torch.Generator().manual_seed(0)
-    n = 8
-    means = torch.cat([torch.rand(n, 2, generator=gen) - 0.5, torch.full((n, 1), 2.0)], dim=1)
-    params = [means, torch.randn(n, 4, generator=gen), torch.full((n, 3), 0.2), torch.full((n,), 0.5),
-              torch.rand(n, 3, generator=gen)]
-    params = [p.requires_grad_(True) for p in params]
-    K = torch.tensor([[16.0, 0, 16], [0, 16, 16], [0, 0, 1]])
+    params, K = warm_up_scene(3)
+    n = len(params[0])
     out = rasterize_numba(*params, torch.eye(4), K, 32, 32, torch.zeros(3), torch.ones(n, dtype=torch.bool))
     (out.rgb.sum() + out.depth.sum() + out.alpha.sum()).backward()

@@ -20,7 +20,7 @@ from activesplat.splat import _raster_numba_tiles as tiles
 from activesplat.splat import _surfel_numba_project as proj
 from activesplat.splat import _surfel_numba_tiles as stiles
 from activesplat.splat._raster_common import RASTER
-from activesplat.splat._raster_numba import _np
+from activesplat.splat._raster_numba import _np, warm_up_scene
 from activesplat.splat.surfel import SurfelRenderOutput
 
 
@@ -108,12 +108,6 @@ def rasterize_surfels_numba(means, quats, scales, opacities, colors, viewmat, K,
 
 def warm_up() -> None:
     """Compile (or load from the on-disk cache) every numba kernel: one tiny forward + backward."""
-    gen = torch.Generator().manual_seed(0)
-    n = 8
-    means = torch.cat([torch.rand(n, 2, generator=gen) - 0.5, torch.full((n, 1), 2.0)], dim=1)
-    params = [means, torch.randn(n, 4, generator=gen), torch.full((n, 2), 0.2), torch.full((n,), 0.5),
-              torch.rand(n, 3, generator=gen)]
-    params = [p.requires_grad_(True) for p in params]
-    K = torch.tensor([[16.0, 0, 16], [0, 16, 16], [0, 0, 1]])
+    params, K = warm_up_scene(2)
     out = rasterize_surfels_numba(*params, torch.eye(4), K, torch.zeros(3), 32, 32)
     sum(out[name].sum() for name in ("rgb", "depth", "alpha", "normal", "distortion")).backward()
