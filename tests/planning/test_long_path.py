@@ -127,3 +127,24 @@ def test_node_information_is_scored_with_and_without_hierarchical_planning():
         ranked = ex._rank_goals(HERE)
         assert ranked and set(ex.plan.info) == set(ex.plan.scores)
         assert max(ex.plan.info.values()) > ex.cfg.local_score_threshold
+
+
+def test_a_goal_the_agent_stands_on_is_skipped(monkeypatch):
+    """Arriving at once would replan at once: the explorer must go to the next goal instead of spinning."""
+    import activesplat.planning.explorer as explorer_module
+
+    ws = extract_workspace(corridor(), HERE, WCFG)
+    graph = build_voronoi_graph(ws, WCFG)
+    pos = {n: np.asarray(d["pos"], float) for n, d in graph.nodes(data=True)}
+    near = min(pos, key=lambda n: np.hypot(*(pos[n] - HERE)))
+    far = max(pos, key=lambda n: pos[n][0])
+    ex = ActiveSplatExplorer(world=type("W", (), {"gaussians": None})(), floor_height=0.0,
+                             cfg=ExplorerConfig(workspace=WCFG))
+    ex.queue.clear()
+    plan = explorer_module.Plan(workspace=ws, graph=graph)
+    monkeypatch.setattr(explorer_module, "build_plan", lambda *a, **k: plan)
+    monkeypatch.setattr(ActiveSplatExplorer, "_rank_goals", lambda self, here: [near, far])
+    pose = np.eye(4)
+    pose[0, 3], pose[2, 3] = pos[near]  # standing on the best-ranked node
+    ex._replan(pose)
+    assert np.allclose(ex.plan.goal, pos[far]) and ex.follower is not None

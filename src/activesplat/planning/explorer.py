@@ -326,6 +326,10 @@ class ActiveSplatExplorer:
         goal_order = self.timers.time("position_selection", self._rank_goals, here)
         for node in goal_order:
             goal = np.asarray(plan.graph.nodes[node]["pos"], float)
+            if np.hypot(*(goal - here)) <= cfg.controller.arrive_radius:
+                # already there: arriving again would end in a replan at once, every step (a `hull-only`
+                # agent spun on the spot for 200 steps that way, replanning four times per step)
+                continue
             path = self.timers.time("planner", plan_safe_path, plan.graph, plan.workspace, here, goal,
                                     cfg.workspace)
             if path is None:
