@@ -161,4 +161,3 @@ class MapperConfig:
         d["schedule"] = Schedule(**d["schedule"])
         d["dense_schedule"] = Schedule(**d["dense_schedule"])
         return cls(**d)
-
