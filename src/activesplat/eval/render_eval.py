@@ -343,14 +343,21 @@ def format_table(result: dict, out: Path) -> str:
 
 def render_eval_from_args(args: argparse.Namespace) -> int:
     _, _, out = locate(args.dir)
-    renderer = None
-    refine_meta = Path(out) / "refine.json"
-    if refine_meta.is_file() and json.loads(refine_meta.read_text()).get("method") == "2dgs":
-        # a 2dgs map holds surfels, not 3D Gaussians
-        from activesplat.refine.surfels import render_surfel_view
-
-        renderer = render_surfel_view
+    options = {"renderer": None, **_refined_map_options(Path(out))}
     result = render_eval(args.dir, n_train=args.n_train, n_test=args.n_test, seed=args.seed,
-                         backend=args.backend, progress=not args.no_progress, renderer=renderer)
+                         backend=args.backend, progress=not args.no_progress, **options)
     print(format_table(result, out))
     return 0
+
+
+def _refined_map_options(folder: Path) -> dict:
+    """render_eval arguments a refined map's method asks for (`DIR/refined_<method>/refine.json`; 2dgs:
+    the surfel renderer, its map holds surfels, not 3D Gaussians); none for an episode's online map."""
+    from activesplat.refine.config import METHODS, RefineConfig
+    from activesplat.refine.methods import make_method
+
+    meta = folder / "refine.json"
+    method = json.loads(meta.read_text()).get("method") if meta.is_file() else None
+    if method not in METHODS:
+        return {}
+    return make_method(method, RefineConfig(), iters=1).eval_kwargs()
