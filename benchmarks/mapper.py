@@ -1,150 +1,237 @@
-"""Online mapper benchmark: a scripted look-around-and-walk in a built-in scene (issue 4).
+"""Online mapper benchmark: map a trajectory, watch the first keyframes for forgetting, evaluate the map.
 
-    python benchmarks/mapper.py [--scene small-0] [--steps 300] [--backend auto] [--seed 0]
+    python benchmarks/mapper.py --episode runs/medium-0          # replay a recorded exploration
+    python benchmarks/mapper.py --scene small-0 --steps 300      # scripted look-around-and-walk
 
-Trajectory: the release's bootstrap look-around (36 x turn_left, each followed by one tilt in a
-down,down,down,up,up,up pattern; dense schedule), then a walk: move forward, and on a blocked move
-turn on the spot by a seeded random 60-120 deg (dense schedule while turning, as the release does for
-on-the-spot rotations). Afterwards every keyframe (train view) is rendered from the final map:
-PSNR (full image, colours clamped to [0,1]) and depth L1 (cm, over valid depth). Prints markdown.
+Trajectory. ``--episode DIR`` replays the poses of an exploration's episode folder (``poses.txt``): the
+observations are re-rendered by the simulator at exactly those poses, so the mapper sees what the
+explorer's mapper saw, whatever the mapper under test does (the path does not depend on the map). The
+look-around (dense) schedule is used for every action that is not ``move_forward`` (the live loop uses
+it only while the agent turns on the spot, so this slightly over-counts the dense frames). Without
+``--episode`` the script walks: the bootstrap look-around (36 turns, each followed by a tilt), then
+forward, turning on the spot by a seeded random 60-120 deg when a move is blocked.
+
+Forgetting curve. The first ``--probe`` keyframes are rendered right after they are mapped ("when
+mapped") and again every ``--every`` steps; a map that forgets loses PSNR on them as the episode goes on.
+
+Final numbers. With ``--episode``, the final map is evaluated by ``activesplat render-eval`` (the 50 train
+views over the trajectory and the 50 random test views of the episode's scene) into ``--out``. Always:
+PSNR / depth L1 on every keyframe, mapper wall and CPU time per step (warm numba), the phases, Gaussians,
+bytes per m^2 of observed surface and the peak RSS of the process.
+
+Observed surface: the number of 5 cm voxels hit by back-projected observed depth (every 4th pixel of
+every frame) times (5 cm)^2, an estimate of the area the sensor has seen.
 """
 
 from __future__ import annotations
 
 import argparse
+import ast
+import resource
 import time
 from collections import defaultdict
+from pathlib import Path
 
 import numpy as np
 import torch
 
+from activesplat.episode import read_episode
 from activesplat.sim import Simulator, load_scene
 from activesplat.splat import Mapper, MapperConfig
+from activesplat.splat.keyframes import backproject
 
 TILTS = ("look_down", "look_down", "look_down", "look_up", "look_up", "look_up")
+SURFACE_VOXEL_M = 0.05
+BYTES_PER_GAUSSIAN = 4 * (14 + 2 * 14) + 4  # float32 parameters, two Adam moments, a step count
 
 
 def bootstrap_actions() -> list[str]:
-    """REFERENCE.md sec. 1: one tilt after each of the 36 turns, ~72 actions, ending level."""
+    """The look-around of the explorer's bootstrap: one tilt after each of the 36 turns, ending level."""
     actions = []
     for i in range(36):
         actions += ["turn_left", TILTS[i % len(TILTS)]]
     return actions
 
 
-def warm_up(sim: Simulator, backend: str, config: MapperConfig) -> None:
-    """Compile the JIT kernels (numba) outside the timed episode: map the start view twice."""
-    mapper = Mapper(sim.K, sim.width, sim.height, config, backend=backend)
-    obs = sim.reset()
-    for _ in range(2):
-        mapper.add_frame(obs.rgb, obs.depth, obs.pose, dense=True)
-
-
-def timed_add_frame(mapper: Mapper, obs, dense: bool, cpu_ms: list[float]):
-    """``mapper.add_frame`` that also records the process CPU time of the call (all threads)."""
-    t0 = time.process_time()
-    stats = mapper.add_frame(obs.rgb, obs.depth, obs.pose, dense=dense)
-    cpu_ms.append(1000.0 * (time.process_time() - t0))
-    return stats
-
-
-def run_episode(scene_name: str, steps: int, backend: str, seed: int, config: MapperConfig,
-                cpu_ms: list[float] | None = None):
-    sim = Simulator(load_scene(scene_name), seed=seed)
-    warm_up(sim, backend, config)
-    mapper = Mapper(sim.K, sim.width, sim.height, config, backend=backend)
+def scripted_poses(sim: Simulator, steps: int, seed: int) -> tuple[list[np.ndarray], list[bool]]:
+    """Poses and dense flags of the scripted look-around-and-walk (module docstring)."""
     rng = np.random.default_rng(seed)
-    cpu_ms = [] if cpu_ms is None else cpu_ms
-    obs = sim.reset()
-    records = [timed_add_frame(mapper, obs, True, cpu_ms)]
-    script = bootstrap_actions()
-    pending: list[str] = []
+    sim.reset()
+    poses, dense = [sim.pose], [True]
+    script, pending = bootstrap_actions(), []
     for step in range(steps):
         if step < len(script):
-            action, dense = script[step], True
+            action, is_dense = script[step], True
         elif pending:
-            action, dense = pending.pop(), True
+            action, is_dense = pending.pop(), True
         else:
-            action, dense = "move_forward", False
-        obs = sim.step(action)
-        if action == "move_forward" and obs.collided:
+            action, is_dense = "move_forward", False
+        moved = sim.act(action)
+        if action == "move_forward" and not moved:
             pending = [str(rng.choice(["turn_left", "turn_right"]))] * int(rng.integers(6, 13))
-        records.append(timed_add_frame(mapper, obs, dense, cpu_ms))
-    return mapper, records
+        poses.append(sim.pose)
+        dense.append(is_dense)
+    return poses, dense
+
+
+def episode_poses(episode_dir: Path, steps: int | None) -> tuple[Simulator, list[np.ndarray], list[bool]]:
+    episode = read_episode(episode_dir)
+    from activesplat.eval.evaluate import _sim_config
+
+    scene = load_scene(episode.meta["scene"], z_up=bool(episode.meta.get("z_up", False)))
+    sim = Simulator(scene, start=episode.start_pose, config=_sim_config(episode.meta))
+    n = len(episode.actions) if steps is None else min(steps, len(episode.actions))
+    dense = [True] + [a != "move_forward" for a in episode.actions[:n]]
+    return sim, list(episode.poses[: n + 1]), dense
+
+
+def psnr(mapper: Mapper, rgb: np.ndarray, pose: np.ndarray) -> float:
+    out = mapper.render(pose)
+    mse = float(np.mean((out.rgb.clamp(0, 1).numpy() - rgb.astype(np.float32) / 255.0) ** 2))
+    return -10.0 * np.log10(max(mse, 1e-10))
 
 
 def evaluate_keyframes(mapper: Mapper) -> dict[str, float]:
-    """Means over the keyframes of the map rendered there: PSNR (dB); depth L1 (cm, over valid GT depth)
-    of the rendered depth as DESIGN.md defines it (alpha-blended sum w_i z_i, *not* divided by the
-    opacity; the metric of the target), its signed mean, and two secondary views for diagnosis: the
-    opacity-normalised depth sum w_i z_i / O and the median depth; the share of valid pixels whose
-    rendered depth is off by more than 10 cm; the mean opacity over valid pixels."""
+    """Means over the keyframes of the map rendered there: PSNR (dB), depth L1 (cm, over valid depth) of
+    the alpha-blended depth sum w_i z_i (what the mapper trains on), its signed mean, the share of pixels
+    off by more than 10 cm and the mean opacity over valid pixels."""
     rows: dict[str, list[float]] = defaultdict(list)
     for kf in mapper.keyframes:
         out = mapper.render(kf.pose)
-        rgb = out.rgb.clamp(0, 1).numpy()
-        mse = float(np.mean((rgb - kf.rgb.astype(np.float32) / 255.0) ** 2))
-        rows["psnr"].append(-10.0 * np.log10(max(mse, 1e-10)))
+        rows["psnr"].append(psnr(mapper, kf.rgb, kf.pose))
         valid = kf.depth > 0
-        gt, alpha = kf.depth[valid], out.alpha.numpy()[valid]
-        error = out.depth.numpy()[valid] - gt
+        error = out.depth.numpy()[valid] - kf.depth[valid]
         rows["depth_l1"].append(100.0 * float(np.abs(error).mean()))
         rows["depth_signed"].append(100.0 * float(error.mean()))
-        rows["depth_l1_normalised"].append(
-            100.0 * float(np.abs(out.depth.numpy()[valid] / np.maximum(alpha, 1e-6) - gt).mean()))
-        rows["depth_l1_median"].append(100.0 * float(np.abs(out.median_depth.numpy()[valid] - gt).mean()))
         rows["share_over_10cm"].append(100.0 * float((np.abs(error) > 0.1).mean()))
-        rows["opacity"].append(float(alpha.mean()))
+        rows["opacity"].append(float(out.alpha.numpy()[valid].mean()))
     return {name: float(np.mean(values)) for name, values in rows.items()}
+
+
+def observed_voxels(depth: np.ndarray, pose: np.ndarray, K: np.ndarray) -> np.ndarray:
+    v, u = np.nonzero(depth[::4, ::4] > 0)
+    points = backproject(depth, pose, K, 4 * v, 4 * u)
+    return np.unique(np.floor(points / SURFACE_VOXEL_M).astype(np.int64), axis=0)
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--scene", default="small-0")
-    parser.add_argument("--steps", type=int, default=300)
+    parser.add_argument("--episode", type=Path, help="replay this episode folder's poses")
+    parser.add_argument("--scene", default="small-0", help="scripted walk in this scene (without --episode)")
+    parser.add_argument("--steps", type=int, default=None, help="actions to map (default: all / 300)")
     parser.add_argument("--backend", default="auto")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--threads", type=int, default=2, help="torch threads (the target is 2 cores)")
+    parser.add_argument("--probe", type=int, default=5, help="first keyframes watched for forgetting")
+    parser.add_argument("--every", type=int, default=250, help="steps between forgetting-curve points")
+    parser.add_argument("--repeat", type=int, default=1,
+                        help="map the trajectory this many times in a row (nothing new after the first: "
+                             "a map whose memory grows with the scene, not with time, stops growing)")
+    parser.add_argument("--out", type=Path, help="write the map (and render-eval, with --episode) here")
+    parser.add_argument("--set", nargs="*", default=[], metavar="FIELD=VALUE",
+                        help="MapperConfig overrides, e.g. sparse_adam=False max_gaussians=300000")
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
-    config = MapperConfig()
-    t0 = time.perf_counter()
-    cpu_ms: list[float] = []
-    mapper, records = run_episode(args.scene, args.steps, args.backend, args.seed, config, cpu_ms)
-    wall = time.perf_counter() - t0
+    config = MapperConfig(**{k: ast.literal_eval(v) for k, v in (s.split("=", 1) for s in args.set)})
+
+    if args.episode is not None:
+        sim, poses, dense = episode_poses(args.episode, args.steps)
+        label = f"replay of {args.episode} ({len(poses) - 1} actions)"
+    else:
+        sim = Simulator(load_scene(args.scene), seed=args.seed)
+        poses, dense = scripted_poses(sim, args.steps or 300, args.seed)
+        label = f"scripted walk in {args.scene}, {len(poses) - 1} actions"
+
+    poses, dense = poses + poses[1:] * (args.repeat - 1), dense + dense[1:] * (args.repeat - 1)
+    if args.repeat > 1:
+        label += f", {args.repeat} times"
+    warm = Mapper(sim.K, sim.width, sim.height, config, backend=args.backend)  # compile numba outside timing
+    rgb, depth = sim.render(poses[0])
+    for _ in range(2):
+        warm.add_frame(rgb, depth, poses[0], dense=True)
+
+    mapper = Mapper(sim.K, sim.width, sim.height, config, backend=args.backend)
+    probes: dict[int, dict] = {}  # keyframe step -> {"rgb", "pose", "psnr": {step: value}}
+    curve_steps: list[int] = []
+    curve_area: dict[int, float] = {}
+    records, cpu_ms, voxels = [], [], set()
+    t_start = time.perf_counter()
+    for step, (pose, is_dense) in enumerate(zip(poses, dense, strict=True)):
+        rgb, depth = sim.render(pose)
+        t0 = time.process_time()
+        stats = mapper.add_frame(rgb, depth, pose, dense=is_dense)
+        cpu_ms.append(1000.0 * (time.process_time() - t0))
+        records.append(stats)
+        if step % 2 == 0:
+            voxels.update(map(tuple, observed_voxels(depth, pose, sim.K)))
+        if stats.keyframe and len(probes) < args.probe:
+            probes[step] = {"rgb": rgb, "pose": pose, "psnr": {step: psnr(mapper, rgb, pose)}}
+        if step > 0 and (step % args.every == 0 or step == len(poses) - 1):
+            curve_steps.append(step)
+            curve_area[step] = len(voxels) * SURFACE_VOXEL_M ** 2
+            for p in probes.values():
+                p["psnr"][step] = psnr(mapper, p["rgb"], p["pose"])
+    wall = time.perf_counter() - t_start
+    peak_rss_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+    area = len(voxels) * SURFACE_VOXEL_M ** 2
+
+    print(f"## Mapper benchmark: {label}, backend {args.backend}, {args.threads} threads\n")
+    if config != MapperConfig():
+        print(f"config overrides: {' '.join(args.set)}\n")
+    print("### Forgetting curve: PSNR (dB) of the first keyframes, re-rendered as the episode goes on\n")
+    print("| step | " + " | ".join(f"kf@{s}" for s in probes)
+          + " | mean | Gaussians | observed m^2 | per m^2 |")
+    print("|---|" + "---|" * (len(probes) + 4))
+    when_mapped = [p["psnr"][s] for s, p in probes.items()]
+    print("| when mapped | " + " | ".join(f"{v:.2f}" for v in when_mapped)
+          + f" | {np.mean(when_mapped):.2f} | | | |")
+    for s in curve_steps:
+        values = [p["psnr"][s] for p in probes.values()]
+        n_g, area_s = records[s].n_gaussians, curve_area[s]
+        print(f"| {s} | " + " | ".join(f"{v:.2f}" for v in values)
+              + f" | {np.mean(values):.2f} | {n_g} | {area_s:.0f} | {n_g / max(area_s, 1e-9):.0f} |")
+
     q = evaluate_keyframes(mapper)
     n = len(records)
     phases: dict[str, float] = defaultdict(float)
     for r in records:
         for name, ms in r.timings.items():
             phases[name] += ms
-    mapped = sum(r.mapped for r in records)
-    print(f"## Mapper benchmark: {args.scene}, {args.steps} steps (+ reset), backend {args.backend}, "
-          f"{args.threads} threads\n")
-    print("| metric | value | target |\n|---|---|---|")
-    print(f"| PSNR on keyframes (train views) | {q['psnr']:.2f} dB | >= 25 dB |")
-    print(f"| depth L1 on keyframes (rendered depth sum w_i z_i, over valid GT depth) | "
-          f"{q['depth_l1']:.2f} cm | <= 2 cm |")
-    print(f"| - signed mean (rendered - GT) | {q['depth_signed']:+.2f} cm | |")
-    print(f"| - pixels off by > 10 cm | {q['share_over_10cm']:.2f} % | |")
-    print(f"| - for diagnosis: L1 of sum w_i z_i / O, of median depth | {q['depth_l1_normalised']:.2f} cm, "
-          f"{q['depth_l1_median']:.2f} cm | |")
-    print(f"| - mean opacity O on valid pixels | {q['opacity']:.4f} | |")
-    print(f"| mapper time per step (mean, wall) | {np.mean([r.ms for r in records]):.1f} ms | ~90 ms |")
-    print(f"| mapper CPU time per step (mean, all threads) | {np.mean(cpu_ms):.1f} ms | |")
-    print(f"| mapper time per mapped frame (mean) | "
-          f"{np.mean([r.ms for r in records if r.mapped]):.1f} ms | |")
-    print(f"| peak Gaussians | {mapper.peak_gaussians} | bounded |")
-    print(f"| final Gaussians | {len(mapper.gaussians)} | |")
-    added, pruned = sum(r.added for r in records), sum(r.pruned for r in records)
-    print(f"| added / pruned (total) | {added} / {pruned} | |")
-    print(f"| mapped frames / keyframes | {mapped} / {len(mapper.keyframes)} | |")
-    print(f"| episode wall time | {wall:.1f} s | |")
+    print("\n### Final map\n\n| metric | value |\n|---|---|")
+    print(f"| PSNR on all keyframes | {q['psnr']:.2f} dB |")
+    print(f"| depth L1 on all keyframes (sum w_i z_i) | {q['depth_l1']:.2f} cm "
+          f"(signed {q['depth_signed']:+.2f}) |")
+    print(f"| pixels off by > 10 cm / mean opacity | {q['share_over_10cm']:.2f} % / {q['opacity']:.4f} |")
+    print(f"| mapper wall time per step (mean) | {np.mean([r.ms for r in records]):.1f} ms |")
+    print(f"| mapper CPU time per step (mean, all threads) | {np.mean(cpu_ms):.1f} ms |")
+    print(f"| Gaussians final / peak | {len(mapper.gaussians)} / {mapper.peak_gaussians} |")
+    print(f"| observed surface (5 cm voxels) | {area:.1f} m^2 |")
+    print(f"| Gaussians per m^2 observed | {len(mapper.gaussians) / max(area, 1e-9):.0f} |")
+    print(f"| map + optimiser bytes per m^2 observed | "
+          f"{len(mapper.gaussians) * BYTES_PER_GAUSSIAN / max(area, 1e-9) / 1024:.1f} KiB |")
+    print(f"| peak RSS of this process | {peak_rss_mb:.0f} MB |")
+    print(f"| added / pruned | {sum(r.added for r in records)} / {sum(r.pruned for r in records)} |")
+    print(f"| mapped frames / keyframes | {sum(r.mapped for r in records)} / {len(mapper.keyframes)} |")
+    print(f"| episode wall time | {wall:.1f} s |")
     print("\n| phase | ms per step | share |\n|---|---|---|")
     total = sum(r.ms for r in records)
     other = total - sum(phases.values())
     for name, ms in [*phases.items(), ("other (checks, keyframe copy)", other)]:
         print(f"| {name} | {ms / n:.1f} | {100 * ms / total:.0f} % |")
+
+    if args.out is not None:
+        mapper.save(args.out)
+        if args.episode is not None:
+            from activesplat.eval.render_eval import render_eval
+
+            r = render_eval(args.episode, gaussians_path=args.out / "gaussians.ply", out_dir=args.out,
+                            progress=False)
+            print("\n### render-eval (train: 50 trajectory views, test: 50 random free-space views)\n")
+            print("| split | PSNR | SSIM | LPIPS | depth L1 cm | unmapped % |\n|---|---|---|---|---|---|")
+            for split in ("train", "test"):
+                m = r[split]
+                print(f"| {split} | {m['psnr']:.2f} | {m['ssim']:.3f} | {m['lpips']:.3f} | "
+                      f"{m['depth_l1_cm']:.2f} | {m['unmapped_pct']:.2f} |")
 
 
 if __name__ == "__main__":

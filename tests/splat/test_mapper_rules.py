@@ -7,7 +7,13 @@ import torch
 
 from activesplat.errors import InvalidInputError
 from activesplat.splat.config import LearningRates, MapperConfig, Schedule
-from activesplat.splat.densify import densification_mask, gaussians_from_pixels, high_loss_mask, prune_mask
+from activesplat.splat.densify import (
+    cap_mask,
+    densification_mask,
+    gaussians_from_pixels,
+    high_loss_mask,
+    prune_mask,
+)
 from activesplat.splat.gaussians import SH_C0, GaussianMap
 
 
@@ -88,9 +94,9 @@ def test_prune_removes_transparent_and_oversized_then_caps():
     with torch.no_grad():
         gmap.params["opacity_logits"][:] = torch.tensor([2.0, -6.0, 1.0, 0.5, 3.0, -1.0])  # [1]: 0.0025
         gmap.params["log_scales"][2, 1] = np.log(0.8)  # oversized (> 0.5 m)
-    keep = prune_mask(gmap, MapperConfig())
+    keep = prune_mask(gmap.params, MapperConfig())
     assert keep.tolist() == [True, False, False, True, True, True]
-    capped = prune_mask(gmap, MapperConfig(max_gaussians=2))  # keep the two most opaque survivors
+    capped = cap_mask(gmap.params["opacity_logits"].detach(), keep, 2)  # the two most opaque survivors
     assert capped.tolist() == [True, False, False, False, True, False]
     removed = gmap.keep(capped)
     assert removed == 4 and len(gmap) == 2

@@ -121,7 +121,9 @@ class MapperConfig:
     # --- pruning (paper: "as in 3DGS"; the release prunes nothing)
     prune_opacity: float = 0.005  # 3DGS min_opacity
     prune_max_scale_m: float = 0.5  # project: 3DGS uses 0.1 x scene extent; indoor extent ~5 m
-    max_gaussians: int = 300_000  # project: hard cap, lowest-opacity Gaussians dropped beyond it
+    # project: optional global cap, the least opaque Gaussians anywhere dropped beyond it. Off (None): it
+    # made the map forget rooms mapped early once a multi-room house filled it (see class docstring)
+    max_gaussians: int | None = None
     # project: floaters = Gaussians whose centre the current frame sees as free space (in front of the
     # observed depth, min over a 3x3 neighbourhood, by more than the margin); None = off
     prune_floater_margin_m: float | None = 0.1
@@ -135,6 +137,10 @@ class MapperConfig:
     overlap_pixels: int = 1600  # release / SplaTAM: pixels sampled for the overlap test
     overlap_border_px: int = 20  # release / SplaTAM: projections this close to the border do not count
     current_frame_first: bool = True  # project: iteration 0 always trains the current (densified) frame
+    # project: Adam with per-row state that moves only the Gaussians a trained view gives a gradient
+    # (splat/optim.py); False = the release's one torch Adam over the whole map, whose stale momentum
+    # keeps moving Gaussians out of view
+    sparse_adam: bool = True
 
     seed: int = 0  # numpy generator for overlap sampling and window picks
 

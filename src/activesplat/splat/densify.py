@@ -94,15 +94,21 @@ def free_space_mask(means: torch.Tensor, pose: np.ndarray, K: np.ndarray, obs_de
     return floater
 
 
-def prune_mask(gmap: GaussianMap, cfg: MapperConfig) -> torch.Tensor:
-    """Gaussians to keep: drop near-transparent (opacity < prune_opacity) and oversized (largest
-    scale > prune_max_scale_m) ones as 3DGS; then, above ``max_gaussians``, the least opaque."""
+def prune_mask(raw: dict[str, torch.Tensor], cfg: MapperConfig) -> torch.Tensor:
+    """Gaussians to keep among the raw parameters ``raw`` (any subset of rows): drop near-transparent
+    (opacity < prune_opacity) and oversized (largest scale > prune_max_scale_m) ones, as 3DGS."""
     with torch.no_grad():
-        opacity = gmap.opacities
-        keep = (opacity >= cfg.prune_opacity) & (gmap.scales.max(dim=1).values <= cfg.prune_max_scale_m)
-        excess = int(keep.sum()) - cfg.max_gaussians
-        if excess > 0:
-            ranked = torch.where(keep, opacity, torch.full_like(opacity, float("inf")))
-            drop = torch.topk(ranked, excess, largest=False).indices  # lowest opacities among the kept
-            keep[drop] = False
+        opacity = torch.sigmoid(raw["opacity_logits"].detach())
+        largest = torch.exp(raw["log_scales"].detach().max(dim=1).values)
+        return (opacity >= cfg.prune_opacity) & (largest <= cfg.prune_max_scale_m)
+
+
+def cap_mask(opacity_logits: torch.Tensor, keep: torch.Tensor, cap: int) -> torch.Tensor:
+    """The optional global cap: of the Gaussians ``keep`` marks, the ``cap`` most opaque survive (the old
+    rule; it forgets whatever is least opaque anywhere in the map, so it is off by default)."""
+    keep = keep.clone()
+    excess = int(keep.sum()) - cap
+    if excess > 0:
+        ranked = torch.where(keep, opacity_logits, torch.full_like(opacity_logits, float("inf")))
+        keep[torch.topk(ranked, excess, largest=False).indices] = False
     return keep

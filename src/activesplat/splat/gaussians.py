@@ -121,6 +121,10 @@ class GaussianMap:
         """Plain RGB (no clamping, as SplaTAM)."""
         return f_dc_to_rgb(self.params["f_dc"])
 
+    def rows(self, index: torch.Tensor) -> dict[str, torch.Tensor]:
+        """Detached copies of the raw parameters of the Gaussians ``index`` (long indices)."""
+        return {name: t.detach()[index] for name, t in self.params.items()}
+
     def raw(self) -> dict[str, torch.Tensor]:
         """Detached copies of the raw parameters."""
         return {name: t.detach().clone() for name, t in self.params.items()}
@@ -175,3 +179,42 @@ class GaussianMap:
         for name in PARAM_NAMES:
             self._replace(name, self.params[name].detach()[mask], optimizer, lambda s: s[mask])
         return removed
+
+
+def activate(raw: dict[str, torch.Tensor]) -> tuple[torch.Tensor, ...]:
+    """The renderer's inputs from raw parameters (any subset of rows, differentiable): means, unit
+    quaternions, linear scales, opacities in [0,1], RGB; the same maps as the properties of
+    :class:`GaussianMap`."""
+    q = raw["quats"]
+    return (raw["means"], q / q.norm(dim=1, keepdim=True).clamp_min(1e-12), torch.exp(raw["log_scales"]),
+            torch.sigmoid(raw["opacity_logits"]), f_dc_to_rgb(raw["f_dc"]))
+
+
+def frustum_rows(means: torch.Tensor, log_scales: torch.Tensor, pose, K, width: int,
+                 height: int) -> torch.Tensor:
+    """Indices (long) of the Gaussians the rasterizer can draw into the (width x height) image of the
+    camera-to-world ``pose``: in front of its near plane, with a conservative screen radius (largest
+    scale, the projection Jacobian at the rasterizer's clamped image coordinates, the low-pass) that
+    reaches the image. A superset of what the rasterizer draws, so a render of these rows is the render
+    of the whole map, at a cost proportional to the view instead of the map."""
+    from activesplat.splat._raster_common import RASTER
+
+    with torch.no_grad():
+        pose = np.asarray(pose, dtype=np.float64)
+        rot = torch.from_numpy(pose[:3, :3].astype(np.float32)).to(means.device)
+        t = torch.from_numpy(pose[:3, 3].astype(np.float32)).to(means.device)
+        cam = (means.detach() - t) @ rot  # world -> camera: R^T (p - t)
+        z = cam[:, 2]
+        front = z > RASTER.near
+        safe_z = torch.where(front, z, torch.ones_like(z))
+        fx, fy, cx, cy = float(K[0, 0]), float(K[1, 1]), float(K[0, 2]), float(K[1, 2])
+        x, y = cam[:, 0] / safe_z, cam[:, 1] / safe_z  # normalised image coordinates
+        lim_x = (1.0 + RASTER.fov_clamp) * max(cx, width - cx) / fx
+        lim_y = (1.0 + RASTER.fov_clamp) * max(cy, height - cy) / fy
+        stretch = 1.0 + x.clamp(-lim_x, lim_x).square() + y.clamp(-lim_y, lim_y).square()
+        s = torch.exp(log_scales.detach().max(dim=1).values) * max(fx, fy) / safe_z
+        radius = RASTER.extent_sigmas * torch.sqrt(s.square() * stretch + RASTER.low_pass) + 1.0  # pixels
+        u, v = fx * x + cx, fy * y + cy
+        inside = front & (u + radius >= 0) & (u - radius <= width)
+        inside &= (v + radius >= 0) & (v - radius <= height)
+        return torch.nonzero(inside, as_tuple=True)[0]

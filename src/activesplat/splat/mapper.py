@@ -29,15 +29,17 @@ import torch
 from activesplat.errors import InvalidInputError
 from activesplat.splat.config import MapperConfig, Schedule
 from activesplat.splat.densify import (
+    cap_mask,
     densification_mask,
     free_space_mask,
     gaussians_from_pixels,
     high_loss_mask,
     prune_mask,
 )
-from activesplat.splat.gaussians import GaussianMap
+from activesplat.splat.gaussians import GaussianMap, activate, frustum_rows
 from activesplat.splat.keyframes import Keyframe, mapping_window
 from activesplat.splat.losses import mapping_loss
+from activesplat.splat.optim import RowAdam
 from activesplat.splat.ply import load_ply, save_ply
 
 
@@ -107,10 +109,12 @@ class Mapper:
         self.backend = backend
         self.device = torch.device(device)
         self.gaussians = GaussianMap.empty(self.device)
-        self.optimizer = self.gaussians.make_optimizer(self.config.lr, self.config.adam_eps)
+        self.optimizer = self._make_optimizer()
         self.keyframes: list[Keyframe] = []
         self.high_loss_mask = np.zeros((self.height, self.width), dtype=bool)
         self.frames = 0  # accepted (non-skipped) frames
+        self.received = 0  # add_frame calls that passed the input checks (the frame index in messages)
+        self.broken_depth_frames = 0  # frames with NaN / inf / negative depth pixels (made invalid)
         self.peak_gaussians = 0
         self._rng = np.random.default_rng(self.config.seed)
 
@@ -121,17 +125,41 @@ class Mapper:
         with torch.no_grad():
             return self._render(_as_pose(pose), K, width or self.width, height or self.height)
 
-    def _render(self, pose: np.ndarray, K: np.ndarray, width: int, height: int):
+    def _render(self, pose: np.ndarray, K: np.ndarray, width: int, height: int,
+                rows: torch.Tensor | None = None, raw: dict[str, torch.Tensor] | None = None):
+        """Render the Gaussians ``rows`` (default: those in the view frustum, :func:`frustum_rows`), from
+        their raw parameters ``raw`` when given (a differentiable copy). The per-Gaussian outputs (radii,
+        means2d, depths) are those of the rendered rows."""
         from activesplat.splat.rasterize import rasterize
 
-        g = self.gaussians
+        if rows is None:
+            rows = self._view_rows(pose, K, width, height)
+        if raw is None:
+            raw = self.gaussians.rows(rows)
         viewmat = torch.from_numpy(np.linalg.inv(pose).astype(np.float32)).to(self.device)
         Kt = torch.from_numpy(K.astype(np.float32)).to(self.device)
-        return rasterize(g.means, g.quats, g.scales, g.opacities, g.colors, viewmat, Kt, width, height,
-                         backend=self.backend)
+        return rasterize(*activate(raw), viewmat, Kt, width, height, backend=self.backend)
+
+    def _view_rows(self, pose: np.ndarray, K: np.ndarray, width: int, height: int) -> torch.Tensor:
+        p = self.gaussians.params
+        return frustum_rows(p["means"], p["log_scales"], pose, K, width, height)
+
+    def _make_optimizer(self):
+        if self.config.sparse_adam:
+            return RowAdam(self.gaussians, self.config.lr, self.config.adam_eps)
+        return self.gaussians.make_optimizer(self.config.lr, self.config.adam_eps)
 
     # ------------------------------------------------------------------ input checks
     def _validate(self, rgb, depth, pose) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Checked copies of one frame; InvalidInputError naming the frame (the index of the ``add_frame``
+        call) on anything the map cannot take. NaN / inf / negative depth pixels are made invalid (0),
+        with a warning the first time it happens."""
+        try:
+            return self._checked(rgb, depth, pose)
+        except InvalidInputError as exc:
+            raise InvalidInputError(f"mapper: frame {self.received}: {exc}") from None
+
+    def _checked(self, rgb, depth, pose) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         rgb, depth = np.asarray(rgb), np.asarray(depth)
         hw = (self.height, self.width)
         if rgb.shape != (*hw, 3):
@@ -144,18 +172,27 @@ class Mapper:
             rgb = (np.clip(rgb, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
         if not np.issubdtype(depth.dtype, np.number):
             raise InvalidInputError(f"depth must be numeric metres, got {depth.dtype}")
+        pose = _as_pose(pose)
         depth = depth.astype(np.float32)
-        invalid = ~np.isfinite(depth) | (depth < self.config.min_depth_m)
+        broken = ~np.isfinite(depth) | (depth < 0)
+        if broken.any():
+            if self.broken_depth_frames == 0:
+                warnings.warn(f"mapper: frame {self.received}: {int(broken.sum())} depth pixels are NaN, inf "
+                              f"or negative; treated as invalid (later frames are counted in "
+                              f"Mapper.broken_depth_frames, not reported)", stacklevel=4)
+            self.broken_depth_frames += 1
+        invalid = broken | (depth < self.config.min_depth_m)
         depth = np.where(invalid, np.float32(0.0), depth)
-        return np.ascontiguousarray(rgb), depth, _as_pose(pose)
+        return np.ascontiguousarray(rgb), depth, pose
 
     # ------------------------------------------------------------------ the per-frame pipeline
     def add_frame(self, rgb, depth, pose, dense: bool = False) -> FrameStats:
         """One simulator step (see module docstring). ``dense`` selects the look-around schedule."""
         t0 = time.perf_counter()
         rgb, depth, pose = self._validate(rgb, depth, pose)
+        self.received += 1
         if not (depth > 0).any():
-            warnings.warn(f"mapper: frame {self.frames} has no valid depth, skipped", stacklevel=2)
+            warnings.warn(f"mapper: frame {self.received - 1} has no valid depth, skipped", stacklevel=2)
             return FrameStats(self.frames, False, False, True, len(self.gaussians))
         schedule = self.config.dense_schedule if dense else self.config.schedule
         step = self.frames
@@ -182,30 +219,58 @@ class Mapper:
             self.high_loss_mask = hl.cpu().numpy()
             new_mask = densification_mask(out["alpha"], out["depth"], obs_depth, cfg)
         clock.lap("render_masks")
-        stats.added = self.gaussians.append(
-            gaussians_from_pixels(new_mask, obs_rgb, obs_depth, pose, self.K, cfg), self.optimizer)
+        raw = gaussians_from_pixels(new_mask, obs_rgb, obs_depth, pose, self.K, cfg)
+        stats.added = self._append(raw)
         clock.lap("densify")
         window = mapping_window(depth, pose, self.K, self.keyframes, cfg.window_overlap, cfg.overlap_pixels,
                                 cfg.overlap_border_px, self._rng)
         clock.lap("window")
         current = (obs_rgb, obs_depth, pose)
         views = [self._pick_view(i, window, current) for i in range(schedule.iterations)]
-        losses = [self._optimize_view(view) for view in views]
+        trained = [self._view_rows(pose, self.K, self.width, self.height)]
+        losses = []
+        for view in views:
+            loss, rows = self._optimize_view(view)
+            losses.append(loss)
+            trained.append(rows)
         stats.loss = float(np.mean(losses)) if losses else None
         clock.lap("optimize")
-        stats.pruned = self.gaussians.keep(self._keep_mask(pose, obs_depth), self.optimizer)
-        self.peak_gaussians = max(self.peak_gaussians, len(self.gaussians) + stats.pruned)
+        stats.pruned = self._prune(torch.unique(torch.cat(trained)), pose, obs_depth)
         clock.lap("prune")
 
-    def _keep_mask(self, pose: np.ndarray, obs_depth: torch.Tensor) -> torch.Tensor:
-        """Pruning: transparent / oversized / over the cap (:func:`prune_mask`), and floaters in the
-        free space the current frame observes (:func:`free_space_mask`)."""
+    def _append(self, raw: dict[str, torch.Tensor]) -> int:
+        """Add new Gaussians to the map and their (zero) state to the optimiser."""
+        if self.config.sparse_adam:
+            added = self.gaussians.append(raw)
+            self.optimizer.append(added)
+            return added
+        return self.gaussians.append(raw, self.optimizer)
+
+    def _prune(self, rows: torch.Tensor, pose: np.ndarray, obs_depth: torch.Tensor) -> int:
+        """Pruning, only among ``rows`` (the Gaussians of the current view and of the views trained on
+        this frame; nothing else changed): transparent / oversized (:func:`prune_mask`) and floaters in
+        the free space the current frame observes (:func:`free_space_mask`); then the optional global
+        cap (:func:`cap_mask`). Returns the number removed."""
         cfg = self.config
-        keep = prune_mask(self.gaussians, cfg)
-        if cfg.prune_floater_margin_m is not None:
-            keep &= ~free_space_mask(self.gaussians.means, pose, self.K, obs_depth,
-                                     cfg.prune_floater_margin_m, cfg.prune_floater_window_px)
-        return keep
+        keep = torch.ones(len(self.gaussians), dtype=torch.bool, device=self.device)
+        if rows.numel():
+            sub = self.gaussians.rows(rows)
+            ok = prune_mask(sub, cfg)
+            if cfg.prune_floater_margin_m is not None:
+                ok &= ~free_space_mask(sub["means"], pose, self.K, obs_depth, cfg.prune_floater_margin_m,
+                                       cfg.prune_floater_window_px)
+            keep[rows] = ok
+        if cfg.max_gaussians is not None:
+            keep &= cap_mask(self.gaussians.params["opacity_logits"].detach(), keep, cfg.max_gaussians)
+        self.peak_gaussians = max(self.peak_gaussians, len(self.gaussians))
+        removed = int((~keep).sum())
+        if removed:
+            if cfg.sparse_adam:
+                self.gaussians.keep(keep)
+                self.optimizer.keep(keep)
+            else:
+                self.gaussians.keep(keep, self.optimizer)
+        return removed
 
     def _render_or_blank(self, pose: np.ndarray) -> dict[str, torch.Tensor]:
         """Opacity, depth and median depth of the current view for eqs. 8 and 10, rendered at
@@ -236,23 +301,37 @@ class Mapper:
         rgb = torch.from_numpy(kf.rgb).to(self.device, torch.float32) / 255.0
         return rgb, torch.from_numpy(kf.depth).to(self.device), kf.pose
 
-    def _optimize_view(self, view) -> float:
-        """One Adam iteration on one view (at 1/``train_downscale`` resolution); a non-finite loss is
-        skipped (the map stays as it was)."""
+    def _optimize_view(self, view) -> tuple[float, torch.Tensor]:
+        """One Adam iteration on one view (at 1/``train_downscale`` resolution), over the Gaussians in its
+        frustum only. Returns the loss and the rows that received a gradient (the ones the step moved).
+        A non-finite loss is skipped (the map stays as it was)."""
         obs_rgb, obs_depth, pose = view
         d = self.config.train_downscale
         obs_rgb, obs_depth = downsample_observation(obs_rgb, obs_depth, d)
         K = self.K.copy()
         K[:2] /= d
-        out = self._render(pose, K, obs_depth.shape[1], obs_depth.shape[0])
+        width, height = obs_depth.shape[1], obs_depth.shape[0]
+        rows = self._view_rows(pose, K, width, height)
+        raw = {name: t.requires_grad_(True) for name, t in self.gaussians.rows(rows).items()}
+        out = self._render(pose, K, width, height, rows, raw)
         terms = mapping_loss(out.rgb, out.depth, obs_rgb, obs_depth, self.config)
         if not torch.isfinite(terms.total):
             warnings.warn("mapper: non-finite loss, optimisation step skipped", stacklevel=3)
-            return float("nan")
-        self.optimizer.zero_grad(set_to_none=True)
+            return float("nan"), rows[:0]
         terms.total.backward()
-        self.optimizer.step()
-        return float(terms.total.detach())
+        grads = {name: t.grad if t.grad is not None else torch.zeros_like(t) for name, t in raw.items()}
+        touched = torch.zeros(len(rows), dtype=torch.bool, device=self.device)
+        for g in grads.values():
+            touched |= (g != 0).reshape(len(rows), -1).any(dim=1)
+        if self.config.sparse_adam:
+            self.optimizer.step(rows[touched], {name: g[touched] for name, g in grads.items()})
+        else:  # the release: one torch Adam over the whole map, zero gradient outside the view
+            for name, param in self.gaussians.params.items():
+                param.grad = torch.zeros_like(param)
+                param.grad[rows] = grads[name]
+            self.optimizer.step()
+            self.optimizer.zero_grad(set_to_none=True)
+        return float(terms.total.detach()), rows[touched]
 
     # ------------------------------------------------------------------ persistence
     def save(self, directory: str | Path) -> Path:
@@ -287,7 +366,7 @@ class Mapper:
         mapper = cls(meta["K"], meta["width"], meta["height"], MapperConfig.from_dict(meta["config"]),
                      backend or meta["backend"], device)
         mapper.gaussians = load_ply(directory / "gaussians.ply", device)
-        mapper.optimizer = mapper.gaussians.make_optimizer(mapper.config.lr, mapper.config.adam_eps)
+        mapper.optimizer = mapper._make_optimizer()
         mapper.peak_gaussians = len(mapper.gaussians)
         with np.load(directory / "keyframes.npz") as data:  # each data[key] decompresses: read once
             rgb, depth, pose, step = data["rgb"], data["depth"], data["pose"], data["step"]
