@@ -13,7 +13,7 @@ own bounded rates. Without `--viewer` nothing here
 is imported (the exploration loop checks `viewer is not None` and nothing else).
 
 Replay (`EpisodeViewer`) loads gaussians.ply and poses.txt, rebuilds the workspace and Voronoi graph from
-the final map (`planning.explorer.build_plan`), and adds a timeline slider: the frustum moves along the
+the final map (`workspace.plan.build_plan`), and adds a timeline slider: the frustum moves along the
 trajectory and a background worker re-renders the ground truth RGB-D (simulator) and the map at that pose,
 always the latest slider position (intermediate ones are dropped, so dragging never queues up renders).
 """
@@ -461,7 +461,7 @@ class EpisodeViewer:
     def _load(self, ground_truth: bool) -> None:
         """Map, camera model, ground-truth simulator and the workspace / graph of the final map."""
         from activesplat.planning.controller import floor_xz
-        from activesplat.planning.explorer import build_plan
+        from activesplat.workspace.plan import build_plan
         from activesplat.splat.ply import load_ply
         from activesplat.workspace.config import WorkspaceConfig
 
