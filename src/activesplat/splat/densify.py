@@ -9,9 +9,9 @@ from __future__ import annotations
 import numpy as np
 import torch
 
+from activesplat.geometry import backproject
 from activesplat.splat.config import MapperConfig
 from activesplat.splat.gaussians import GaussianMap
-from activesplat.splat.keyframes import backproject
 
 
 def densification_mask(alpha: torch.Tensor, depth: torch.Tensor, obs_depth: torch.Tensor,

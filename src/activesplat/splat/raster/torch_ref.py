@@ -13,19 +13,9 @@ import math
 import torch
 from torch import Tensor
 
-from activesplat.splat._raster_common import RASTER
-from activesplat.splat.rasterize import Projection, RenderOutput
-
-
-def quat_to_rotmat(quats: Tensor) -> Tensor:
-    """(N,4) wxyz -> (N,3,3) rotation matrices; the quaternions are normalised first."""
-    w, x, y, z = (quats / quats.norm(dim=-1, keepdim=True)).unbind(-1)
-    rows = [
-        1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
-        2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
-        2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y),
-    ]
-    return torch.stack(rows, dim=-1).reshape(-1, 3, 3)
+from activesplat.splat.kernels import quat_to_rotmat
+from activesplat.splat.raster import Projection, RenderOutput
+from activesplat.splat.raster.constants import RASTER
 
 
 def fov_limits(K: Tensor, width: int, height: int) -> tuple[float, float, float, float]:

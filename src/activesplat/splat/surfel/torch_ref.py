@@ -16,10 +16,10 @@ from dataclasses import dataclass
 import torch
 from torch import Tensor
 
-from activesplat.splat._raster_common import RASTER
-from activesplat.splat._raster_torch import quat_to_rotmat
-from activesplat.splat._surfel_common import SURFEL
+from activesplat.splat.kernels import quat_to_rotmat
+from activesplat.splat.raster.constants import RASTER
 from activesplat.splat.surfel import SurfelRenderOutput
+from activesplat.splat.surfel.constants import SURFEL
 
 
 @dataclass
