@@ -34,8 +34,8 @@ class SweepConfig:
 def sweep_poses(scene, sim_config=None, cfg: SweepConfig | None = None) -> np.ndarray:
     """Camera-to-world poses (M,4,4) of the sweep: grid positions of the largest navigable component x
     yaws x pitches, camera at the sensor height."""
+    from activesplat.geometry import camera_pose
     from activesplat.sim import SimConfig
-    from activesplat.sim.simulator import camera_pose
 
     cfg = cfg or SweepConfig()
     sim_config = sim_config or SimConfig()
@@ -53,10 +53,10 @@ def sweep_poses(scene, sim_config=None, cfg: SweepConfig | None = None) -> np.nd
     yaws = np.deg2rad(np.arange(0.0, 360.0, cfg.yaw_step_deg))
     poses = []
     for x, z in xz:
-        position = np.array([x, nav.floor_height, z])
+        position = np.array([x, nav.floor_height + sim_config.sensor_height, z])
         for yaw in yaws:
             for pitch in cfg.pitches_deg:
-                poses.append(camera_pose(position, float(yaw), math.radians(pitch), sim_config.sensor_height))
+                poses.append(camera_pose(position, float(yaw), math.radians(pitch)))
     return np.stack(poses)
 
 
