@@ -14,16 +14,18 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from activesplat.splat.raster.constants import RASTER
-from activesplat.splat.raster.numba_tiles import pixel_range, tile_bounds
+from activesplat.splat.raster.numba_tiles import (
+    ALPHA_MAX,
+    ALPHA_MIN,
+    T_MEDIAN,
+    T_MIN,
+    TILE,
+    pixel_range,
+    tile_bounds,
+)
 from activesplat.splat.surfel.constants import SURFEL
 
 F32 = np.float32
-TILE = RASTER.tile_size
-ALPHA_MAX = F32(RASTER.alpha_max)
-ALPHA_MIN = F32(RASTER.alpha_min)
-T_MIN = F32(RASTER.transmittance_min)
-T_MEDIAN = F32(RASTER.median_transmittance)
 LOG_255 = F32(SURFEL.log_255)
 FILTER = F32(SURFEL.filter_inv_square)
 POWER_PAD = F32(SURFEL.power_pad)
