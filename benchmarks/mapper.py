@@ -1,4 +1,4 @@
-"""Online mapper benchmark: a scripted look-around-and-walk in a built-in scene (issue 4).
+"""Online mapper benchmark: a scripted look-around-and-walk in a built-in scene (paper sec. III-A).
 
     python benchmarks/mapper.py [--scene small-0] [--steps 300] [--backend auto] [--seed 0]
 
@@ -25,7 +25,7 @@ TILTS = ("look_down", "look_down", "look_down", "look_up", "look_up", "look_up")
 
 
 def bootstrap_actions() -> list[str]:
-    """REFERENCE.md sec. 1: one tilt after each of the 36 turns, ~72 actions, ending level."""
+    """docs/protocol.md §1: one tilt after each of the 36 turns, ~72 actions, ending level."""
     actions = []
     for i in range(36):
         actions += ["turn_left", TILTS[i % len(TILTS)]]
@@ -75,9 +75,9 @@ def run_episode(scene_name: str, steps: int, backend: str, seed: int, config: Ma
 
 def evaluate_keyframes(mapper: Mapper) -> dict[str, float]:
     """Means over the keyframes of the map rendered there: PSNR (dB); depth L1 (cm, over valid GT depth)
-    of the rendered depth as DESIGN.md defines it (alpha-blended sum w_i z_i, *not* divided by the
-    opacity; the metric of the target), its signed mean, and two secondary views for diagnosis: the
-    opacity-normalised depth sum w_i z_i / O and the median depth; the share of valid pixels whose
+    of the rendered depth as the rasterizer defines it (docs/protocol.md §8: alpha-blended sum w_i z_i, *not*
+    divided by the opacity; the metric of the target), its signed mean, and two secondary views for diagnosis:
+    the opacity-normalised depth sum w_i z_i / O and the median depth; the share of valid pixels whose
     rendered depth is off by more than 10 cm; the mean opacity over valid pixels."""
     rows: dict[str, list[float]] = defaultdict(list)
     for kf in mapper.keyframes:

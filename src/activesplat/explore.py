@@ -1,9 +1,9 @@
-"""`activesplat explore`: the closed loop of DESIGN.md, one episode.
+"""`activesplat explore`: the closed loop of the README ("What happens in an exploration"), one episode.
 
 Simulator -> posed RGB-D -> online mapper -> policy (workspace, Voronoi graph, viewpoints, hierarchical
 planning) -> action -> simulator, until the step budget is spent. The episode folder is written as the
 run goes (see `activesplat.episode`); completion is measured on the fly with the evaluation protocol
-(REFERENCE.md section 6) so the progress bar shows it, and `activesplat evaluate DIR` recomputes it from
+(docs/protocol.md §6) so the progress bar shows it, and `activesplat evaluate DIR` recomputes it from
 the action log alone.
 """
 

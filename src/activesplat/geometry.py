@@ -1,6 +1,6 @@
 """Camera geometry shared by every part of the loop.
 
-Conventions (DESIGN.md): world y up, metres; camera poses are 4x4 camera-to-world with OpenCV axes
+Conventions (docs/protocol.md §8): world y up, metres; camera poses are 4x4 camera-to-world with OpenCV axes
 (x right, y down, z forward). Yaw is measured about world +y: a heading of yaw `t` looks along
 (sin t, 0, cos t), so increasing yaw turns the view counter-clockwise seen from above (a left turn).
 Pitch is positive when looking up.

@@ -1,4 +1,4 @@
-"""Action geometry of the Habitat protocol (REFERENCE 1): 0.065 m steps, 10 deg turns, 15 deg looks
+"""Action geometry of the Habitat protocol (docs/protocol.md §1): 0.065 m steps, 10 deg turns, 15 deg looks
 within the documented pitch limits, blocked moves leave the pose unchanged, every action is a step."""
 
 import numpy as np

@@ -1,4 +1,4 @@
-"""Completion ratio and completion (paper sec. IV-B; REFERENCE.md section 6).
+"""Completion ratio and completion (paper sec. IV-B; docs/protocol.md §6).
 
 These measure the *observed sensor data*, not the map: after the reset and after every action, the
 ground-truth depth (at 128 x 128) is back-projected into world points; 200,000 points sampled (seeded) on
@@ -19,7 +19,7 @@ from activesplat.geometry import backproject
 
 @dataclass
 class CoverageConfig:
-    """Evaluation protocol constants (REFERENCE.md section 6)."""
+    """Evaluation protocol constants (docs/protocol.md §6)."""
 
     resolution: int = 128
     """Replay depth is rendered at 128 x 128 (half the 256 x 256 sensor), same field of view."""

@@ -1,6 +1,6 @@
 """`activesplat render-eval DIR`: rendering quality of a Gaussian map on train and test views.
 
-Protocol (paper sec. IV-B, REFERENCE.md sec. 6), defaults in :class:`RenderEvalConfig`:
+Protocol (paper sec. IV-B, docs/protocol.md §6), defaults in :class:`RenderEvalConfig`:
 
 - **train**: ``n_train`` (50) observations spread uniformly over the trajectory of ``poses.txt`` (the reset
   pose included): indices ``round(linspace(0, len(poses) - 1, n_train))``, duplicates dropped.
@@ -16,10 +16,10 @@ Protocol (paper sec. IV-B, REFERENCE.md sec. 6), defaults in :class:`RenderEvalC
   range 1, capped at 100 dB), SSIM (single-scale, pytorch-msssim, 11 px window) and MS-SSIM, LPIPS (AlexNet
   v0.1, inputs in [-1, 1]), and depth L1 (cm, over pixels with ground-truth depth > 0).
   ``depth_l1_cm`` uses the depth the mapper trains on: the alpha-blended, *un-normalised* sum w_i z_i
-  (SplaTAM's convention, DESIGN.md). ``depth_l1_cm_normalised`` divides it by the opacity (sum w_i z_i / O,
-  the expected depth of the visible surface); on unmapped pixels (O ~ 0) the first reads ~0 m and the
-  second is undefined (counted as 0 m), so both punish holes. ``unmapped_pct`` is the share of pixels
-  with rendered opacity below 0.5: it tells whether a low test score comes from unexplored space.
+  (SplaTAM's convention, docs/protocol.md §8). ``depth_l1_cm_normalised`` divides it by the opacity (sum w_i
+  z_i / O, the expected depth of the visible surface); on unmapped pixels (O ~ 0) the first reads ~0 m and the
+  second is undefined (counted as 0 m), so both punish holes. ``unmapped_pct`` is the share of pixels with
+  rendered opacity below 0.5: it tells whether a low test score comes from unexplored space.
 
 Outputs, next to the evaluated map (the episode folder, or ``refined_<method>/``): ``render_metrics.json``
 (written atomically) and ``render_grid.png`` (rows: a few train and test views; columns: ground truth,
@@ -52,7 +52,7 @@ Renderer = Callable[..., tuple[np.ndarray, np.ndarray, np.ndarray]]
 
 @dataclass(frozen=True)
 class RenderEvalConfig:
-    """Protocol constants of the rendering evaluation (REFERENCE.md sec. 6 unless noted)."""
+    """Protocol constants of the rendering evaluation (docs/protocol.md §6 unless noted)."""
 
     n_train: int = 50
     """Train views spread uniformly over the trajectory (paper: 50)."""

@@ -3,7 +3,7 @@
 Not a policy: no step budget, no map, no collisions. The camera is put on a regular grid over the
 agent's reachable navigable space (the component random starts are drawn from) and at every grid point
 looks all around, at every pitch the agent can reach; each view is counted with exactly the coverage
-protocol of the episodes (REFERENCE.md section 6: 128 x 128 ground-truth depth, the same 200k seeded
+protocol of the episodes (docs/protocol.md §6: 128 x 128 ground-truth depth, the same 200k seeded
 mesh samples, 1 m cap, 5 cm threshold). The result is the ceiling an explorer can approach within a
 budget: the completion ratio is below 100 % because some mesh surface (inside furniture, under beds,
 behind shelves) is visible from nowhere the agent can stand.
@@ -21,14 +21,14 @@ from activesplat.errors import InvalidInputError
 
 @dataclass
 class SweepConfig:
-    """Density of the exhaustive sweep (ours; the issue names the reference, not its sampling)."""
+    """Density of the exhaustive sweep (ours: a ceiling needs a dense sampling, not a particular one)."""
 
     spacing_m: float = 0.5
     """Grid spacing of the standing positions over the navigable space."""
     yaw_step_deg: float = 30.0
     """Yaw increment of the all-around look (the 90 deg field of view overlaps 3x at 30 deg)."""
     pitches_deg: tuple[float, ...] = (-45.0, 0.0, 45.0)
-    """Pitches at every yaw: the agent's full tilt range (+-45 deg, REFERENCE.md section 1)."""
+    """Pitches at every yaw: the agent's full tilt range (+-45 deg, docs/protocol.md §1)."""
 
 
 def sweep_poses(scene, sim_config=None, cfg: SweepConfig | None = None) -> np.ndarray:

@@ -90,7 +90,7 @@ class ExplorerConfig:
     one, and clearance is quantised to cells: without it an agent beside a wall corner fails every goal at
     its first forward step and turns on the spot for hundreds of steps."""
     panorama_height_m: float = 1.25
-    """Panoramas are rendered at the sensor height above the floor (REFERENCE.md section 1)."""
+    """Panoramas are rendered at the sensor height above the floor (docs/protocol.md §1)."""
     hierarchical: bool = True
     """Local-then-global goal selection over subregions (paper sec. III-C); off for `no-hp`."""
     rotations: bool = True
@@ -206,7 +206,7 @@ class Explorer:
         if getattr(obs, "collided", False):
             self._on_collision(pose)
         action = self._next(pose)
-        # map densely whenever the agent is not travelling: bootstrap, rotations, escapes (docs/protocol.md)
+        # map densely whenever the agent is not travelling: bootstrap, rotations, escapes (docs/protocol.md §2)
         self.dense_mapping = self.follower is None
         return action
 

@@ -1,5 +1,5 @@
 """The simulated agent: Habitat-style discrete actions, collision against the navigability map, and
-posed RGB-D observations from the Embree sensor (REFERENCE.md section 1).
+posed RGB-D observations from the Embree sensor (docs/protocol.md §1).
 
 Yaw and pitch follow `activesplat.geometry`: yaw 0 looks along +z, TURN_LEFT adds `turn_deg`
 (counter-clockwise seen from +y); pitch > 0 looks up. Camera pose: 4x4 camera-to-world with OpenCV axes
@@ -118,7 +118,7 @@ class Simulator:
         return self.observe()
 
     def step(self, action: str) -> Observation:
-        """Apply one action (REFERENCE 1 table) and observe; unknown names raise InvalidActionError."""
+        """Apply one action (docs/protocol.md §1) and observe; unknown names raise InvalidActionError."""
         return self.observe(self.act(action))
 
     def act(self, action: str) -> bool:

@@ -70,7 +70,7 @@ class GaussianMap:
     def raw_from_points(points: torch.Tensor, rgb: torch.Tensor, radii: torch.Tensor,
                         opacity: float) -> dict[str, torch.Tensor]:
         """Isotropic Gaussians at ``points`` (M,3) with colour ``rgb`` (M,3) in [0,1] and radius ``radii``
-        (M,), identity rotation, opacity ``opacity`` (REFERENCE.md sec. 2, initialisation)."""
+        (M,), identity rotation, opacity ``opacity`` (docs/protocol.md §2, initialisation)."""
         m = points.shape[0]
         quats = torch.zeros((m, 4), dtype=torch.float32, device=points.device)
         quats[:, 0] = 1.0

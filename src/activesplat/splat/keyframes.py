@@ -1,7 +1,7 @@
 """Keyframe buffer and overlap-based window selection (SplaTAM's keyframe selection, as the release).
 
 The mapping window of a frame is the ``k`` keyframes that see most of what the current frame sees,
-plus the last keyframe, plus the current frame (REFERENCE.md sec. 2). Overlap of a keyframe = the
+plus the last keyframe, plus the current frame (docs/protocol.md §2). Overlap of a keyframe = the
 share of ``n_pixels`` sampled valid-depth pixels of the current frame that, back-projected to the
 world and projected into the keyframe, land in front of it and more than ``border`` pixels inside
 its image.

@@ -1,4 +1,4 @@
-"""Safe paths on the Voronoi graph (paper sec. III-C; REFERENCE.md sec. 5): Dijkstra on the graph,
+"""Safe paths on the Voronoi graph (paper sec. III-C; docs/protocol.md §5): Dijkstra on the graph,
 entered and left at the nearest vertex visible from the start / goal, shortcut to the farthest
 waypoint in line of sight; line of sight needs 2 agent radii of clearance on the workspace."""
 
@@ -55,7 +55,7 @@ def visible_nodes(graph: nx.Graph, workspace: Workspace, xz: np.ndarray, cfg: Wo
 
 
 def shortcut(waypoints: np.ndarray, workspace: Workspace, cfg: WorkspaceConfig) -> np.ndarray:
-    """From each kept waypoint jump to the farthest later waypoint in line of sight (REFERENCE sec. 5)."""
+    """From each kept waypoint jump to the farthest later waypoint in line of sight (docs/protocol.md §5)."""
     kept, i = [0], 0
     last = len(waypoints) - 1
     while i < last:

@@ -16,7 +16,7 @@ G = max(exp(-(u^2 + v^2) / 2), exp(-|x - c_2d|^2)) (the 2DGS low-pass, sigma = s
 projected centre c_2d); its depth is the view z of the intersection point where the ray-splat term wins
 and the centre's z where the low-pass wins (2DGS ``diff-surfel-rasterization``).
 
-Compositing has the 3D rasterizer's semantics (DESIGN.md): alpha_i = min(0.99, o_i G), skipped below
+Compositing has the 3D rasterizer's semantics (docs/protocol.md §8): alpha_i = min(0.99, o_i G), skipped below
 1/255, front to back by centre view depth (stable), a pixel stops before the surfel that would bring T
 below 1e-4; rgb = sum w_i c_i + background T, depth = sum w_i z_i (not normalised), alpha = 1 - T,
 median_depth = z where T first drops below 0.5 (0 if never), with w_i = alpha_i T_i.
