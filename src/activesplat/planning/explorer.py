@@ -206,7 +206,7 @@ class Explorer:
         if getattr(obs, "collided", False):
             self._on_collision(pose)
         action = self._next(pose)
-        # map densely whenever the agent is not travelling: bootstrap, rotations, escapes (docs/protocol.md §2)
+        # map densely whenever the agent is not travelling (docs/protocol.md §2)
         self.dense_mapping = self.follower is None
         return action
 
