@@ -36,9 +36,9 @@ import numpy as np
 import torch
 
 from activesplat.episode import read_episode
+from activesplat.geometry import backproject
 from activesplat.sim import Simulator, load_scene
 from activesplat.splat import Mapper, MapperConfig
-from activesplat.splat.keyframes import backproject
 
 TILTS = ("look_down", "look_down", "look_down", "look_up", "look_up", "look_up")
 SURFACE_VOXEL_M = 0.05
@@ -46,7 +46,7 @@ BYTES_PER_GAUSSIAN = 4 * (14 + 2 * 14) + 4  # float32 parameters, two Adam momen
 
 
 def bootstrap_actions() -> list[str]:
-    """The look-around of the explorer's bootstrap: one tilt after each of the 36 turns, ending level."""
+    """The bootstrap look-around (docs/protocol.md §1): a tilt after each of the 36 turns, ending level."""
     actions = []
     for i in range(36):
         actions += ["turn_left", TILTS[i % len(TILTS)]]

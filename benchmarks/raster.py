@@ -22,7 +22,8 @@ import time
 
 import torch
 
-from activesplat.splat import _raster_numba, rasterize
+from activesplat.splat import rasterize
+from activesplat.splat.raster import numba_backend as _raster_numba
 
 WIDTH = HEIGHT = 256
 ROOM = (6.0, 2.8, 4.0)  # x, y (up), z extents in metres
@@ -120,7 +121,7 @@ def print_stage_table(sizes, repeats: int) -> None:
 
 def warm_time() -> float:
     """Seconds to compile (or load from the disk cache) the numba kernels in this process."""
-    from activesplat.splat._raster_numba import warm_up
+    from activesplat.splat.raster.numba_backend import warm_up
 
     t0 = time.perf_counter()
     warm_up()

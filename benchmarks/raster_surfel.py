@@ -70,7 +70,7 @@ def main() -> None:
                         help="N also timed with the torch reference (slow)")
     parser.add_argument("--torch-repeats", type=int, default=1)
     args = parser.parse_args()
-    from activesplat.splat._surfel_numba import warm_up
+    from activesplat.splat.surfel.numba_backend import warm_up
 
     t0 = time.perf_counter()
     warm_up()

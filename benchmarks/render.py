@@ -1,5 +1,5 @@
 """Rendering quality of an episode's online map and of its offline refinements, like the paper's Tab. V
-(post-processing ablation on Gibson-Denmark), issue 7.
+(post-processing ablation on Gibson-Denmark).
 
     python benchmarks/render.py [EPISODE] [--iters 2000] [--budget-min 30] [--methods 3dgs 2dgs]
                                 [--n-train 50] [--n-test 50] [--backend auto]

@@ -1,4 +1,4 @@
-"""Simulator speed (issue 2 targets): one RGB-D step at 256x256 against a bare Embree depth raycast of
+"""Simulator speed (targets in the README): one RGB-D step at 256x256 against a bare Embree depth raycast of
 the same frame, measured in the same run (target <= 2x), and scene build + navigability map for
 medium houses (target < 10 s). Prints a markdown table (median of repeats).
 

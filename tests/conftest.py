@@ -6,6 +6,6 @@ import pytest
 @pytest.fixture(scope="session", autouse=True)
 def warm_numba_rasterizer():
     """Warm the numba rasterizer once per test run so no single test pays the JIT time."""
-    from activesplat.splat._raster_numba import warm_up
+    from activesplat.splat.raster.numba_backend import warm_up
 
     warm_up()

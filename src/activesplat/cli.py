@@ -59,7 +59,7 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
 
 # --------------------------------------------------------------------------- render-eval / refine
 def _cmd_render_eval(args: argparse.Namespace) -> int:
-    from activesplat.eval.render_eval import render_eval_from_args
+    from activesplat.refine.maps import render_eval_from_args
 
     return render_eval_from_args(args)
 

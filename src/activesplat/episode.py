@@ -1,5 +1,5 @@
-"""The episode folder (DESIGN.md): what an exploration leaves behind, written so that a crash or Ctrl-C
-leaves a consistent, evaluable partial episode.
+"""The episode folder (README, "The episode folder"): what an exploration leaves behind, written so
+that a crash or Ctrl-C leaves a consistent, evaluable partial episode.
 
 - ``episode.json``  scene, seed, policy, start pose, configuration (written first, atomically)
 - ``actions.txt``   one action name per line, appended and flushed as actions happen

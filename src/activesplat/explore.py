@@ -1,9 +1,9 @@
-"""`activesplat explore`: the closed loop of DESIGN.md, one episode.
+"""`activesplat explore`: the closed loop of the README ("What happens in an exploration"), one episode.
 
 Simulator -> posed RGB-D -> online mapper -> policy (workspace, Voronoi graph, viewpoints, hierarchical
 planning) -> action -> simulator, until the step budget is spent. The episode folder is written as the
 run goes (see `activesplat.episode`); completion is measured on the fly with the evaluation protocol
-(REFERENCE.md section 6) so the progress bar shows it, and `activesplat evaluate DIR` recomputes it from
+(docs/protocol.md §6) so the progress bar shows it, and `activesplat evaluate DIR` recomputes it from
 the action log alone.
 """
 
@@ -43,10 +43,10 @@ def run_exploration(scene="small-0", policy: str = "activesplat", steps: int | N
 
     from activesplat.eval.coverage import CoverageAccumulator, CoverageConfig
     from activesplat.geometry import intrinsics
-    from activesplat.planning.explorer import Timers
     from activesplat.planning.policies import POLICY_NAMES, make_policy
     from activesplat.sim import Scene, SimConfig, Simulator, load_scene
     from activesplat.splat import Mapper
+    from activesplat.timing import Timers
 
     if policy not in POLICY_NAMES:
         raise InvalidInputError(f"unknown policy {policy!r}; choose one of: {', '.join(POLICY_NAMES)}")
@@ -169,8 +169,8 @@ def _curve_point(step: int, coverage, forward: int, sim_config) -> dict:
 def _save_map(mapper, explorer, out_dir: Path, floor_height: float) -> None:
     """gaussians.ply (+ keyframes) and topdown.png of the map as it is now."""
     from activesplat.planning.controller import floor_xz
-    from activesplat.planning.explorer import build_plan
     from activesplat.workspace.draw import draw_topdown
+    from activesplat.workspace.plan import build_plan
 
     mapper.save(out_dir)
     traj = np.array(explorer.visited) if explorer.visited else None

@@ -1,6 +1,6 @@
 """Camera geometry shared by every part of the loop.
 
-Conventions (DESIGN.md): world y up, metres; camera poses are 4x4 camera-to-world with OpenCV axes
+Conventions (docs/protocol.md §8): world y up, metres; camera poses are 4x4 camera-to-world with OpenCV axes
 (x right, y down, z forward). Yaw is measured about world +y: a heading of yaw `t` looks along
 (sin t, 0, cos t), so increasing yaw turns the view counter-clockwise seen from above (a left turn).
 Pitch is positive when looking up.
@@ -49,6 +49,20 @@ def yaw_pitch_of(direction) -> tuple[float, float]:
 def pose_yaw_pitch(pose: np.ndarray) -> tuple[float, float]:
     """(yaw, pitch) of a camera-to-world pose's optical axis."""
     return yaw_pitch_of(np.asarray(pose)[:3, 2])
+
+
+def backproject(depth: np.ndarray, pose: np.ndarray, K: np.ndarray, v: np.ndarray | None = None,
+                u: np.ndarray | None = None) -> np.ndarray:
+    """World points (M, 3) of the pixels (v, u) (rows, columns; default: every pixel with depth > 0) of a
+    z-depth image seen from a camera-to-world `pose` with intrinsics K; pixel centres at integer + 0.5 (the
+    rasterizer's convention)."""
+    if v is None or u is None:
+        v, u = np.nonzero(np.asarray(depth) > 0)
+    z = np.asarray(depth)[v, u].astype(np.float64)
+    x = (u + 0.5 - K[0, 2]) / K[0, 0] * z
+    y = (v + 0.5 - K[1, 2]) / K[1, 1] * z
+    cam = np.stack([x, y, z], axis=1)
+    return cam @ pose[:3, :3].T + pose[:3, 3]
 
 
 def wrap_angle(a):

@@ -1,8 +1,8 @@
 import numpy as np
 import pytest
 
-from activesplat.eval.coverage import CoverageAccumulator, CoverageConfig, backproject
-from activesplat.geometry import camera_pose, intrinsics
+from activesplat.eval.coverage import CoverageAccumulator, CoverageConfig
+from activesplat.geometry import backproject, camera_pose, intrinsics
 
 
 def _plane_depth(K, w, h, dist):

@@ -120,7 +120,8 @@ def test_explicit_gaussians_and_out_dir(episode, result, tmp_path):
             if result[split][key] is None:  # MS-SSIM is undefined below its minimum image size
                 assert again[split][key] is None, (split, key)
             else:
-                assert again[split][key] == pytest.approx(result[split][key], rel=1e-5, abs=1e-6), (split, key)
+                expected = pytest.approx(result[split][key], rel=1e-5, abs=1e-6)
+                assert again[split][key] == expected, (split, key)
 
 
 def test_custom_renderer(episode, result, tmp_path):
@@ -189,7 +190,7 @@ def test_cli_prints_a_table(episode, tmp_path, capsys):
 def test_cli_renders_a_refined_2dgs_folder_with_the_surfel_rasterizer(tmp_path, monkeypatch):
     import argparse
 
-    from activesplat.eval import render_eval as reval
+    from activesplat.refine import maps as reval
     from activesplat.refine.surfels import render_surfel_view
 
     (tmp_path / "episode.json").write_text("{}")

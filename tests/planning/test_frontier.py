@@ -2,7 +2,13 @@ import numpy as np
 import pytest
 
 from activesplat.errors import InvalidInputError
-from activesplat.planning.frontier import descend, frontier_cells, grid_distances
+from activesplat.planning.frontier import (
+    FrontierConfig,
+    descend,
+    frontier_cells,
+    grid_distances,
+    nearest_frontier_path,
+)
 from activesplat.planning.policies import POLICY_NAMES, make_policy
 
 
@@ -40,10 +46,8 @@ def test_policies_start_with_the_bootstrap_look_around():
         assert p.queue.count("turn_left") == 36 and len(p.queue) == 72
 
 
-def _frontier_explorer_on(free, obstacle):
-    """A FrontierExplorer whose plan is a synthetic layout (no map, no rendering)."""
-    from activesplat.planning.explorer import Plan
-    from activesplat.planning.frontier import FrontierExplorer
+def _layout(free, obstacle):
+    """Top-down grids and workspace of a synthetic layout (no map, no rendering)."""
     from activesplat.workspace.clean import extract_workspace
     from activesplat.workspace.config import WorkspaceConfig
     from activesplat.workspace.topdown import GridGeometry, grids_from_alpha
@@ -51,10 +55,8 @@ def _frontier_explorer_on(free, obstacle):
     cfg = WorkspaceConfig(resolution=0.05)
     geometry = GridGeometry(origin=np.zeros(2), resolution=0.05, shape=free.shape)
     grids = grids_from_alpha(geometry, free.astype(np.float32), obstacle.astype(np.float32), 0.0, cfg)
-    fe = FrontierExplorer(world=None, floor_height=0.0)
     here = np.array([1.0, 1.0])
-    fe.plan = Plan(grids=grids, workspace=extract_workspace(grids, here, cfg))
-    return fe, here
+    return grids, extract_workspace(grids, here, cfg), here, cfg
 
 
 def test_fbe_goes_to_the_nearest_frontier_and_not_back_to_a_reached_one():
@@ -63,9 +65,8 @@ def test_fbe_goes_to_the_nearest_frontier_and_not_back_to_a_reached_one():
     x, z = (cols + 0.5) * 0.05, (rows + 0.5) * 0.05
     free = (x > 0.3) & (x < 3.0) & (z > 0.3) & (z < 2.3)
     walls = ((x > 0.15) & (x < 3.0) & (z > 0.15) & (z < 2.45)) & ~free
-    fe, here = _frontier_explorer_on(free, walls)
-    path = fe._nearest_frontier_path(here)
-    assert path is not None and path[-1][0] > 2.5  # the frontier is the room's open right side
-    fe.reached.append(path[-1])
-    again = fe._nearest_frontier_path(here)
+    grids, ws, here, cfg = _layout(free, walls)
+    path, found = nearest_frontier_path(grids, ws, here, [], cfg, FrontierConfig())
+    assert found and path is not None and path[-1][0] > 2.5  # the frontier is the room's open right side
+    again, _ = nearest_frontier_path(grids, ws, here, [path[-1]], cfg, FrontierConfig())  # reached
     assert again is None or np.hypot(*(again[-1] - path[-1])) > 0.5

@@ -80,7 +80,7 @@ def test_large_gaussian_with_large_gradient_is_split():
     assert torch.equal(children["quats"], parent["quats"].expand(2, 4))
     assert torch.equal(children["f_dc"], parent["f_dc"].expand(2, 3))
     # children are drawn from the parent's Gaussian: within 4 sigma along each of its own axes
-    from activesplat.splat._raster_torch import quat_to_rotmat
+    from activesplat.splat.kernels import quat_to_rotmat
 
     rot = quat_to_rotmat(parent["quats"][None])[0]
     local = (children["means"] - parent["means"]) @ rot  # coordinates in the parent's frame

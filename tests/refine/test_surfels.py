@@ -17,7 +17,7 @@ from activesplat.refine.surfels import (
     surfel_raw_from_gaussians,
 )
 from activesplat.splat import GaussianMap, load_ply
-from activesplat.splat._raster_torch import quat_to_rotmat
+from activesplat.splat.kernels import quat_to_rotmat
 
 
 def _random_quats(n, seed=0):

@@ -1,11 +1,11 @@
-"""Action geometry of the Habitat protocol (REFERENCE 1): 0.065 m steps, 10 deg turns, 15 deg looks
+"""Action geometry of the Habitat protocol (docs/protocol.md §1): 0.065 m steps, 10 deg turns, 15 deg looks
 within the documented pitch limits, blocked moves leave the pose unchanged, every action is a step."""
 
 import numpy as np
 import pytest
 
-from activesplat.geometry import intrinsics
-from activesplat.sim import ACTIONS, SimConfig, Simulator, camera_pose
+from activesplat.geometry import camera_pose, intrinsics
+from activesplat.sim import ACTIONS, SimConfig, Simulator
 
 CFG = SimConfig()
 
@@ -18,7 +18,7 @@ def _yaw_pitch(pose):
 
 def _centre_pose(scene):
     """Level camera in the middle of the box room, looking along -z."""
-    return camera_pose(np.array([2.0, 0.0, 1.5]), 0.0, 0.0, CFG.sensor_height)
+    return camera_pose(np.array([2.0, CFG.sensor_height, 1.5]), np.pi, 0.0)
 
 
 def test_intrinsics_and_pose_conventions(box):
@@ -91,7 +91,7 @@ def test_forward_ignores_pitch_and_stop_changes_nothing(box):
 
 def test_blocked_move_keeps_pose_and_counts(box):
     """Walk into the wall at z = 0: the last allowed position keeps the radius, then no sliding."""
-    sim = Simulator(box, start=camera_pose(np.array([1.3, 0.0, 1.5]), np.deg2rad(20.0), 0.0, 1.25))
+    sim = Simulator(box, start=camera_pose(np.array([1.3, 1.25, 1.5]), np.deg2rad(200.0), 0.0))
     sim.reset()
     obs = [sim.step("move_forward") for _ in range(40)]
     blocked = [o for o in obs if o.collided]

@@ -1,5 +1,5 @@
-"""Every bad input of issue 2 raises a clear ActiveSplatError naming the file or value; on the command
-line it becomes a one-line error with exit code 2 and no traceback."""
+"""Every bad input of the simulator and the command line raises a clear ActiveSplatError naming the
+file or value; on the command line it becomes a one-line error with exit code 2 and no traceback."""
 
 import numpy as np
 import pytest

@@ -4,7 +4,13 @@ shading, textures, determinism of images and poses per seed."""
 import numpy as np
 import pytest
 
-from activesplat.sim import SimConfig, Simulator, box_room, camera_pose
+from activesplat.geometry import camera_pose
+from activesplat.sim import SimConfig, Simulator, box_room
+
+
+def _sensor_pose(floor_position, yaw, pitch):
+    """The camera 1.25 m above a floor position, at (yaw, pitch) (`geometry.camera_pose` conventions)."""
+    return camera_pose(np.add(floor_position, [0.0, 1.25, 0.0]), yaw, pitch)
 
 
 def _box_depth(pose, K, width, height, size):
@@ -24,7 +30,7 @@ def _box_depth(pose, K, width, height, size):
                                                                 ((2.0, 0.0, 2.0), 200.0, -45.0)])
 def test_depth_equals_ray_plane_intersection(flat_box, position, yaw_deg, pitch_deg):
     sim = Simulator(flat_box, seed=0)
-    pose = camera_pose(np.array(position), np.deg2rad(yaw_deg), np.deg2rad(pitch_deg), 1.25)
+    pose = _sensor_pose(position, np.deg2rad(yaw_deg), np.deg2rad(pitch_deg))
     _, depth = sim.render(pose)
     expected = _box_depth(pose, sim.K, 256, 256, (4.0, 2.6, 3.0))
     np.testing.assert_allclose(depth, expected, atol=2e-4, rtol=1e-5)
@@ -33,7 +39,7 @@ def test_depth_equals_ray_plane_intersection(flat_box, position, yaw_deg, pitch_
 def test_depth_beyond_10_m_reads_zero():
     long_room = box_room(width=14.0, depth=3.0, textured=False)
     sim = Simulator(long_room, seed=0, config=SimConfig(width=64, height=48, hfov_deg=70.0))
-    pose = camera_pose(np.array([0.5, 0.0, 1.5]), -np.pi / 2, 0.0, 1.25)  # looking along +x
+    pose = _sensor_pose([0.5, 0.0, 1.5], np.pi / 2, 0.0)  # looking along +x
     _, depth = sim.render(pose)
     expected = _box_depth(pose, sim.K, 64, 48, (14.0, 2.6, 3.0))
     assert (expected > 10.0).sum() > 100 and (expected < 10.0).sum() > 100
@@ -48,8 +54,8 @@ def test_shading_is_view_independent(flat_box):
     sim = Simulator(flat_box, seed=0)
     colours = []
     for position, yaw in (((1.0, 0.0, 2.5), 0.0), ((3.5, 0.0, 0.5), 0.7), ((2.0, 0.0, 1.5), 2.5)):
-        rgb, depth = sim.render(camera_pose(np.array(position), yaw, np.deg2rad(-30.0), 1.25))
-        pose = camera_pose(np.array(position), yaw, np.deg2rad(-30.0), 1.25)
+        rgb, depth = sim.render(_sensor_pose(position, yaw, np.deg2rad(-30.0)))
+        pose = _sensor_pose(position, yaw, np.deg2rad(-30.0))
         floor_y = _floor_mask(pose, sim.K, depth)
         floor = rgb[floor_y]
         assert len(floor) > 1000
@@ -69,7 +75,7 @@ def _floor_mask(pose, K, depth):
 
 
 def test_textured_surfaces_are_not_flat(box, flat_box, small0):
-    pose = camera_pose(np.array([2.0, 0.0, 2.6]), 0.0, np.deg2rad(-30.0), 1.25)
+    pose = _sensor_pose([2.0, 0.0, 2.6], np.pi, np.deg2rad(-30.0))  # looking along -z
     textured, _ = Simulator(box, seed=0).render(pose)
     flat, _ = Simulator(flat_box, seed=0).render(pose)
     assert textured[128:, 64:192].reshape(-1, 3).std(axis=0).min() > 5.0  # wood floor and plaster wall
@@ -103,7 +109,7 @@ def test_determinism_per_seed(small0):
 
 
 def test_explicit_start_pose_is_kept(box):
-    pose = camera_pose(np.array([1.0, 0.0, 2.0]), 0.4, 0.0, 1.25)
+    pose = _sensor_pose([1.0, 0.0, 2.0], 0.4, 0.0)
     sim = Simulator(box, start=pose)
     np.testing.assert_allclose(sim.reset().pose, pose, atol=1e-12)
     np.testing.assert_allclose(sim.start_pose, pose, atol=1e-12)

@@ -2,9 +2,9 @@
 
 import numpy as np
 
+from activesplat.geometry import backproject
 from activesplat.splat.keyframes import (
     Keyframe,
-    backproject,
     mapping_window,
     overlap_fraction,
     select_overlapping,

@@ -7,7 +7,7 @@ from raster_scenes import intrinsics, random_scene
 from test_rasterize_torch import assert_top_down_pixels
 
 from activesplat.splat import rasterize
-from activesplat.splat._raster_numba_tiles import POWER_CAP, exp_neg
+from activesplat.splat.raster.numba_tiles import POWER_CAP, exp_neg
 
 W, H = 40, 30  # partial tiles on the right and bottom edges
 BG = torch.tensor([0.1, 0.2, 0.3])
@@ -126,7 +126,7 @@ def test_vectorisable_exp_matches_numpy():
 def test_parallel_tile_lists_are_stable_and_match_the_binned_rows():
     """Enough Gaussians for several chunks: every tile lists its Gaussians in ``order`` order, and the
     fused binning writes each instance the row of the Gaussian the plain lists name."""
-    from activesplat.splat import _raster_numba_tiles as tiles
+    from activesplat.splat.raster import numba_tiles as tiles
 
     rng = np.random.default_rng(3)
     n, grid_x, grid_y = 20_000, 7, 5

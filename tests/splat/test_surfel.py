@@ -8,7 +8,7 @@ from raster_scenes import intrinsics
 
 from activesplat.errors import InvalidInputError
 from activesplat.splat import RenderOutput, SurfelRenderOutput, rasterize_surfels
-from activesplat.splat._surfel_torch import rasterize_surfels_torch
+from activesplat.splat.surfel.torch_ref import rasterize_surfels_torch
 
 W, H = 40, 30  # partial tiles on the right and bottom edges
 BG = torch.tensor([0.1, 0.2, 0.3])
@@ -18,7 +18,7 @@ IMAGES = ("rgb", "depth", "alpha", "normal", "distortion")
 @pytest.fixture(scope="module", autouse=True)
 def warm_surfel_kernels():
     """Compile (or load from numba's disk cache) the surfel kernels once for this module."""
-    from activesplat.splat._surfel_numba import warm_up
+    from activesplat.splat.surfel.numba_backend import warm_up
 
     warm_up()
 

@@ -23,7 +23,7 @@ from activesplat.cli import main
 from activesplat.errors import EpisodeError, InvalidInputError
 from activesplat.eval.coverage import CoverageConfig
 from activesplat.explore import run_exploration
-from activesplat.planning.explorer import ExplorerView, Plan
+from activesplat.planning.explorer import ExplorerView
 from activesplat.planning.viewpoints import RotationTarget
 from activesplat.sim import SimConfig
 from activesplat.splat.gaussians import GaussianMap
@@ -37,6 +37,7 @@ from activesplat.viz.viewer import (
     splat_arrays,
     start_server,
 )
+from activesplat.workspace.plan import Plan
 
 TINY = dict(sim_config=SimConfig(width=64, height=64), coverage_config=CoverageConfig(n_gt_points=2000,
                                                                                      batch_frames=10),

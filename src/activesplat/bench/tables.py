@@ -1,5 +1,5 @@
 """Benchmark tables from the episode folders on disk: a CSV with one row per run, and markdown in the
-style of the paper's tables (REFERENCE.md section 6):
+style of the paper's tables (docs/protocol.md §6):
 
 - Tab. I   exploration: rows = policies, completion ratio % / completion cm / path length m / ms per step,
            mean ± std over trials per scene, then the average over scenes;
@@ -264,7 +264,7 @@ def markdown_report(records: Sequence[RunRecord], cfg: TableConfig | None = None
            f"Cells: mean ± std over trials (std with ddof={res.cfg.std_ddof}; one trial: the value). "
            "Averages: mean over scenes of the per-scene means, ± the std over seeds of the per-seed averages "
            "over scenes (seeds complete on every scene); † = some scene has no complete run. Completion "
-           "ratio and completion follow the paper's protocol (REFERENCE.md sec. 6); ms/step is the wall time "
+           "ratio and completion follow the paper's protocol (docs/protocol.md §6); ms/step is the wall time "
            "of the whole step including the live evaluation.", ""]
     main = [p for p in res.policies if p not in ABLATION_POLICIES]
     ablations = [p for p in res.policies if p in ABLATION_POLICIES]

@@ -1,4 +1,4 @@
-"""Completion ratio and completion (paper sec. IV-B; REFERENCE.md section 6).
+"""Completion ratio and completion (paper sec. IV-B; docs/protocol.md §6).
 
 These measure the *observed sensor data*, not the map: after the reset and after every action, the
 ground-truth depth (at 128 x 128) is back-projected into world points; 200,000 points sampled (seeded) on
@@ -14,10 +14,12 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from activesplat.geometry import backproject
+
 
 @dataclass
 class CoverageConfig:
-    """Evaluation protocol constants (REFERENCE.md section 6)."""
+    """Evaluation protocol constants (docs/protocol.md §6)."""
 
     resolution: int = 128
     """Replay depth is rendered at 128 x 128 (half the 256 x 256 sensor), same field of view."""
@@ -34,15 +36,6 @@ class CoverageConfig:
     voxel of this size: error below sqrt(3) x size on distances over 1 m; exact within the cap."""
     batch_frames: int = 50
     """Frames whose points are pooled into one KD-tree per update (a speed knob; the result is exact)."""
-
-
-def backproject(depth: np.ndarray, pose: np.ndarray, K: np.ndarray) -> np.ndarray:
-    """World points (M, 3) of the valid (> 0) pixels of a z-depth image seen from a camera-to-world pose."""
-    depth = np.asarray(depth, np.float64)
-    v, u = np.nonzero(depth > 0)
-    z = depth[v, u]
-    cam = np.stack([(u + 0.5 - K[0, 2]) / K[0, 0] * z, (v + 0.5 - K[1, 2]) / K[1, 1] * z, z], axis=1)
-    return cam @ pose[:3, :3].T + pose[:3, 3]
 
 
 def _tree(points: np.ndarray) -> cKDTree:

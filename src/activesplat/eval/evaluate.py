@@ -24,7 +24,7 @@ def _sim_config(meta: dict):
 
 
 def evaluate_episode(path: str | Path, write: bool = True) -> dict:
-    """Replay DIR/actions.txt from the recorded start pose, measure completion (REFERENCE.md section 6) and
+    """Replay DIR/actions.txt from the recorded start pose, measure completion (docs/protocol.md §6) and
     update DIR/metrics.json (a partial episode gets one marked `"complete": false`)."""
     from activesplat.sim import load_scene
 

@@ -1,4 +1,4 @@
-"""Per-view rendering metrics (paper sec. IV, REFERENCE.md sec. 6): PSNR, SSIM, MS-SSIM, LPIPS, depth L1.
+"""Per-view rendering metrics (paper sec. IV, docs/protocol.md §6): PSNR, SSIM, MS-SSIM, LPIPS, depth L1.
 
 Colour images are (H,W,3) in [0, 1] (uint8 inputs are divided by 255; renders are clamped to [0, 1]).
 

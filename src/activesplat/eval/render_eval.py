@@ -1,6 +1,6 @@
 """`activesplat render-eval DIR`: rendering quality of a Gaussian map on train and test views.
 
-Protocol (paper sec. IV-B, REFERENCE.md sec. 6), defaults in :class:`RenderEvalConfig`:
+Protocol (paper sec. IV-B, docs/protocol.md §6), defaults in :class:`RenderEvalConfig`:
 
 - **train**: ``n_train`` (50) observations spread uniformly over the trajectory of ``poses.txt`` (the reset
   pose included): indices ``round(linspace(0, len(poses) - 1, n_train))``, duplicates dropped.
@@ -16,10 +16,10 @@ Protocol (paper sec. IV-B, REFERENCE.md sec. 6), defaults in :class:`RenderEvalC
   range 1, capped at 100 dB), SSIM (single-scale, pytorch-msssim, 11 px window) and MS-SSIM, LPIPS (AlexNet
   v0.1, inputs in [-1, 1]), and depth L1 (cm, over pixels with ground-truth depth > 0).
   ``depth_l1_cm`` uses the depth the mapper trains on: the alpha-blended, *un-normalised* sum w_i z_i
-  (SplaTAM's convention, DESIGN.md). ``depth_l1_cm_normalised`` divides it by the opacity (sum w_i z_i / O,
-  the expected depth of the visible surface); on unmapped pixels (O ~ 0) the first reads ~0 m and the
-  second is undefined (counted as 0 m), so both punish holes. ``unmapped_pct`` is the share of pixels
-  with rendered opacity below 0.5: it tells whether a low test score comes from unexplored space.
+  (SplaTAM's convention, docs/protocol.md §8). ``depth_l1_cm_normalised`` divides it by the opacity (sum w_i
+  z_i / O, the expected depth of the visible surface); on unmapped pixels (O ~ 0) the first reads ~0 m and the
+  second is undefined (counted as 0 m), so both punish holes. ``unmapped_pct`` is the share of pixels with
+  rendered opacity below 0.5: it tells whether a low test score comes from unexplored space.
 
 Outputs, next to the evaluated map (the episode folder, or ``refined_<method>/``): ``render_metrics.json``
 (written atomically) and ``render_grid.png`` (rows: a few train and test views; columns: ground truth,
@@ -28,8 +28,6 @@ render, depth error heat map with its colour bar).
 
 from __future__ import annotations
 
-import argparse
-import json
 import math
 import sys
 import time
@@ -54,7 +52,7 @@ Renderer = Callable[..., tuple[np.ndarray, np.ndarray, np.ndarray]]
 
 @dataclass(frozen=True)
 class RenderEvalConfig:
-    """Protocol constants of the rendering evaluation (REFERENCE.md sec. 6 unless noted)."""
+    """Protocol constants of the rendering evaluation (docs/protocol.md §6 unless noted)."""
 
     n_train: int = 50
     """Train views spread uniformly over the trajectory (paper: 50)."""
@@ -104,16 +102,16 @@ def train_indices(n_poses: int, n: int) -> np.ndarray:
 def sample_test_poses(sim, n: int, seed: int, pitch_deg: float = 0.0) -> np.ndarray:
     """(n, 4, 4) seeded random camera poses in the scene's free space: a random cell of the largest
     navigable component (as the simulator's random start), sensor height, random yaw, fixed pitch."""
-    from activesplat.sim.simulator import camera_pose
+    from activesplat.geometry import camera_pose
 
     rng = np.random.default_rng((TEST_POSE_STREAM, seed))
-    floor = sim.scene.floor_height
+    height = sim.scene.floor_height + sim.config.sensor_height
     poses = []
     for _ in range(n):
         x, z = sim.navmap.sample_navigable(rng)
-        yaw = float(rng.uniform(-np.pi, np.pi))
-        poses.append(camera_pose(np.array([x, floor, z]), yaw, math.radians(pitch_deg),
-                                 sim.config.sensor_height))
+        u = float(rng.uniform(-np.pi, np.pi))  # heading (-sin u, 0, -cos u): the views of earlier versions
+        yaw = math.atan2(-math.sin(u), -math.cos(u))
+        poses.append(camera_pose(np.array([x, height, z]), yaw, math.radians(pitch_deg)))
     return np.stack(poses)
 
 
@@ -272,9 +270,10 @@ def _name_of(fn) -> str:
 def _describe_view(split: str, pose: np.ndarray, steps: np.ndarray, i: int) -> dict:
     if split == "train":
         return {"step": int(steps[i])}
-    fwd = pose[:3, 2]
+    from activesplat.geometry import pose_yaw_pitch
+
     return {"position": [round(float(v), 4) for v in pose[:3, 3]],
-            "yaw_deg": round(math.degrees(math.atan2(-fwd[0], -fwd[2])), 3)}
+            "yaw_deg": round(math.degrees(pose_yaw_pitch(pose)[0]), 3)}
 
 
 def _grid_label(split: str, view: dict) -> str:
@@ -339,25 +338,3 @@ def format_table(result: dict, out: Path) -> str:
     lines.append(f"{result['n_gaussians']} Gaussians, {result['wall_time_s']:.1f} s -> "
                  f"{out / 'render_metrics.json'}, {out / 'render_grid.png'}")
     return "\n".join(lines)
-
-
-def render_eval_from_args(args: argparse.Namespace) -> int:
-    _, _, out = locate(args.dir)
-    options = {"renderer": None, **_refined_map_options(Path(out))}
-    result = render_eval(args.dir, n_train=args.n_train, n_test=args.n_test, seed=args.seed,
-                         backend=args.backend, progress=not args.no_progress, **options)
-    print(format_table(result, out))
-    return 0
-
-
-def _refined_map_options(folder: Path) -> dict:
-    """render_eval arguments a refined map's method asks for (`DIR/refined_<method>/refine.json`; 2dgs:
-    the surfel renderer, its map holds surfels, not 3D Gaussians); none for an episode's online map."""
-    from activesplat.refine.config import METHODS, RefineConfig
-    from activesplat.refine.methods import make_method
-
-    meta = folder / "refine.json"
-    method = json.loads(meta.read_text()).get("method") if meta.is_file() else None
-    if method not in METHODS:
-        return {}
-    return make_method(method, RefineConfig(), iters=1).eval_kwargs()

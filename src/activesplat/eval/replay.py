@@ -1,4 +1,4 @@
-"""Replay an action log in the simulator and measure what the sensor observed (REFERENCE.md section 6)."""
+"""Replay an action log in the simulator and measure what the sensor observed (docs/protocol.md §6)."""
 
 from __future__ import annotations
 

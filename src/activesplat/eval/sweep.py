@@ -3,7 +3,7 @@
 Not a policy: no step budget, no map, no collisions. The camera is put on a regular grid over the
 agent's reachable navigable space (the component random starts are drawn from) and at every grid point
 looks all around, at every pitch the agent can reach; each view is counted with exactly the coverage
-protocol of the episodes (REFERENCE.md section 6: 128 x 128 ground-truth depth, the same 200k seeded
+protocol of the episodes (docs/protocol.md §6: 128 x 128 ground-truth depth, the same 200k seeded
 mesh samples, 1 m cap, 5 cm threshold). The result is the ceiling an explorer can approach within a
 budget: the completion ratio is below 100 % because some mesh surface (inside furniture, under beds,
 behind shelves) is visible from nowhere the agent can stand.
@@ -21,21 +21,21 @@ from activesplat.errors import InvalidInputError
 
 @dataclass
 class SweepConfig:
-    """Density of the exhaustive sweep (ours; the issue names the reference, not its sampling)."""
+    """Density of the exhaustive sweep (ours: a ceiling needs a dense sampling, not a particular one)."""
 
     spacing_m: float = 0.5
     """Grid spacing of the standing positions over the navigable space."""
     yaw_step_deg: float = 30.0
     """Yaw increment of the all-around look (the 90 deg field of view overlaps 3x at 30 deg)."""
     pitches_deg: tuple[float, ...] = (-45.0, 0.0, 45.0)
-    """Pitches at every yaw: the agent's full tilt range (+-45 deg, REFERENCE.md section 1)."""
+    """Pitches at every yaw: the agent's full tilt range (+-45 deg, docs/protocol.md §1)."""
 
 
 def sweep_poses(scene, sim_config=None, cfg: SweepConfig | None = None) -> np.ndarray:
     """Camera-to-world poses (M,4,4) of the sweep: grid positions of the largest navigable component x
     yaws x pitches, camera at the sensor height."""
+    from activesplat.geometry import camera_pose
     from activesplat.sim import SimConfig
-    from activesplat.sim.simulator import camera_pose
 
     cfg = cfg or SweepConfig()
     sim_config = sim_config or SimConfig()
@@ -53,10 +53,10 @@ def sweep_poses(scene, sim_config=None, cfg: SweepConfig | None = None) -> np.nd
     yaws = np.deg2rad(np.arange(0.0, 360.0, cfg.yaw_step_deg))
     poses = []
     for x, z in xz:
-        position = np.array([x, nav.floor_height, z])
+        position = np.array([x, nav.floor_height + sim_config.sensor_height, z])
         for yaw in yaws:
             for pitch in cfg.pitches_deg:
-                poses.append(camera_pose(position, float(yaw), math.radians(pitch), sim_config.sensor_height))
+                poses.append(camera_pose(position, float(yaw), math.radians(pitch)))
     return np.stack(poses)
 
 

@@ -1,4 +1,4 @@
-"""Viewpoint-selection and planning constants (paper sec. III-B, III-C; REFERENCE.md sections 4 and 5).
+"""Viewpoint-selection and planning constants (paper sec. III-B, III-C; docs/protocol.md §4 and §5).
 
 Where the paper and the authors' release disagree, the field comment names both and says which one is the
 default here.

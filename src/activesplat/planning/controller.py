@@ -1,4 +1,4 @@
-"""From goals to discrete actions (paper sec. III-C; REFERENCE.md section 5, "Path to actions").
+"""From goals to discrete actions (paper sec. III-C; docs/protocol.md §5, "Path to actions").
 
 Turn while the heading error to the next waypoint exceeds 10 deg, otherwise move forward; a waypoint is
 reached within 1.5 forward steps. Rotation targets (yaw, pitch) become turns then tilts, pitch kept within
@@ -20,11 +20,11 @@ class ControllerConfig:
     """Action geometry and the release's path-following thresholds."""
 
     turn_deg: float = 10.0
-    """TURN_LEFT / TURN_RIGHT angle (Habitat protocol, REFERENCE.md section 1)."""
+    """TURN_LEFT / TURN_RIGHT angle (Habitat protocol, docs/protocol.md §1)."""
     look_deg: float = 15.0
-    """LOOK_UP / LOOK_DOWN angle (REFERENCE.md section 1)."""
+    """LOOK_UP / LOOK_DOWN angle (docs/protocol.md §1)."""
     forward_m: float = 0.065
-    """MOVE_FORWARD distance (REFERENCE.md section 1)."""
+    """MOVE_FORWARD distance (docs/protocol.md §1)."""
     heading_tolerance_deg: float = 10.0
     """Turn while the heading error exceeds this, else move forward (release)."""
     arrive_steps: float = 1.5

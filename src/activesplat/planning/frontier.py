@@ -12,9 +12,13 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from activesplat.planning.controller import PathFollower, floor_xz
-from activesplat.planning.explorer import ActiveSplatExplorer, build_plan
-from activesplat.workspace.paths import shortcut
+from activesplat.planning.controller import floor_xz
+from activesplat.planning.explorer import Explorer, turns_for
+from activesplat.workspace.clean import Workspace
+from activesplat.workspace.config import WorkspaceConfig
+from activesplat.workspace.paths import needed_clearance, shortcut
+from activesplat.workspace.plan import build_plan
+from activesplat.workspace.topdown import TopDownGrids
 
 _NEIGHBOURS = np.ones((3, 3), np.uint8)
 
@@ -28,8 +32,8 @@ class FrontierConfig:
     (ours: classic FBE re-selects an unobservable frontier forever)."""
     start_disc_m: float = 0.3
     """Cells this close to the agent count as passable for the frontier search (it stands there)."""
-    look_around_turns: int = 36
-    """Turns of the look-around on reaching a frontier (a full circle of 10 deg turns)."""
+    look_around_deg: float = 360.0
+    """On reaching a frontier the agent turns left this far on the spot (a full circle)."""
 
 
 def frontier_cells(free: np.ndarray, unknown: np.ndarray) -> np.ndarray:
@@ -78,8 +82,54 @@ def descend(dist: np.ndarray, goal_rc: tuple[int, int]) -> list[tuple[int, int]]
     return path[::-1]
 
 
-class FrontierExplorer(ActiveSplatExplorer):
-    """Nearest-frontier-first exploration sharing the explorer's bootstrap, path following and escapes."""
+def nearest_frontier_path(grids: TopDownGrids, ws: Workspace, here: np.ndarray, avoid: list[np.ndarray],
+                          wcfg: WorkspaceConfig, fcfg: FrontierConfig) -> tuple[np.ndarray | None, bool]:
+    """(path, found): a safe path (M, 2) from `here` to the nearest reachable frontier cluster, None when
+    none is reachable; `found` is False when no frontier is a goal at all. Frontiers within
+    `skip_radius_m` of the agent or of a point of `avoid` (failed goals, frontiers reached) are not goals."""
+    geom = grids.geometry
+    passable = ws.clearance >= wcfg.agent_radius
+    frontier = frontier_cells(ws.mask, grids.unknown)
+    count, labels, stats, _ = cv2.connectedComponentsWithStats(frontier.astype(np.uint8), connectivity=8)
+    big = np.zeros(count, bool)
+    big[1:] = stats[1:, cv2.CC_STAT_AREA] >= fcfg.min_cluster_cells
+    # Frontier cells border unknown space, so they never have the agent's clearance themselves: the goals
+    # are the passable cells within reach (clearance + 2 cells) of a frontier cluster.
+    reach = int(np.ceil(wcfg.agent_radius / geom.resolution)) + 2
+    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * reach + 1, 2 * reach + 1))
+    targets = (cv2.dilate(big[labels].astype(np.uint8), kernel) > 0) & passable
+    # Skip frontiers near failed goals, near frontiers already reached, and right under the agent.
+    blocked = np.zeros(targets.shape, np.uint8)
+    k = max(1, int(round(fcfg.skip_radius_m / geom.resolution)))
+    for p in [*avoid, here]:
+        r, c = geom.pixel_index(p)
+        cv2.circle(blocked, (int(c), int(r)), k, 1, -1)
+    targets &= blocked == 0
+    if not targets.any():
+        return None, False
+    start = tuple(int(v) for v in geom.pixel_index(here))
+    # The agent stands on free floor even where the polished workspace is thin (doorways): let the search
+    # leave from a small disc around it, or a door would trap it.
+    r = max(1, int(round(fcfg.start_disc_m / geom.resolution)))
+    disc = np.zeros(passable.shape, np.uint8)
+    if geom.contains(np.array(start)):
+        cv2.circle(disc, (start[1], start[0]), r, 1, -1)
+    # Never through obstacle cells (floor seen under a table is free but not walkable), nor closer to the
+    # workspace border than the agent already is: the path-ahead check would refuse that route.
+    near = (ws.mask | grids.free) & (ws.clearance >= needed_clearance(ws, here, wcfg))
+    passable = passable | ((disc > 0) & near & ~grids.obstacle)
+    dist = grid_distances(passable, start)
+    cand = np.where(targets, dist, np.inf)
+    if not np.isfinite(cand).any():
+        return None, True
+    goal = np.unravel_index(int(np.argmin(cand)), cand.shape)
+    cells = np.array(descend(dist, (int(goal[0]), int(goal[1]))), float) + 0.5
+    route = np.vstack([here[None], geom.pixel_to_world(cells)])
+    return shortcut(route, ws, wcfg), True
+
+
+class FrontierExplorer(Explorer):
+    """Nearest-frontier-first exploration with the shared bootstrap, path following and escapes."""
 
     name = "fbe"
 
@@ -88,67 +138,27 @@ class FrontierExplorer(ActiveSplatExplorer):
         self.fcfg = frontier or FrontierConfig()
         self.reached: list[np.ndarray] = []
 
-    def _arrive(self, pose: np.ndarray) -> None:
-        # A frontier that survives a look-around from right next to it cannot be seen from there (e.g. floor
-        # under furniture): remember it so that the agent does not come back to it forever.
+    def arrive(self, pose: np.ndarray) -> None:
+        """Look around once. A frontier that survives a look-around from right next to it cannot be seen
+        from there (e.g. floor under furniture): remember it so that the agent does not come back forever."""
         self.reached.append(floor_xz(pose))
-        self.queue.extend(["turn_left"] * self.fcfg.look_around_turns)
+        self.queue.extend(["turn_left"] * turns_for(self.fcfg.look_around_deg, self.cfg.controller))
 
-    def _replan(self, pose: np.ndarray) -> None:
+    def replan(self, pose: np.ndarray) -> None:
+        """Rebuild the workspace (no graph) and go to the nearest frontier, else idle."""
         cfg = self.cfg
         here = floor_xz(pose)
         plan = self.plan = build_plan(self.world.gaussians, self.floor_height, here, cfg.workspace,
                                       self.timers, graph=False)
         stuck = bool(self.failed)
-        goal_path = self.timers.time("position_selection", self._nearest_frontier_path, here)
-        if goal_path is None:
+        path, found = self.timers.time("position_selection", nearest_frontier_path, plan.grids,
+                                       plan.workspace, here, [*self.failed, *self.reached], cfg.workspace,
+                                       self.fcfg)
+        if not found:  # fallback: give every frontier a second chance
+            self.reached.clear()
+            self.failed.clear()
+        if path is None:
             plan.goal = plan.path = None
-            self._idle(pose, stuck)
+            self.idle(pose, stuck)
             return
-        plan.goal, plan.path = goal_path[-1], goal_path
-        self.follower = PathFollower(goal_path[1:], cfg.controller)
-
-    def _nearest_frontier_path(self, here: np.ndarray) -> np.ndarray | None:
-        grids, ws = self.plan.grids, self.plan.workspace
-        geom = grids.geometry
-        passable = ws.clearance >= self.cfg.workspace.agent_radius
-        frontier = frontier_cells(ws.mask, grids.unknown)
-        count, labels, stats, _ = cv2.connectedComponentsWithStats(frontier.astype(np.uint8), connectivity=8)
-        big = np.zeros(count, bool)
-        big[1:] = stats[1:, cv2.CC_STAT_AREA] >= self.fcfg.min_cluster_cells
-        # Frontier cells border unknown space, so they never have the agent's clearance themselves: the goals
-        # are the passable cells within reach (clearance + 2 cells) of a frontier cluster.
-        reach = int(np.ceil(self.cfg.workspace.agent_radius / geom.resolution)) + 2
-        kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * reach + 1, 2 * reach + 1))
-        targets = (cv2.dilate(big[labels].astype(np.uint8), kernel) > 0) & passable
-        # Skip frontiers near failed goals, near frontiers already reached, and right under the agent.
-        blocked = np.zeros(targets.shape, np.uint8)
-        k = max(1, int(round(self.fcfg.skip_radius_m / geom.resolution)))
-        for p in [*self.failed, *self.reached, here]:
-            r, c = geom.pixel_index(p)
-            cv2.circle(blocked, (int(c), int(r)), k, 1, -1)
-        targets &= blocked == 0
-        if not targets.any():
-            if self.reached or self.failed:  # fallback: give every frontier a second chance
-                self.reached.clear()
-                self.failed.clear()
-            return None
-        start = tuple(int(v) for v in geom.pixel_index(here))
-        # The agent stands on free floor even where the polished workspace is thin (doorways): let the
-        # search leave from a small disc around it, or a door would trap it.
-        r = max(1, int(round(self.fcfg.start_disc_m / geom.resolution)))
-        disc = np.zeros(passable.shape, np.uint8)
-        if geom.contains(np.array(start)):
-            cv2.circle(disc, (start[1], start[0]), r, 1, -1)
-        # Never through obstacle cells (floor seen under a table is free but not walkable), nor closer to the
-        # workspace border than the agent already is: the path-ahead check would refuse that route.
-        near = (ws.mask | grids.free) & (ws.clearance >= self._needed_clearance(here))
-        passable = passable | ((disc > 0) & near & ~grids.obstacle)
-        dist = grid_distances(passable, start)
-        cand = np.where(targets, dist, np.inf)
-        if not np.isfinite(cand).any():
-            return None
-        goal = np.unravel_index(int(np.argmin(cand)), cand.shape)
-        cells = np.array(descend(dist, (int(goal[0]), int(goal[1]))), float) + 0.5
-        route = np.vstack([here[None], geom.pixel_to_world(cells)])
-        return shortcut(route, ws, self.cfg.workspace)
+        self.go_to(path[-1], path)

@@ -7,8 +7,9 @@ import dataclasses
 from collections.abc import Callable
 
 from activesplat.errors import InvalidInputError
-from activesplat.planning.explorer import ActiveSplatExplorer, ExplorerConfig, Timers, WorldModel
+from activesplat.planning.explorer import ActiveSplatExplorer, Explorer, ExplorerConfig, WorldModel
 from activesplat.planning.frontier import FrontierExplorer
+from activesplat.timing import Timers
 
 
 def _with_scores(cfg: ExplorerConfig, **weights) -> ExplorerConfig:
@@ -44,7 +45,7 @@ def describe_policies() -> str:
 
 
 def make_policy(name: str, world: WorldModel, floor_height: float, cfg: ExplorerConfig | None = None,
-                timers: Timers | None = None) -> ActiveSplatExplorer:
+                timers: Timers | None = None) -> Explorer:
     """Build the named policy for one episode."""
     if name not in _VARIANTS:
         raise InvalidInputError(f"unknown policy {name!r}; choose one of: {', '.join(POLICY_NAMES)}")

@@ -28,8 +28,8 @@ from dataclasses import dataclass
 import torch
 
 from activesplat.refine.config import RefineConfig
-from activesplat.splat._raster_torch import quat_to_rotmat
 from activesplat.splat.gaussians import PARAM_NAMES, GaussianMap
+from activesplat.splat.kernels import quat_to_rotmat
 
 
 def scene_extent(camera_centres: torch.Tensor, margin: float) -> float:

@@ -1,4 +1,4 @@
-"""Configuration of the offline refinement (paper sec. III-D4, REFERENCE.md sec. 7).
+"""Configuration of the offline refinement (paper sec. III-D4, docs/protocol.md §7).
 
 The defaults are the 3DGS recipe (Kerbl et al. 2023, ``arguments/__init__.py``: 30k iterations, densify
 every 100 iterations from 500 until 15k, gradient threshold 2e-4, opacity reset every 3000, prune below

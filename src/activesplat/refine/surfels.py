@@ -30,8 +30,8 @@ import torch
 
 from activesplat.refine.config import RefineConfig
 from activesplat.refine.methods import Splatting3D
-from activesplat.splat._raster_torch import quat_to_rotmat
 from activesplat.splat.gaussians import GaussianMap
+from activesplat.splat.kernels import quat_to_rotmat
 
 
 def rotmat_to_quat(rot: torch.Tensor) -> torch.Tensor:

@@ -9,13 +9,13 @@ obs = sim.step("move_forward")
 ```
 """
 
-from activesplat.geometry import intrinsics
+from activesplat.geometry import camera_pose, intrinsics
 from activesplat.sim.config import SimConfig
 from activesplat.sim.house import HouseConfig
 from activesplat.sim.navmap import NavMap
 from activesplat.sim.scene import Scene, box_room, describe_builtin_scenes, load_scene
 from activesplat.sim.sensor import RGBDSensor
-from activesplat.sim.simulator import ACTIONS, AgentState, Observation, Simulator, camera_pose
+from activesplat.sim.simulator import ACTIONS, AgentState, Observation, Simulator
 
 __all__ = [
     "ACTIONS",

@@ -1,4 +1,4 @@
-"""Documented constants of the simulated robot (REFERENCE.md section 1: the Habitat protocol)."""
+"""Documented constants of the simulated robot (docs/protocol.md §1: the Habitat protocol)."""
 
 from __future__ import annotations
 
@@ -7,33 +7,34 @@ from dataclasses import dataclass
 
 @dataclass(frozen=True)
 class SimConfig:
-    """Sensor, agent and action settings. Defaults follow REFERENCE.md section 1 (Habitat protocol)."""
+    """Sensor, agent and action settings. Defaults follow docs/protocol.md §1 (Habitat protocol)."""
 
     width: int = 256
-    """Image width in pixels (REFERENCE 1: RGB-D 256x256; the paper's refinement uses 512x512)."""
+    """Image width in pixels (docs/protocol.md §1: RGB-D 256x256; the paper's refinement uses 512x512)."""
     height: int = 256
-    """Image height in pixels (REFERENCE 1)."""
+    """Image height in pixels (docs/protocol.md §1)."""
     hfov_deg: float = 90.0
-    """Horizontal field of view; square pixels, so vfov is 90 deg at 256x256 too (REFERENCE 1)."""
+    """Horizontal field of view; square pixels, so vfov is 90 deg at 256x256 too (docs/protocol.md §1)."""
     sensor_height: float = 1.25
-    """Camera height above the floor in metres (REFERENCE 1)."""
+    """Camera height above the floor in metres (docs/protocol.md §1)."""
     max_depth: float = 10.0
-    """Depth range 0-10 m; farther hits and misses read 0 (REFERENCE 1)."""
+    """Depth range 0-10 m; farther hits and misses read 0 (docs/protocol.md §1)."""
     agent_radius: float = 0.1
-    """Agent cylinder radius in metres (REFERENCE 1)."""
+    """Agent cylinder radius in metres (docs/protocol.md §1)."""
     agent_height: float = 1.5
-    """Agent cylinder height in metres (REFERENCE 1)."""
+    """Agent cylinder height in metres (docs/protocol.md §1)."""
     forward_step: float = 0.065
-    """MOVE_FORWARD distance in metres (REFERENCE 1)."""
+    """MOVE_FORWARD distance in metres (docs/protocol.md §1)."""
     turn_deg: float = 10.0
-    """TURN_LEFT / TURN_RIGHT angle (REFERENCE 1)."""
+    """TURN_LEFT / TURN_RIGHT angle (docs/protocol.md §1)."""
     look_deg: float = 15.0
-    """LOOK_UP / LOOK_DOWN angle (REFERENCE 1)."""
+    """LOOK_UP / LOOK_DOWN angle (docs/protocol.md §1)."""
     pitch_min_deg: float = -45.0
-    """Lowest pitch; a LOOK_DOWN beyond it is a no-op that still costs a step. REFERENCE 1 (bootstrap
-    pitches between 0 and -45 deg) and REFERENCE 5 (on-the-spot rotations within +-45 deg)."""
+    """Lowest pitch; a LOOK_DOWN beyond it is a no-op that still costs a step. docs/protocol.md §1 (bootstrap
+    pitches between 0 and -45 deg) and docs/protocol.md §5 (on-the-spot rotations within +-45 deg)."""
     pitch_max_deg: float = 45.0
-    """Highest pitch; a LOOK_UP beyond it is a no-op that still costs a step (REFERENCE 5: +-45 deg)."""
+    """Highest pitch; a LOOK_UP beyond it is a no-op that still costs a step (+-45 deg,
+    docs/protocol.md §5)."""
     step_margin: float = 0.1
     """Geometry lower than this above the floor does not block the agent (thresholds, rugs). Our
     choice; Habitat's navmesh climbs 0.2 m."""

@@ -20,7 +20,7 @@ from activesplat.sim.textures import FLOOR_MATERIALS, WALL_MATERIALS, build_atla
 
 @dataclass(frozen=True)
 class HouseConfig:
-    """Sizes of the procedural houses (our choices; REFERENCE 1 fixes only the agent and sensor)."""
+    """Sizes of the procedural houses (our choices; docs/protocol.md §1 fixes only the agent and sensor)."""
 
     wall_thickness: float = 0.1
     """Interior and exterior wall thickness in metres."""
@@ -33,9 +33,9 @@ class HouseConfig:
     min_room_side: float = 2.4
     """Smallest room side in metres."""
     small_rooms: tuple[int, int] = (2, 4)
-    """Room count range of small-<seed> (REFERENCE 1: small scenes have < 5 rooms)."""
+    """Room count range of small-<seed> (docs/protocol.md §1: small scenes have < 5 rooms)."""
     medium_rooms: tuple[int, int] = (5, 10)
-    """Room count range of medium-<seed>, the corridor not counted (REFERENCE 1: 5-10 rooms)."""
+    """Room count range of medium-<seed>, the corridor not counted (docs/protocol.md §1: 5-10 rooms)."""
     corridor_width: tuple[float, float] = (1.2, 1.6)
     """Corridor width range of medium houses."""
     door_clearance: float = 0.9

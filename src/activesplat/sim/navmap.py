@@ -2,7 +2,7 @@
 
 A cell is navigable when there is floor beneath the agent's whole disc (near-horizontal surfaces
 within `step_margin` of the floor height) and no geometry between `floor + step_margin` and
-`floor + agent_height` lies within `agent_radius` of any point of the cell (REFERENCE 1: agent
+`floor + agent_height` lies within `agent_radius` of any point of the cell (docs/protocol.md §1: agent
 radius 0.1 m, height 1.5 m).
 The mesh is sampled densely (spacing <= half a cell), the samples in the height band are rasterised
 into an occupancy grid, and the clearance is the Euclidean distance transform of that grid. Cell

@@ -19,7 +19,8 @@ from activesplat.sim.textures import build_atlas
 MESH_SUFFIXES = (".glb", ".gltf", ".ply", ".obj")
 BUILTIN_PATTERN = re.compile(r"^(small|medium)-(\d+)$")
 DEFAULT_STEPS = {"small": 1000, "medium": 2000, "file": 1000}
-"""Step budgets (REFERENCE 1: 1000 actions for small scenes, 2000 for medium; 1000 for user meshes)."""
+"""Step budgets (docs/protocol.md §1: 1000 actions for small scenes, 2000 for medium; 1000 for user
+meshes)."""
 _MAX_FURNITURE_TRIES = 6
 _MAX_SECONDARY_AREA = 0.05
 """Largest navigable area (m^2) allowed outside the main component of a built-in house."""

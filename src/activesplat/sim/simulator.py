@@ -1,8 +1,9 @@
 """The simulated agent: Habitat-style discrete actions, collision against the navigability map, and
-posed RGB-D observations from the Embree sensor (REFERENCE.md section 1).
+posed RGB-D observations from the Embree sensor (docs/protocol.md §1).
 
-Yaw 0 looks along -z (glTF forward); TURN_LEFT adds `turn_deg` (counter-clockwise seen from +y).
-Pitch > 0 looks up. Camera pose: 4x4 camera-to-world with OpenCV axes (x right, y down, z forward).
+Yaw and pitch follow `activesplat.geometry`: yaw 0 looks along +z, TURN_LEFT adds `turn_deg`
+(counter-clockwise seen from +y); pitch > 0 looks up. Camera pose: 4x4 camera-to-world with OpenCV axes
+(x right, y down, z forward), `geometry.camera_pose` of the camera `sensor_height` above the agent.
 """
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from activesplat.errors import InvalidActionError, InvalidInputError
-from activesplat.geometry import intrinsics
+from activesplat.geometry import camera_pose, intrinsics
 from activesplat.sim.config import SimConfig
 from activesplat.sim.scene import Scene
 
@@ -39,25 +40,14 @@ class Observation:
     collided: bool = False
 
 
-def camera_pose(position: np.ndarray, yaw: float, pitch: float, sensor_height: float) -> np.ndarray:
-    """4x4 camera-to-world (OpenCV axes) of a camera sensor_height above the floor position."""
-    forward = np.array([-np.sin(yaw) * np.cos(pitch), np.sin(pitch), -np.cos(yaw) * np.cos(pitch)])
-    right = np.array([np.cos(yaw), 0.0, -np.sin(yaw)])
-    down = np.cross(forward, right)
-    pose = np.eye(4)
-    pose[:3, :3] = np.stack([right, down, forward], axis=1)
-    pose[:3, 3] = position + [0.0, sensor_height, 0.0]
-    return pose
-
-
 def state_from_pose(pose: np.ndarray, floor_height: float) -> AgentState:
-    """Inverse of camera_pose for a roll-free camera: floor position, yaw and pitch."""
+    """The agent state of a roll-free camera pose: floor position, yaw and pitch (`geometry.yaw_pitch_of`)."""
     pose = np.asarray(pose, dtype=np.float64)
     if pose.shape != (4, 4) or not np.all(np.isfinite(pose)):
         raise InvalidInputError(f"start pose must be a finite 4x4 matrix, got shape {pose.shape}")
     forward = pose[:3, 2]
     pitch = float(np.arcsin(np.clip(forward[1], -1.0, 1.0)))
-    yaw = float(np.arctan2(-forward[0], -forward[2]))
+    yaw = float(np.arctan2(forward[0], forward[2]))
     position = np.array([pose[0, 3], floor_height, pose[2, 3]])
     return AgentState(position, yaw, pitch)
 
@@ -87,21 +77,29 @@ class Simulator:
         if start is None:
             rng = np.random.default_rng(self.seed)
             x, z = self.navmap.sample_navigable(rng)
-            return AgentState(np.array([x, floor, z]), float(rng.uniform(-np.pi, np.pi)), 0.0)
+            # a uniform heading, drawn as (-sin u, 0, -cos u) for u uniform: every seed starts as it did
+            # before the yaw convention was unified
+            u = float(rng.uniform(-np.pi, np.pi))
+            return AgentState(np.array([x, floor, z]), float(np.arctan2(-np.sin(u), -np.cos(u))), 0.0)
         state = state_from_pose(start, floor)
         if not self.navmap.is_navigable(state.position[0], state.position[2]):
             raise InvalidInputError(f"start position ({state.position[0]:.3f}, {state.position[2]:.3f}) "
                                     f"is not navigable in {self.scene.name}")
         return state
 
+    def sensor_pose(self, state: AgentState) -> np.ndarray:
+        """4x4 camera-to-world pose (OpenCV axes) of the sensor of an agent in `state`."""
+        position = state.position + [0.0, self.config.sensor_height, 0.0]
+        return camera_pose(position, state.yaw, state.pitch)
+
     @property
     def pose(self) -> np.ndarray:
         """Current 4x4 camera-to-world pose (OpenCV axes)."""
-        return camera_pose(self.state.position, self.state.yaw, self.state.pitch, self.config.sensor_height)
+        return self.sensor_pose(self.state)
 
     @property
     def start_pose(self) -> np.ndarray:
-        return camera_pose(self.start.position, self.start.yaw, self.start.pitch, self.config.sensor_height)
+        return self.sensor_pose(self.start)
 
     def render(self, pose: np.ndarray, width: int | None = None, height: int | None = None):
         """(rgb uint8, depth float32) seen from an arbitrary camera pose, same hfov as the agent."""
@@ -120,7 +118,7 @@ class Simulator:
         return self.observe()
 
     def step(self, action: str) -> Observation:
-        """Apply one action (REFERENCE 1 table) and observe; unknown names raise InvalidActionError."""
+        """Apply one action (docs/protocol.md §1) and observe; unknown names raise InvalidActionError."""
         return self.observe(self.act(action))
 
     def act(self, action: str) -> bool:
@@ -144,7 +142,7 @@ class Simulator:
         """Move forward_step along the heading (on the floor, pitch ignored) if the whole segment is
         navigable; otherwise leave the pose unchanged (no sliding) and return False."""
         yaw = self.state.yaw
-        delta = self.config.forward_step * np.array([-np.sin(yaw), 0.0, -np.cos(yaw)])
+        delta = self.config.forward_step * np.array([np.sin(yaw), 0.0, np.cos(yaw)])
         target = self.state.position + delta
         if not self.navmap.segment_free(self.state.position[[0, 2]], target[[0, 2]]):
             return False

@@ -1,4 +1,4 @@
-"""Configuration of the online Gaussian mapper (paper sec. III-A, REFERENCE.md sec. 2).
+"""Configuration of the online Gaussian mapper (paper sec. III-A, docs/protocol.md §2).
 
 Every number of the mapper lives here with a comment naming its source: the paper (eqs. 5-10), the
 authors' release (a ROS package on top of SplaTAM), or this project (CPU budget). Where paper and
@@ -14,7 +14,7 @@ from activesplat.errors import InvalidInputError
 
 @dataclass(frozen=True)
 class Schedule:
-    """When to map and when to store a keyframe, counted in accepted frames (REFERENCE.md sec. 2)."""
+    """When to map and when to store a keyframe, counted in accepted frames (docs/protocol.md §2)."""
 
     map_every: int  # run densification + optimisation on every n-th frame
     keyframe_every: int  # store every n-th frame in the keyframe buffer
@@ -23,7 +23,7 @@ class Schedule:
 
 @dataclass(frozen=True)
 class LearningRates:
-    """Adam learning rates of the release (SplaTAM's mapping rates), REFERENCE.md sec. 2.
+    """Adam learning rates of the release (SplaTAM's mapping rates), docs/protocol.md §2.
 
     The colour parameter is stored as the 3DGS degree-0 SH coefficient f_dc = (rgb - 0.5) / C0 so
     that PLY files round-trip bit-exactly; Adam is invariant to a constant gradient scale, so the
@@ -100,7 +100,7 @@ class MapperConfig:
     lr: LearningRates = field(default_factory=LearningRates)
     adam_eps: float = 1e-15  # release / SplaTAM
 
-    # --- initialisation (REFERENCE.md sec. 2)
+    # --- initialisation (docs/protocol.md §2)
     init_opacity: float = 0.99  # project: paper/release 0.5 (see class docstring)
     pixel_stride: int = 2  # project: one Gaussian per stride x stride pixels (1 = paper)
     init_radius_scale: float = 0.75  # project: radius = scale * stride * depth / focal (paper 1.0)

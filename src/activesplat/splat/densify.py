@@ -9,9 +9,9 @@ from __future__ import annotations
 import numpy as np
 import torch
 
+from activesplat.geometry import backproject
 from activesplat.splat.config import MapperConfig
 from activesplat.splat.gaussians import GaussianMap
-from activesplat.splat.keyframes import backproject
 
 
 def densification_mask(alpha: torch.Tensor, depth: torch.Tensor, obs_depth: torch.Tensor,
@@ -50,7 +50,7 @@ def gaussians_from_pixels(mask: torch.Tensor, rgb: torch.Tensor, depth: torch.Te
                           K: np.ndarray, cfg: MapperConfig) -> dict[str, torch.Tensor]:
     """Raw parameters of one Gaussian per masked pixel on the ``pixel_stride`` grid: back-projected
     centre, radius = init_radius_scale * stride * depth / focal (projective scale), opacity 0.5,
-    identity rotation, colour = the pixel's colour (REFERENCE.md sec. 2, initialisation)."""
+    identity rotation, colour = the pixel's colour (docs/protocol.md §2, initialisation)."""
     pick = stride_mask(mask, cfg.pixel_stride)
     v, u = (t.cpu().numpy() for t in torch.nonzero(pick, as_tuple=True))
     depth_np = depth.detach().cpu().numpy()

@@ -70,7 +70,7 @@ class GaussianMap:
     def raw_from_points(points: torch.Tensor, rgb: torch.Tensor, radii: torch.Tensor,
                         opacity: float) -> dict[str, torch.Tensor]:
         """Isotropic Gaussians at ``points`` (M,3) with colour ``rgb`` (M,3) in [0,1] and radius ``radii``
-        (M,), identity rotation, opacity ``opacity`` (REFERENCE.md sec. 2, initialisation)."""
+        (M,), identity rotation, opacity ``opacity`` (docs/protocol.md §2, initialisation)."""
         m = points.shape[0]
         quats = torch.zeros((m, 4), dtype=torch.float32, device=points.device)
         quats[:, 0] = 1.0
@@ -197,7 +197,7 @@ def frustum_rows(means: torch.Tensor, log_scales: torch.Tensor, pose, K, width: 
     scale, the projection Jacobian at the rasterizer's clamped image coordinates, the low-pass) that
     reaches the image. A superset of what the rasterizer draws, so a render of these rows is the render
     of the whole map, at a cost proportional to the view instead of the map."""
-    from activesplat.splat._raster_common import RASTER
+    from activesplat.splat.raster.constants import RASTER
 
     with torch.no_grad():
         pose = np.asarray(pose, dtype=np.float64)

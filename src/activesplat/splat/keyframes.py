@@ -1,7 +1,7 @@
 """Keyframe buffer and overlap-based window selection (SplaTAM's keyframe selection, as the release).
 
 The mapping window of a frame is the ``k`` keyframes that see most of what the current frame sees,
-plus the last keyframe, plus the current frame (REFERENCE.md sec. 2). Overlap of a keyframe = the
+plus the last keyframe, plus the current frame (docs/protocol.md §2). Overlap of a keyframe = the
 share of ``n_pixels`` sampled valid-depth pixels of the current frame that, back-projected to the
 world and projected into the keyframe, land in front of it and more than ``border`` pixels inside
 its image.
@@ -13,6 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from activesplat.geometry import backproject
+
 
 @dataclass
 class Keyframe:
@@ -23,17 +25,6 @@ class Keyframe:
     depth: np.ndarray
     pose: np.ndarray
     step: int
-
-
-def backproject(depth: np.ndarray, pose: np.ndarray, K: np.ndarray, v: np.ndarray,
-                u: np.ndarray) -> np.ndarray:
-    """World points (M,3) of pixels (v, u) (row, column) with z-depth ``depth[v, u]``; pixel centres
-    at integer + 0.5 (the rasterizer's convention)."""
-    z = depth[v, u].astype(np.float64)
-    x = (u + 0.5 - K[0, 2]) / K[0, 0] * z
-    y = (v + 0.5 - K[1, 2]) / K[1, 1] * z
-    cam = np.stack([x, y, z], axis=1)
-    return cam @ pose[:3, :3].T + pose[:3, 3]
 
 
 def overlap_fractions(points: np.ndarray, poses: np.ndarray, K: np.ndarray, width: int, height: int,

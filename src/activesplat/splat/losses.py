@@ -1,7 +1,7 @@
 """Mapping losses, paper eqs. 5-7 (SplaTAM's mapping loss).
 
 L = w_c * (lambda_1 * L1(C) + lambda_2 * (1 - SSIM(C))) + w_d * L1(D), with every term taken over the
-pixels with valid observed depth (REFERENCE.md sec. 2). SSIM is pytorch-msssim's single-scale SSIM
+pixels with valid observed depth (docs/protocol.md §2). SSIM is pytorch-msssim's single-scale SSIM
 (11 px Gaussian window, sigma 1.5, valid convolution), computed on images whose invalid pixels are
 zeroed in both prediction and observation so that they do not contribute a difference.
 """

@@ -13,7 +13,7 @@ own bounded rates. Without `--viewer` nothing here
 is imported (the exploration loop checks `viewer is not None` and nothing else).
 
 Replay (`EpisodeViewer`) loads gaussians.ply and poses.txt, rebuilds the workspace and Voronoi graph from
-the final map (`planning.explorer.build_plan`), and adds a timeline slider: the frustum moves along the
+the final map (`workspace.plan.build_plan`), and adds a timeline slider: the frustum moves along the
 trajectory and a background worker re-renders the ground truth RGB-D (simulator) and the map at that pose,
 always the latest slider position (intermediate ones are dropped, so dragging never queues up renders).
 """
@@ -118,19 +118,11 @@ def panorama_image(pano, depth_max: float) -> np.ndarray:
     return np.vstack([np.repeat(inv[..., None], 3, axis=2), depth_image(pano.median_depth, depth_max)])
 
 
-def quat_to_rotmat(q: np.ndarray) -> np.ndarray:
-    """(N, 4) unit quaternions wxyz -> (N, 3, 3) rotation matrices."""
-    w, x, y, z = (q[:, i] for i in range(4))
-    return np.stack([
-        1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
-        2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
-        2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y),
-    ], axis=1).reshape(-1, 3, 3)
-
-
 def splat_arrays(gaussians, max_splats: int) -> dict[str, np.ndarray]:
     """A GaussianMap as viser's splat arrays: centers, covariances R S S R^T, uint8 rgbs and opacities."""
     import torch
+
+    from activesplat.splat.kernels import quat_to_rotmat
 
     with torch.no_grad():
         means = gaussians.means.detach().cpu().numpy()
@@ -141,7 +133,8 @@ def splat_arrays(gaussians, max_splats: int) -> dict[str, np.ndarray]:
     if len(means) > max_splats:
         keep = np.argpartition(-opac, max_splats - 1)[:max_splats]
         means, quats, scales, opac, rgbs = means[keep], quats[keep], scales[keep], opac[keep], rgbs[keep]
-    m = quat_to_rotmat(quats.astype(np.float32)) * scales.astype(np.float32)[:, None, :]
+    rot = quat_to_rotmat(torch.from_numpy(quats.astype(np.float32))).numpy()
+    m = rot * scales.astype(np.float32)[:, None, :]
     cov = np.empty_like(m)  # M M^T term by term: much faster than a batched 3x3 matmul
     for i in range(3):
         for j in range(i, 3):
@@ -461,9 +454,9 @@ class EpisodeViewer:
     def _load(self, ground_truth: bool) -> None:
         """Map, camera model, ground-truth simulator and the workspace / graph of the final map."""
         from activesplat.planning.controller import floor_xz
-        from activesplat.planning.explorer import build_plan
         from activesplat.splat.ply import load_ply
         from activesplat.workspace.config import WorkspaceConfig
+        from activesplat.workspace.plan import build_plan
 
         ep, meta = self.episode, self.episode.meta
         self.poses, self.positions = ep.poses, ep.poses[:, :3, 3]

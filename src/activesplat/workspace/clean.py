@@ -1,4 +1,4 @@
-"""Workspace polish (REFERENCE.md sec. 3, release): keep the observed free region the agent stands in,
+"""Workspace polish (docs/protocol.md §3, release): keep the observed free region the agent stands in,
 open then dilate it, keep its outer contour (simplified with approxPolyDP) and its inner contours as
 obstacles, and rasterise the polygons back into a clean workspace mask with a clearance map."""
 
@@ -79,7 +79,7 @@ def agent_region(free: np.ndarray, agent_rc: np.ndarray) -> np.ndarray:
 
 def morphology(region: np.ndarray, cfg: WorkspaceConfig) -> np.ndarray:
     """Open (removes specks and thin slivers) then dilate (closes cracks between sparse Gaussians),
-    kernel sizes as the release (REFERENCE sec. 3)."""
+    kernel sizes as the release (docs/protocol.md §3)."""
     mask = region.astype(np.uint8)
     kernel = np.ones((cfg.open_kernel,) * 2, np.uint8)
     # An even kernel's anchor is off-centre: dilate with the mirrored anchor so the opening does not shift.
@@ -109,7 +109,7 @@ def _contour_world(contour: np.ndarray, geometry: GridGeometry) -> np.ndarray:
 def outer_and_holes(mask: np.ndarray, agent_rc: np.ndarray, cfg: WorkspaceConfig
                     ) -> tuple[np.ndarray | None, list[np.ndarray]]:
     """Simplified outer contour containing (or nearest to) the agent and its simplified inner contours,
-    as OpenCV pixel polygons (REFERENCE sec. 3: approxPolyDP with 0.225 m)."""
+    as OpenCV pixel polygons (docs/protocol.md §3: approxPolyDP with 0.225 m)."""
     contours, hierarchy = cv2.findContours(mask.astype(np.uint8), cv2.RETR_CCOMP, cv2.CHAIN_APPROX_NONE)
     if not contours:
         return None, []
@@ -147,7 +147,7 @@ def clearance_map(mask: np.ndarray, resolution: float) -> np.ndarray:
 
 def extract_workspace(grids: TopDownGrids, agent_xz: np.ndarray, cfg: WorkspaceConfig | None = None
                       ) -> Workspace:
-    """Polish the free grid into the workspace the agent can reach (REFERENCE sec. 3, release)."""
+    """Polish the free grid into the workspace the agent can reach (docs/protocol.md §3, release)."""
     cfg = cfg or WorkspaceConfig()
     geometry = grids.geometry
     agent_rc = geometry.pixel_index(np.asarray(agent_xz, dtype=np.float64))

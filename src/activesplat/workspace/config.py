@@ -1,4 +1,4 @@
-"""Workspace and topology constants (paper sec. III-A "hybrid map updating", sec. III-C; REFERENCE.md
+"""Workspace and topology constants (paper sec. III-A "hybrid map updating", sec. III-C; docs/protocol.md
 sections 1, 3 and 5). Every field names its source; "ours" marks a value the paper and release do not fix."""
 
 from __future__ import annotations
@@ -12,30 +12,30 @@ from activesplat.errors import InvalidInputError
 class WorkspaceConfig:
     """Top-down rendering, workspace polish, Voronoi graph, subregions and safe paths."""
 
-    # --- agent (REFERENCE sec. 1, Habitat protocol) ---
+    # --- agent (docs/protocol.md §1, Habitat protocol) ---
     agent_radius: float = 0.1
-    """Agent radius in metres (REFERENCE sec. 1)."""
+    """Agent radius in metres (docs/protocol.md §1)."""
     agent_height: float = 1.5
-    """Agent height in metres: top of the obstacle band (REFERENCE sec. 1 / sec. 3)."""
+    """Agent height in metres: top of the obstacle band (docs/protocol.md §1 and §3)."""
 
-    # --- top-down render (REFERENCE sec. 3) ---
+    # --- top-down render (docs/protocol.md §3) ---
     resolution: float = 0.05
     """Metres per top-down pixel. Ours: the release spans ~360 px over the map's longest side (its
     resolution changes as the map grows); a fixed metric resolution keeps every threshold in pixels
     stable over an episode. 0.05 m = half an agent radius."""
     floor_margin: float = 0.1
     """Foot margin in metres: Gaussians centred below floor + margin are ground, above are obstacles
-    (REFERENCE sec. 3, "floor (+ foot margin)"; value ours)."""
+    (docs/protocol.md §3: floor plus a foot margin; value ours)."""
     ground_depth: float = 0.3
     """Gaussians centred down to this far below the floor still count as ground (ours: absorbs
     floor noise; anything lower is ignored)."""
     camera_height: float = 1000.0
-    """Top-down camera height above the floor in metres: orthographic in effect (REFERENCE sec. 3)."""
+    """Top-down camera height above the floor in metres: orthographic in effect (docs/protocol.md §3)."""
     scale_modifier: float = 0.01
     """Gaussian scales are multiplied by this for the top-down render so each covers ~1 px
-    (REFERENCE sec. 3, release)."""
+    (docs/protocol.md §3, release)."""
     obstacle_opacity: float = 0.4
-    """A pixel is an obstacle where the obstacle-band opacity exceeds this (REFERENCE sec. 3, release)."""
+    """A pixel is an obstacle where the obstacle-band opacity exceeds this (docs/protocol.md §3, release)."""
     ground_opacity: float = 0.4
     """A pixel is observed ground where the ground-band opacity exceeds this (ours, mirrors the
     release's obstacle threshold; release: 'not white' on a white background)."""
@@ -53,7 +53,7 @@ class WorkspaceConfig:
     """Largest grid side in pixels; bounds beyond it are clipped around the agent (ours, guards
     against stray far-away Gaussians)."""
 
-    # --- workspace polish (REFERENCE sec. 3, release) ---
+    # --- workspace polish (docs/protocol.md §3, release) ---
     open_kernel: int = 4
     """Morphological opening kernel (px, square), release 4x4."""
     dilate_kernel: int = 3
@@ -63,7 +63,7 @@ class WorkspaceConfig:
     min_hole_area: float = 0.0
     """Inner contours (obstacles) with a smaller area in m^2 are dropped (ours, 0 keeps all)."""
 
-    # --- Voronoi graph (REFERENCE sec. 3, release) ---
+    # --- Voronoi graph (docs/protocol.md §3, release) ---
     boundary_sample_spacing: float = 0.2
     """Spacing in metres of the points sampled along the contour edges (ours; release samples the
     edges of the simplified polygon)."""
@@ -87,17 +87,17 @@ class WorkspaceConfig:
     merge_distance: float = 1e-3
     """Voronoi vertices closer than this (metres) are merged (qhull duplicates on co-circular sites)."""
 
-    # --- subregions (paper sec. III-C, REFERENCE sec. 5) ---
+    # --- subregions (paper sec. III-C, docs/protocol.md §5) ---
     subregion_cut: float = 2.0
     """UPGMA dendrogram cut distance in metres (paper sec. III-C: 'fixed distance threshold of 2 m')."""
     path_weight: float = 0.5
-    """Weight of the graph shortest-path length in the UPGMA distance (REFERENCE sec. 5)."""
+    """Weight of the graph shortest-path length in the UPGMA distance (docs/protocol.md §5)."""
     euclidean_weight: float = 0.5
-    """Weight of the Euclidean distance in the UPGMA distance (REFERENCE sec. 5)."""
+    """Weight of the Euclidean distance in the UPGMA distance (docs/protocol.md §5)."""
 
-    # --- safe paths (REFERENCE sec. 5) ---
+    # --- safe paths (docs/protocol.md §5) ---
     path_clearance_radii: float = 2.0
-    """Line-of-sight checks require this many agent radii of clearance (REFERENCE sec. 5)."""
+    """Line-of-sight checks require this many agent radii of clearance (docs/protocol.md §5)."""
     entry_candidates: int = 32
     """Nearest graph vertices tried as path entry / exit points (ours)."""
 

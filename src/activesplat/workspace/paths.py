@@ -1,4 +1,4 @@
-"""Safe paths on the Voronoi graph (paper sec. III-C; REFERENCE.md sec. 5): Dijkstra on the graph,
+"""Safe paths on the Voronoi graph (paper sec. III-C; docs/protocol.md §5): Dijkstra on the graph,
 entered and left at the nearest vertex visible from the start / goal, shortcut to the farthest
 waypoint in line of sight; line of sight needs 2 agent radii of clearance on the workspace."""
 
@@ -55,7 +55,7 @@ def visible_nodes(graph: nx.Graph, workspace: Workspace, xz: np.ndarray, cfg: Wo
 
 
 def shortcut(waypoints: np.ndarray, workspace: Workspace, cfg: WorkspaceConfig) -> np.ndarray:
-    """From each kept waypoint jump to the farthest later waypoint in line of sight (REFERENCE sec. 5)."""
+    """From each kept waypoint jump to the farthest later waypoint in line of sight (docs/protocol.md §5)."""
     kept, i = [0], 0
     last = len(waypoints) - 1
     while i < last:
@@ -96,3 +96,24 @@ def plan_safe_path(graph: nx.Graph, workspace: Workspace, start_xz: np.ndarray, 
 def path_length(waypoints: np.ndarray) -> float:
     """Total length in metres of a polyline (K, 2)."""
     return float(np.linalg.norm(np.diff(waypoints, axis=0), axis=1).sum()) if len(waypoints) > 1 else 0.0
+
+
+def needed_clearance(workspace: Workspace, here: np.ndarray, cfg: WorkspaceConfig) -> float:
+    """Clearance a path from `here` must keep: the agent's radius, or less where the agent already stands
+    closer to the workspace border (the polished workspace can be thinner than the agent in a doorway it
+    stands in; a path out of there is fine)."""
+    return min(cfg.agent_radius, float(workspace.clearance_at(here)) - 1e-6)
+
+
+def path_ahead_clear(workspace: Workspace | None, here: np.ndarray, waypoint: np.ndarray, lookahead_m: float,
+                     tolerance_m: float, cfg: WorkspaceConfig) -> bool:
+    """Whether the next `lookahead_m` toward `waypoint` is still passable on the current workspace: blocked
+    when it gets narrower than `needed_clearance` less `tolerance_m`, and always when it leaves the
+    workspace. No workspace (or an empty one) blocks nothing."""
+    if workspace is None or workspace.empty:
+        return True
+    d = waypoint - here
+    n = float(np.hypot(*d))
+    ahead = here + d * min(1.0, lookahead_m / max(n, 1e-9))
+    need = max(needed_clearance(workspace, here, cfg) - tolerance_m, 1e-6)
+    return bool(workspace.segments_clearance(here[None], ahead[None])[0] >= need)

@@ -1,5 +1,5 @@
 """Subregion partition of the Voronoi graph (paper sec. III-C "Subregion Partition": UPGMA on travel
-path length and Euclidean distance, fixed 2 m cut; REFERENCE.md sec. 5)."""
+path length and Euclidean distance, fixed 2 m cut; docs/protocol.md §5)."""
 
 from __future__ import annotations
 
@@ -21,7 +21,7 @@ def path_length_matrix(graph: nx.Graph) -> np.ndarray:
 
 
 def subregion_distance(graph: nx.Graph, cfg: WorkspaceConfig) -> np.ndarray:
-    """Pairwise distance 0.5 * path length + 0.5 * Euclidean (REFERENCE sec. 5). Nodes in different
+    """Pairwise distance 0.5 * path length + 0.5 * Euclidean (docs/protocol.md §5). Nodes in different
     connected components get a distance far above the cut, so they never share a subregion."""
     positions = node_positions(graph)
     euclid = cdist(positions, positions)
@@ -59,6 +59,6 @@ def nearest_node(graph: nx.Graph, xz: np.ndarray) -> int | None:
 
 
 def agent_subregion(graph: nx.Graph, labels: dict[int, int], agent_xz: np.ndarray) -> int | None:
-    """The agent's subregion = that of its nearest node (REFERENCE sec. 5); None for an empty graph."""
+    """The agent's subregion = that of its nearest node (docs/protocol.md §5); None for an empty graph."""
     node = nearest_node(graph, agent_xz)
     return None if node is None else labels[node]

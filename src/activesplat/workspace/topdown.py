@@ -1,6 +1,6 @@
 """Top-down view of the Gaussian map and the free / obstacle / unknown grids (paper sec. III-A,
 "the top-down view can be efficiently rendered using a large focal length as the orthographic
-projection of the dense map"; REFERENCE.md sec. 3).
+projection of the dense map"; docs/protocol.md §3).
 
 Grid convention: row r grows with world +z, column c grows with world +x; pixel (r, c) covers
 x in [x0 + c*res, x0 + (c+1)*res), z in [z0 + r*res, z0 + (r+1)*res). The top-down camera looks
@@ -119,7 +119,7 @@ def topdown_camera(geometry: GridGeometry, floor_height: float, cfg: WorkspaceCo
 
 def height_band_masks(heights: np.ndarray, floor_height: float, cfg: WorkspaceConfig
                       ) -> tuple[np.ndarray, np.ndarray]:
-    """Per-Gaussian masks of the ground band and the obstacle band (REFERENCE sec. 3): ground =
+    """Per-Gaussian masks of the ground band and the obstacle band (docs/protocol.md §3): ground =
     [floor - ground_depth, floor + margin), obstacle = [floor + margin, floor + agent height]."""
     rel = heights - floor_height
     ground = (rel >= -cfg.ground_depth) & (rel < cfg.floor_margin)
@@ -151,7 +151,7 @@ def grids_from_alpha(geometry: GridGeometry, ground_alpha: np.ndarray, obstacle_
 def _band_alpha(band: dict[str, Any], viewmat: np.ndarray, K: np.ndarray, width: int, height: int,
                 cfg: WorkspaceConfig, backend: str) -> np.ndarray:
     """Accumulated opacity of one height band's Gaussians (dict of activated tensors), rendered top-down
-    with scales times `scale_modifier` (REFERENCE sec. 3)."""
+    with scales times `scale_modifier` (docs/protocol.md §3)."""
     import torch
 
     from activesplat.splat import rasterize
@@ -181,7 +181,7 @@ def _band_gaussians(gmap: Any, bands: list[np.ndarray]) -> list[dict[str, Any]]:
 def render_topdown(gmap: Any, floor_height: float, cfg: WorkspaceConfig | None = None,
                    agent_xz: np.ndarray | None = None, backend: str = "auto") -> TopDownGrids:
     """Render the Gaussian map straight down in the ground and obstacle height bands and split it into
-    free / obstacle / unknown grids (paper sec. III-A; REFERENCE sec. 3).
+    free / obstacle / unknown grids (paper sec. III-A; docs/protocol.md §3).
 
     `gmap` is any object with torch tensors `means (N,3)`, `quats (N,4)`, `scales (N,3)`,
     `opacities (N,)` (colours are not used). `floor_height` is the world y of the floor (from the agent's

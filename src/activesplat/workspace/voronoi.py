@@ -1,5 +1,5 @@
 """Voronoi graph of the workspace (paper sec. III-A: "a Voronoi graph G = {V, E} is generated through
-Voronoi tessellation, with edges equidistant from the obstacles"; REFERENCE.md sec. 3, release).
+Voronoi tessellation, with edges equidistant from the obstacles"; docs/protocol.md §3, release).
 
 Node attributes: `pos` (2,) world (x, z) on the floor plane, `clearance` (metres to the nearest
 non-workspace pixel), `view` (view-position node: degree >= 3 before pruning), `multi`
@@ -109,7 +109,7 @@ def insignificant_chains(graph: nx.Graph, max_reach: float) -> dict[int, list[tu
 
 def prune_dangling_chains(graph: nx.Graph, max_reach: float) -> None:
     """Repeatedly remove dangling leaf chains that reach less than `max_reach` beyond the junction they
-    hang off (REFERENCE sec. 3, release: prune dangling leaf chains repeatedly; our significance rule
+    hang off (docs/protocol.md §3, release: prune dangling leaf chains repeatedly; our significance rule
     keeps corridors and dead ends, drops corner spurs). All short chains of a junction go at once (a
     corridor's end keeps no diagonal spur), except that a junction keeps its farthest-reaching chain when
     it would otherwise lose every edge."""
@@ -150,7 +150,7 @@ def relabel_in_order(graph: nx.Graph) -> nx.Graph:
 
 
 def build_voronoi_graph(workspace: Workspace, cfg: WorkspaceConfig | None = None) -> nx.Graph:
-    """Voronoi graph of the workspace (REFERENCE sec. 3): Voronoi of points sampled along the workspace
+    """Voronoi graph of the workspace (docs/protocol.md §3): Voronoi of points sampled along the workspace
     boundary (the mask's contours, or the release's simplified polygons with `sites_from_mask=False`),
     ridges inside the workspace with clearance > agent radius, isolated vertices dropped, short dangling
     chains pruned, edges weighted by length, view and multi-connected nodes

@@ -1,9 +1,9 @@
 """numba CPU backend of :func:`activesplat.splat.surfel.rasterize_surfels`: two autograd Functions.
 
 ``_Project`` maps world surfels to their screen form (projected centre, depth, tangent matrix M,
-facing normal, pixel box; kernels in ``_surfel_numba_project``); ``_Composite`` bins them into 16x16
+facing normal, pixel box; kernels in ``numba_project``); ``_Composite`` bins them into 16x16
 tiles with the 3D rasterizer's stable radix sort and tile lists and blends front to back
-(``_surfel_numba_tiles``). Splitting at the projected centres makes ``means2d`` a graph node whose
+(``numba_tiles``). Splitting at the projected centres makes ``means2d`` a graph node whose
 gradient densification can read. Everything is float32; inputs of other dtypes are cast (gradients come
 back in the input dtype). Culled surfels (radius 0) get zero gradient.
 """
@@ -16,12 +16,13 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from activesplat.splat import _raster_numba_tiles as tiles
-from activesplat.splat import _surfel_numba_project as proj
-from activesplat.splat import _surfel_numba_tiles as stiles
-from activesplat.splat._raster_common import RASTER
-from activesplat.splat._raster_numba import _np, warm_up_scene
+from activesplat.splat.kernels import to_numpy as _np
+from activesplat.splat.raster import numba_tiles as tiles
+from activesplat.splat.raster.constants import RASTER
+from activesplat.splat.raster.numba_backend import warm_up_scene
 from activesplat.splat.surfel import SurfelRenderOutput
+from activesplat.splat.surfel import numba_project as proj
+from activesplat.splat.surfel import numba_tiles as stiles
 
 
 class _Project(torch.autograd.Function):

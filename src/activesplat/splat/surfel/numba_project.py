@@ -15,9 +15,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from activesplat.splat._raster_common import RASTER
-from activesplat.splat._raster_numba_project import matmul3, quat_rotmat, quat_vjp, transpose3
-from activesplat.splat._surfel_common import SURFEL
+from activesplat.splat.kernels import matmul3, quat_rotmat, quat_vjp, transpose3
+from activesplat.splat.raster.constants import RASTER
+from activesplat.splat.surfel.constants import SURFEL
 
 F32 = np.float32
 NEAR = F32(SURFEL.near)

@@ -1,7 +1,7 @@
 """Constants of the 2D Gaussian surfel rasterizer (Huang et al., 2DGS, SIGGRAPH 2024) shared by its backends.
 
 Blending thresholds (alpha cap, 1/255 skip, 1e-4 transmittance stop, median at T = 0.5, 16 px tiles,
-near plane) are those of the 3D rasterizer (:data:`activesplat.splat._raster_common.RASTER`), so a 3DGS
+near plane) are those of the 3D rasterizer (:data:`activesplat.splat.raster.constants.RASTER`), so a 3DGS
 and a 2DGS map of the same scene composite alike; only the surfel-specific numbers live here.
 """
 
@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from activesplat.splat._raster_common import RASTER
+from activesplat.splat.raster.constants import RASTER
 
 
 @dataclass(frozen=True)

@@ -3,8 +3,9 @@
 A surfel is a flat elliptic Gaussian disc: centre ``means[i]``, tangent axes the first two columns
 t_u, t_v of R(q), extents (s_u, s_v) = ``scales[i]``, normal the third column of R(q). Backends:
 
-- ``"numba"``: tile-based CPU rasterizer with an analytic backward pass (the default, ``"auto"``).
-- ``"torch"``: slow, literal reference in plain torch autograd (used by tests).
+- ``"numba"``: tile-based CPU rasterizer with an analytic backward pass (the default, ``"auto"``;
+  ``numba_backend`` with the kernels ``numba_project`` and ``numba_tiles``).
+- ``"torch"``: slow, literal reference in plain torch autograd (``torch_ref``, used by tests).
 
 Forward model (2DGS eqs. 8-11). In camera space a point of the surfel is P(u, v) = p_c + u s_u t_u +
 v s_v t_v = H (u, v, 1)^T; its homogeneous pixel is T (u, v, 1)^T with T = K H (the "KWH" transform).
@@ -15,7 +16,7 @@ G = max(exp(-(u^2 + v^2) / 2), exp(-|x - c_2d|^2)) (the 2DGS low-pass, sigma = s
 projected centre c_2d); its depth is the view z of the intersection point where the ray-splat term wins
 and the centre's z where the low-pass wins (2DGS ``diff-surfel-rasterization``).
 
-Compositing has the 3D rasterizer's semantics (DESIGN.md): alpha_i = min(0.99, o_i G), skipped below
+Compositing has the 3D rasterizer's semantics (docs/protocol.md §8): alpha_i = min(0.99, o_i G), skipped below
 1/255, front to back by centre view depth (stable), a pixel stops before the surfel that would bring T
 below 1e-4; rgb = sum w_i c_i + background T, depth = sum w_i z_i (not normalised), alpha = 1 - T,
 median_depth = z where T first drops below 0.5 (0 if never), with w_i = alpha_i T_i.
@@ -39,11 +40,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal
 
-import torch
 from torch import Tensor
 
 from activesplat.errors import InvalidInputError
-from activesplat.splat.rasterize import RenderOutput, _check_size
+from activesplat.splat.kernels import check_size, check_tensors
+from activesplat.splat.raster import RenderOutput
 
 SurfelBackend = Literal["auto", "numba", "torch"]
 SURFEL_BACKENDS = ("auto", "numba", "torch")
@@ -90,15 +91,15 @@ def rasterize_surfels(
     Differentiable in means, quats, scales, opacities, colors through rgb, depth, alpha, normal and
     distortion. Raises InvalidInputError on wrong shapes, NaN/inf values or an unknown backend.
     """
-    _check_size(width, height)
+    check_size("rasterize", width, height)
     tensors = _check_tensors(means, quats, scales, opacities, colors, viewmat, K, background)
     if backend not in SURFEL_BACKENDS:
         raise InvalidInputError(
             f"unknown surfel rasterizer backend {backend!r}; expected one of {SURFEL_BACKENDS}")
     if backend == "torch":
-        from activesplat.splat._surfel_torch import rasterize_surfels_torch as render
+        from activesplat.splat.surfel.torch_ref import rasterize_surfels_torch as render
     else:
-        from activesplat.splat._surfel_numba import rasterize_surfels_numba as render
+        from activesplat.splat.surfel.numba_backend import rasterize_surfels_numba as render
     return render(*tensors, width, height)
 
 
@@ -110,25 +111,6 @@ _SHAPES = {
 
 def _check_tensors(means, quats, scales, opacities, colors, viewmat, K, background) -> list[Tensor]:
     """Validate shapes and finiteness; return the tensors in one float dtype, background filled in."""
-    if not isinstance(means, Tensor):
-        raise InvalidInputError(
-            f"rasterize_surfels: means must be a torch.Tensor, got {type(means).__name__}")
-    dtype = means.dtype if means.dtype in (torch.float32, torch.float64) else torch.float32
-    if background is None:
-        background = torch.zeros(3, dtype=dtype, device=means.device)
-    n = means.shape[0] if means.ndim == 2 else -1
-    values = (means, quats, scales, opacities, colors, viewmat, K, background)
-    out = []
-    for (name, shape), value in zip(_SHAPES.items(), values, strict=True):
-        value = value if isinstance(value, Tensor) else torch.as_tensor(value)
-        expected = tuple(n if d is None else d for d in shape)
-        if tuple(value.shape) != expected or n < 0:
-            want = "x".join("N" if d is None else str(d) for d in shape)
-            raise InvalidInputError(
-                f"rasterize_surfels: {name} must have shape ({want}), got {tuple(value.shape)}")
-        if not value.is_floating_point():
-            value = value.to(dtype)
-        if not bool(torch.isfinite(value).all()):
-            raise InvalidInputError(f"rasterize_surfels: {name} contains NaN or inf")
-        out.append(value.to(device=means.device, dtype=dtype))
-    return out
+    values = {"means": means, "quats": quats, "scales": scales, "opacities": opacities, "colors": colors,
+              "viewmat": viewmat, "K": K, "background": background}
+    return check_tensors("rasterize_surfels", _SHAPES, values)

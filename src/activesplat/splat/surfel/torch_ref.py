@@ -16,10 +16,11 @@ from dataclasses import dataclass
 import torch
 from torch import Tensor
 
-from activesplat.splat._raster_common import RASTER
-from activesplat.splat._raster_torch import quat_to_rotmat
-from activesplat.splat._surfel_common import SURFEL
+from activesplat.splat.kernels import quat_to_rotmat
+from activesplat.splat.raster.constants import RASTER
+from activesplat.splat.raster.torch_ref import blend_weights, median_of
 from activesplat.splat.surfel import SurfelRenderOutput
+from activesplat.splat.surfel.constants import SURFEL
 
 
 @dataclass
@@ -110,22 +111,14 @@ def composite_tile(proj: SurfelProjection, ids: Tensor, opacities, colors, pix: 
     z = torch.where(ray_wins, z_hit, proj.depths[ids][None].expand_as(z_hit))
     alpha = torch.clamp(opacities[ids] * torch.exp(-power), max=RASTER.alpha_max)
     alpha = torch.where(alpha >= RASTER.alpha_min, alpha, torch.zeros_like(alpha))
-    with torch.no_grad():
-        blended = torch.cumprod(1 - alpha, dim=1) >= RASTER.transmittance_min
-    alpha = alpha * blended
-    t_after = torch.cumprod(1 - alpha, dim=1)
-    t_before = torch.cat([torch.ones_like(t_after[:, :1]), t_after[:, :-1]], dim=1)
-    w = alpha * t_before
+    w, t_before, t_after = blend_weights(alpha)
     t_final = t_after[:, -1]
     rgb = w @ colors[ids] + t_final[:, None] * background
     normal = w @ proj.normals[ids]
     wz, wzz = w * z, w * z * z
     d1, d2 = torch.cumsum(wz, dim=1) - wz, torch.cumsum(wzz, dim=1) - wzz  # exclusive running sums
     distortion = (w * (z * z * (1 - t_before) - 2 * z * d1 + d2)).sum(-1)
-    with torch.no_grad():
-        crossing = (t_after < RASTER.median_transmittance) & (t_before >= RASTER.median_transmittance)
-        median = (crossing * z.detach()).sum(dim=1)
-    return rgb, wz.sum(-1), 1 - t_final, median, normal, distortion
+    return rgb, wz.sum(-1), 1 - t_final, median_of(z, t_before, t_after), normal, distortion
 
 
 def rasterize_surfels_torch(means, quats, scales, opacities, colors, viewmat, K, background, width, height,

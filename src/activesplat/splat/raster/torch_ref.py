@@ -13,19 +13,9 @@ import math
 import torch
 from torch import Tensor
 
-from activesplat.splat._raster_common import RASTER
-from activesplat.splat.rasterize import Projection, RenderOutput
-
-
-def quat_to_rotmat(quats: Tensor) -> Tensor:
-    """(N,4) wxyz -> (N,3,3) rotation matrices; the quaternions are normalised first."""
-    w, x, y, z = (quats / quats.norm(dim=-1, keepdim=True)).unbind(-1)
-    rows = [
-        1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
-        2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
-        2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y),
-    ]
-    return torch.stack(rows, dim=-1).reshape(-1, 3, 3)
+from activesplat.splat.kernels import quat_to_rotmat
+from activesplat.splat.raster import Projection, RenderOutput
+from activesplat.splat.raster.constants import RASTER
 
 
 def fov_limits(K: Tensor, width: int, height: int) -> tuple[float, float, float, float]:
@@ -88,6 +78,25 @@ def tile_rects(means2d: Tensor, radius: Tensor, width: int, height: int) -> Tens
     ], dim=-1).to(torch.int64)
 
 
+def blend_weights(alpha: Tensor) -> tuple[Tensor, Tensor, Tensor]:
+    """Front-to-back compositing of (P, M) alphas sorted by depth: a pixel stops before the term that would
+    bring T below 1e-4. Returns the weights w_i = alpha_i T_i and the transmittance before and after each
+    term, each (P, M)."""
+    with torch.no_grad():
+        blended = torch.cumprod(1 - alpha, dim=1) >= RASTER.transmittance_min
+    alpha = alpha * blended
+    t_after = torch.cumprod(1 - alpha, dim=1)
+    t_before = torch.cat([torch.ones_like(t_after[:, :1]), t_after[:, :-1]], dim=1)
+    return alpha * t_before, t_before, t_after
+
+
+def median_of(z: Tensor, t_before: Tensor, t_after: Tensor) -> Tensor:
+    """(P,) the depth z of the term at which T first drops below 0.5 (0 where it never does), no gradient."""
+    with torch.no_grad():
+        crossing = (t_after < RASTER.median_transmittance) & (t_before >= RASTER.median_transmittance)
+        return (crossing * z.detach()).sum(dim=1)
+
+
 def composite_tile(proj: Projection, ids: Tensor, opacities, colors, pix: Tensor, background):
     """Front-to-back blending of the depth-sorted Gaussians ``ids`` at pixel centres ``pix`` (P,2)."""
     d = proj.means2d[ids][None, :, :] - pix[:, None, :]
@@ -95,20 +104,12 @@ def composite_tile(proj: Projection, ids: Tensor, opacities, colors, pix: Tensor
     power = 0.5 * (a * d[..., 0] ** 2 + c * d[..., 1] ** 2) + b * d[..., 0] * d[..., 1]
     alpha = torch.clamp(opacities[ids] * torch.exp(-power), max=RASTER.alpha_max)
     alpha = torch.where((power >= 0) & (alpha >= RASTER.alpha_min), alpha, torch.zeros_like(alpha))
-    with torch.no_grad():
-        blended = torch.cumprod(1 - alpha, dim=1) >= RASTER.transmittance_min
-    alpha = alpha * blended
-    t_after = torch.cumprod(1 - alpha, dim=1)
-    t_before = torch.cat([torch.ones_like(t_after[:, :1]), t_after[:, :-1]], dim=1)
-    weights = alpha * t_before
+    weights, t_before, t_after = blend_weights(alpha)
     t_final = t_after[:, -1]
     z = proj.depths[ids]
     rgb = weights @ colors[ids] + t_final[:, None] * background
     depth = weights @ z
-    with torch.no_grad():
-        crossing = (t_after < RASTER.median_transmittance) & (t_before >= RASTER.median_transmittance)
-        median = (crossing * z.detach()).sum(dim=1)
-    return rgb, depth, 1 - t_final, median
+    return rgb, depth, 1 - t_final, median_of(z, t_before, t_after)
 
 
 def composite_torch(proj: Projection, opacities, colors, width, height, background):

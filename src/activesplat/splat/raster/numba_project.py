@@ -16,16 +16,26 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from activesplat.splat._raster_common import RASTER
+from activesplat.splat.kernels import (
+    F32,
+    HALF,
+    ONE,
+    TWO,
+    ZERO,
+    inlined,
+    matmul3,
+    quat_rotmat,
+    quat_vjp,
+    transpose3,
+)
+from activesplat.splat.raster.constants import RASTER
 
-F32 = np.float32
 NEAR = F32(RASTER.near)
 LOW_PASS = F32(RASTER.low_pass)
 SIGMAS = F32(RASTER.extent_sigmas)
 EIGEN_GAP = F32(RASTER.min_eigen_gap)
 TILE = RASTER.tile_size
 TILE_F = F32(RASTER.tile_size)
-ZERO, HALF, ONE, TWO = F32(0.0), F32(0.5), F32(1.0), F32(2.0)
 BLOCK = 256  # Gaussians per parallel block
 # offsets of the fields in the scratch array (uint64 so the indices need no negative wrap-around)
 (M0, M1, M2, QW, QX, QY, QZ, S0, S1, S2, KEEP,  # inputs of both passes
@@ -34,34 +44,6 @@ N_FWD = 22
 (VU, VV, VA, VB, VC, VZ,  # backward inputs after M0..KEEP and CA..CC
  GM0, GM1, GM2, GQW, GQX, GQY, GQZ, GS0, GS1, GS2) = (np.uint64(k * BLOCK) for k in range(22, 38))
 N_BWD = 38
-
-
-@njit(cache=True, error_model="numpy")
-def quat_rotmat(w, x, y, z):
-    """Rotation matrix (row-major 9-tuple) of a unit quaternion wxyz."""
-    return (
-        ONE - TWO * (y * y + z * z), TWO * (x * y - w * z), TWO * (x * z + w * y),
-        TWO * (x * y + w * z), ONE - TWO * (x * x + z * z), TWO * (y * z - w * x),
-        TWO * (x * z - w * y), TWO * (y * z + w * x), ONE - TWO * (x * x + y * y),
-    )
-
-
-@njit(cache=True, error_model="numpy")
-def matmul3(a, b):
-    """3x3 product of row-major 9-tuples."""
-    return (
-        a[0] * b[0] + a[1] * b[3] + a[2] * b[6], a[0] * b[1] + a[1] * b[4] + a[2] * b[7],
-        a[0] * b[2] + a[1] * b[5] + a[2] * b[8],
-        a[3] * b[0] + a[4] * b[3] + a[5] * b[6], a[3] * b[1] + a[4] * b[4] + a[5] * b[7],
-        a[3] * b[2] + a[4] * b[5] + a[5] * b[8],
-        a[6] * b[0] + a[7] * b[3] + a[8] * b[6], a[6] * b[1] + a[7] * b[4] + a[8] * b[7],
-        a[6] * b[2] + a[7] * b[5] + a[8] * b[8],
-    )
-
-
-@njit(cache=True, error_model="numpy")
-def transpose3(a):
-    return (a[0], a[3], a[6], a[1], a[4], a[7], a[2], a[5], a[8])
 
 
 @njit(cache=True, error_model="numpy")
@@ -74,29 +56,8 @@ def conic_vjp(a, b, c, va, vb, vc):
     return -(cg00 * a + cg01 * b), -(cg00 * b + cg01 * c), -(cg10 * b + cg11 * c)
 
 
-@njit(cache=True, error_model="numpy")
-def quat_vjp(q, norm, v_r):
-    """Gradient on the raw quaternion from the gradient on R(q / |q|)."""
-    w, x, y, z = q
-    gw = TWO * (-z * v_r[1] + y * v_r[2] + z * v_r[3] - x * v_r[5] - y * v_r[6] + x * v_r[7])
-    gx = TWO * (y * v_r[1] + z * v_r[2] + y * v_r[3] - TWO * x * v_r[4] - w * v_r[5] + z * v_r[6]
-                + w * v_r[7] - TWO * x * v_r[8])
-    gy = TWO * (-TWO * y * v_r[0] + x * v_r[1] + w * v_r[2] + x * v_r[3] + z * v_r[5] - w * v_r[6]
-                + z * v_r[7] - TWO * y * v_r[8])
-    gz = TWO * (-TWO * z * v_r[0] - w * v_r[1] + x * v_r[2] + w * v_r[3] - TWO * z * v_r[4] + y * v_r[5]
-                + x * v_r[6] + y * v_r[7])
-    dot = w * gw + x * gx + y * gy + z * gz
-    return (gw - w * dot) / norm, (gx - x * dot) / norm, (gy - y * dot) / norm, (gz - z * dot) / norm
-
-
-def _inline(fn):
-    """A second dispatcher of ``fn`` that numba inlines at every call (for the vectorised loops; the
-    plain one stays a call, as the surfel kernels use it)."""
-    return njit(cache=True, error_model="numpy", inline="always")(fn.py_func)
-
-
-_quat_rotmat, _matmul3, _transpose3 = _inline(quat_rotmat), _inline(matmul3), _inline(transpose3)
-_conic_vjp, _quat_vjp = _inline(conic_vjp), _inline(quat_vjp)
+_quat_rotmat, _matmul3, _transpose3 = inlined(quat_rotmat), inlined(matmul3), inlined(transpose3)
+_conic_vjp, _quat_vjp = inlined(conic_vjp), inlined(quat_vjp)
 
 
 @njit(cache=True, error_model="numpy", inline="always")

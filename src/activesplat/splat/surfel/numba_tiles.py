@@ -1,8 +1,8 @@
 """numba kernels: front-to-back compositing of 2DGS surfels per 16x16 tile and its reverse-order backward.
 
 Tile lists, the stable depth sort and the per-tile pixel ranges are those of the 3D rasterizer
-(``_raster_numba_tiles``). Ray-splat intersection in relative pixel coordinates (dx, dy) = x - c:
-with the surfel's M (see ``_surfel_numba_project``) the cross product c = h_u x h_v of the paper
+(``splat.raster.numba_tiles``). Ray-splat intersection in relative pixel coordinates (dx, dy) = x - c:
+with the surfel's M (see ``numba_project``) the cross product c = h_u x h_v of the paper
 reduces to c = (z (B1 dx - B0 dy), z (A0 dy - A1 dx), D0 + E dx + F dy), D0 = A0 B1 - A1 B0,
 E = A1 B2 - B1 A2, F = B0 A2 - A0 B2, so (u, v) = c_xy / c_z costs a few multiply-adds per pixel.
 The backward pass accumulates, per instance, sums over pixels of the gradients on the numerators
@@ -14,16 +14,18 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from activesplat.splat._raster_common import RASTER
-from activesplat.splat._raster_numba_tiles import pixel_range, tile_bounds
-from activesplat.splat._surfel_common import SURFEL
+from activesplat.splat.raster.numba_tiles import (
+    ALPHA_MAX,
+    ALPHA_MIN,
+    T_MEDIAN,
+    T_MIN,
+    TILE,
+    pixel_range,
+    tile_bounds,
+)
+from activesplat.splat.surfel.constants import SURFEL
 
 F32 = np.float32
-TILE = RASTER.tile_size
-ALPHA_MAX = F32(RASTER.alpha_max)
-ALPHA_MIN = F32(RASTER.alpha_min)
-T_MIN = F32(RASTER.transmittance_min)
-T_MEDIAN = F32(RASTER.median_transmittance)
 LOG_255 = F32(SURFEL.log_255)
 FILTER = F32(SURFEL.filter_inv_square)
 POWER_PAD = F32(SURFEL.power_pad)

@@ -1,7 +1,7 @@
 """numba CPU backend of :func:`activesplat.splat.rasterize`: two autograd Functions.
 
-``_Project`` maps world Gaussians to screen conics (kernels in ``_raster_numba_project``);
-``_Composite`` bins them into 16x16 tiles and blends front to back (``_raster_numba_tiles``).
+``_Project`` maps world Gaussians to screen conics (kernels in ``numba_project``);
+``_Composite`` bins them into 16x16 tiles and blends front to back (``numba_tiles``).
 Splitting at the 2D means, as gsplat does, makes ``means2d`` a graph node whose gradient 3DGS
 densification can read. Everything is float32; inputs of other dtypes are cast (gradients come
 back in the input dtype). Gaussians with radius 0 (culled, masked, off-screen) get zero gradient,
@@ -19,11 +19,12 @@ import torch
 from torch import Tensor
 
 from activesplat.errors import InvalidInputError
-from activesplat.splat import _raster_numba_project as proj
-from activesplat.splat import _raster_numba_tiles as tiles
-from activesplat.splat._raster_common import RASTER
-from activesplat.splat._raster_torch import fov_limits
-from activesplat.splat.rasterize import RenderOutput
+from activesplat.splat.kernels import to_numpy as _np
+from activesplat.splat.raster import RenderOutput
+from activesplat.splat.raster import numba_project as proj
+from activesplat.splat.raster import numba_tiles as tiles
+from activesplat.splat.raster.constants import RASTER
+from activesplat.splat.raster.torch_ref import fov_limits
 
 STAGE_CPU_MS: dict[str, float] | None = None
 """When a dict, every stage adds its CPU milliseconds (``time.process_time``) under its name:
@@ -39,10 +40,6 @@ def _stage(name: str):
     t0 = time.process_time()
     yield
     STAGE_CPU_MS[name] = STAGE_CPU_MS.get(name, 0.0) + 1e3 * (time.process_time() - t0)
-
-
-def _np(t: Tensor) -> np.ndarray:
-    return np.ascontiguousarray(t.detach().to("cpu", torch.float32).numpy())
 
 
 def _intrinsics(K: Tensor, width: int, height: int) -> np.ndarray:

@@ -17,8 +17,8 @@ from __future__ import annotations
 import torch
 from torch import Tensor
 
-from activesplat.splat._raster_common import RASTER
-from activesplat.splat.rasterize import RenderOutput
+from activesplat.splat.raster import RenderOutput
+from activesplat.splat.raster.constants import RASTER
 
 
 def rasterize_gsplat(means, quats, scales, opacities, colors, viewmat, K, width, height, background, mask):
@@ -77,7 +77,7 @@ def _view_depths(means: Tensor, viewmat: Tensor, n: int, mask: Tensor | None) ->
 @torch.no_grad()
 def _median_depth_cpu(means, quats, scales, opacities, viewmat, K, width, height) -> Tensor:
     """Median depth (T first below 0.5) from the numba backend: gsplat does not provide it."""
-    from activesplat.splat._raster_numba import rasterize_numba
+    from activesplat.splat.raster.numba_backend import rasterize_numba
 
     cpu = [t.detach().cpu() for t in (means, quats, scales, opacities)]
     colors = torch.zeros(cpu[0].shape[0], 3)

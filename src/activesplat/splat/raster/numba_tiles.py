@@ -17,7 +17,7 @@ import numpy as np
 from numba import njit, prange, types
 from numba.extending import intrinsic
 
-from activesplat.splat._raster_common import RASTER
+from activesplat.splat.raster.constants import RASTER
 
 F32 = np.float32
 TILE = RASTER.tile_size

@@ -1,0 +1,213 @@
+"""Goal selection (paper sec. III-B, III-C) as functions of the plan and the agent's history: which
+Voronoi nodes are candidates, their eq. 12 scores from rendered panoramas, the local-then-global order
+over UPGMA subregions, and the release's long-path rule. The explorer calls these at every replan."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import networkx as nx
+import numpy as np
+
+from activesplat.geometry import wrap_angle
+from activesplat.planning.config import PlanningConfig
+from activesplat.planning.panorama import RenderFn, render_panorama
+from activesplat.planning.viewpoints import (
+    RotationTarget,
+    hull_volume,
+    information_scores,
+    invisible_share,
+    node_scores,
+)
+from activesplat.workspace.config import WorkspaceConfig
+from activesplat.workspace.paths import line_of_sight, path_length
+from activesplat.workspace.plan import Plan
+from activesplat.workspace.subregions import agent_subregion
+
+VISIT_MEMORY = 2000
+"""Positions of the agent's most recent steps that count for the unvisited flag (every step of a 1000- or
+2000-step episode)."""
+
+
+@dataclass(frozen=True)
+class GoalRules:
+    """The explorer's goal-selection knobs (see `ExplorerConfig` for their meaning and origin)."""
+
+    local_score_threshold: float
+    global_distance_weight: float
+    max_panoramas: int
+    panorama_height_m: float
+    hierarchical: bool
+    random_goals: bool
+    long_path_m: float
+    on_the_way_m: float
+
+
+def node_state(node_pos: np.ndarray, visited: Sequence[np.ndarray], failed: Sequence[np.ndarray],
+               radius: float) -> tuple[bool, bool]:
+    """(unvisited, failed) of a node: no recent position within `radius` of it (eq. 12's s_u), and a failed
+    goal within `radius` of it."""
+    unvisited = not any(np.hypot(*(node_pos - p)) <= radius for p in visited[-VISIT_MEMORY:])
+    is_failed = any(np.hypot(*(node_pos - p)) <= radius for p in failed)
+    return unvisited, is_failed
+
+
+def goal_candidates(graph: nx.Graph) -> list[int]:
+    """View-position candidates: nodes marked `view` and leaves; every node when there are none."""
+    nodes = [n for n, d in graph.nodes(data=True) if d.get("view") or graph.degree[n] <= 1]
+    return nodes or list(graph.nodes)
+
+
+def panorama_candidates(nodes: list[int], dist: np.ndarray, open_: np.ndarray, subregions: dict[int, int],
+                        max_panoramas: int) -> list[int]:
+    """Indices of the nodes scored by panorama (at most `max_panoramas`): the nearest open node of every
+    subregion first, so that rooms farther away are weighed too, then the nearest open nodes."""
+    order = [int(i) for i in np.argsort(dist, kind="stable") if open_[i]]
+    chosen: list[int] = []
+    seen: set[int] = set()
+    for i in order:
+        region = subregions.get(nodes[i])
+        if region is not None and region not in seen:
+            seen.add(region)
+            chosen.append(i)
+    chosen = chosen[:max_panoramas]
+    taken = set(chosen)
+    chosen += [i for i in order if i not in taken][: max_panoramas - len(chosen)]
+    return chosen
+
+
+def travel_lengths(graph: nx.Graph, here: np.ndarray, nodes: list[int], pos: np.ndarray) -> np.ndarray:
+    """Approximate travel length to each node: from the graph node nearest the agent along the graph (plus
+    the straight hop to it); three times the Euclidean distance where the graph gives no path."""
+    if graph.number_of_nodes() == 0:
+        return np.hypot(*(pos - here).T)
+    all_pos = np.stack([np.asarray(graph.nodes[n]["pos"], float) for n in graph.nodes])
+    keys = list(graph.nodes)
+    start = keys[int(np.argmin(np.hypot(*(all_pos - here).T)))]
+    hop = float(np.hypot(*(np.asarray(graph.nodes[start]["pos"]) - here)))
+    lengths = nx.single_source_dijkstra_path_length(graph, start, weight="weight")
+    out = np.array([hop + lengths.get(n, np.inf) for n in nodes])
+    eu = np.hypot(*(pos - here).T)
+    return np.where(np.isfinite(out), out, eu * 3.0)
+
+
+def local_then_global(scores: np.ndarray, info: np.ndarray, travel: np.ndarray, open_: np.ndarray,
+                      in_local: np.ndarray, rules: GoalRules) -> list[int]:
+    """Indices best first (sec. III-C). Ties go to the shorter travel. Hierarchical: while an open node of
+    the agent's own subregion (`in_local`) promises something to see (information above the local
+    threshold), those nodes come first in score order; otherwise every node is ranked by its score minus
+    the distance cost. Flat (`no-hp`): score order."""
+    n = len(scores)
+    order = sorted(range(n), key=lambda i: (-scores[i], travel[i]))
+    if not rules.hierarchical:
+        return order
+    # stay local while a node of this subregion promises something to see; the unvisited / in-horizon flags
+    # alone do not keep the agent in a room it has seen
+    local_best = [i for i in order if in_local[i] and open_[i] and info[i] > rules.local_score_threshold]
+    if local_best:
+        return local_best + [i for i in order if i not in local_best]
+    global_score = scores - rules.global_distance_weight * travel
+    return sorted(range(n), key=lambda i: (-global_score[i], travel[i]))
+
+
+def rank_goals(plan: Plan, here: np.ndarray, render: RenderFn, floor_height: float,
+               visited: Sequence[np.ndarray], failed: Sequence[np.ndarray], pcfg: PlanningConfig,
+               wcfg: WorkspaceConfig, rules: GoalRules, rng: np.random.Generator) -> list[int]:
+    """Candidate goal nodes of `plan.graph`, best first (eq. 12 scores; local-then-global, sec. III-C).
+    Renders a panorama at up to `max_panoramas` open candidates and records every candidate's score and
+    information part in `plan.scores` / `plan.info`. `random_goals`: a random order of the open nodes,
+    then the others (no scores)."""
+    graph, ws = plan.graph, plan.workspace
+    nodes = goal_candidates(graph)
+    if not nodes:
+        return []
+    pos = np.stack([np.asarray(graph.nodes[n]["pos"], float) for n in nodes])
+    state = [node_state(p, visited, failed, pcfg.score.unvisited_radius_m) for p in pos]
+    unvisited = np.array([s[0] for s in state])
+    is_failed = np.array([s[1] for s in state])
+    open_ = unvisited & ~is_failed
+    dist = np.hypot(*(pos - here).T)
+    if rules.random_goals:
+        order = rng.permutation(len(nodes))
+        return [nodes[i] for i in order if open_[i]] + [nodes[i] for i in order if not open_[i]]
+    inv = np.zeros(len(nodes))
+    vol = np.zeros(len(nodes))
+    height = floor_height + rules.panorama_height_m
+    for i in panorama_candidates(nodes, dist, open_, plan.subregions, rules.max_panoramas):
+        pano = render_panorama(render, [pos[i][0], height, pos[i][1]], pcfg.panorama)
+        inv[i] = invisible_share(pano, pcfg.rotation)
+        vol[i] = hull_volume(pano, pcfg.hull)
+    in_horizon = np.array([line_of_sight(ws, here, p, wcfg) for p in pos])
+    scores = node_scores(inv, vol, unvisited, in_horizon, is_failed, pcfg.score)
+    plan.scores = {n: float(s) for n, s in zip(nodes, scores, strict=True)}
+    travel = travel_lengths(graph, here, nodes, pos)
+    # the information terms (w_o s_o + w_c s_c, shares relative to the best node anywhere): what keeps
+    # planning local, and what makes a node worth a stop on a long path's way
+    info = information_scores(inv, vol, pcfg.score)
+    plan.info = {n: float(v) for n, v in zip(nodes, info, strict=True)}
+    hierarchical = rules.hierarchical and bool(plan.subregions)
+    local = agent_subregion(graph, plan.subregions, here) if hierarchical else None
+    in_local = np.array([hierarchical and plan.subregions.get(n) == local for n in nodes])
+    rules = dataclasses.replace(rules, hierarchical=hierarchical)
+    return [nodes[i] for i in local_then_global(scores, info, travel, open_, in_local, rules)]
+
+
+def distance_to_polyline(p: np.ndarray, path: np.ndarray) -> float:
+    """Shortest distance from the point p (2,) to the polyline path (M,2)."""
+    if len(path) == 1:
+        return float(np.hypot(*(p - path[0])))
+    a, b = path[:-1], path[1:]
+    ab = b - a
+    t = np.clip(np.einsum("ij,ij->i", p - a, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-12), 0, 1)
+    return float(np.min(np.hypot(*(a + t[:, None] * ab - p).T)))
+
+
+def closer_on_the_way(plan: Plan, goal: np.ndarray, path: np.ndarray, visited: Sequence[np.ndarray],
+                      failed: Sequence[np.ndarray], unvisited_radius: float, rules: GoalRules,
+                      find_path: Callable[[np.ndarray], np.ndarray | None]) -> tuple[np.ndarray, np.ndarray]:
+    """The release's long-path rule: a goal more than `long_path_m` away is kept only if no closer,
+    lower-scoring but still worthwhile node (information above the local threshold, unvisited, not failed)
+    lies on the way (within `on_the_way_m` of the path); otherwise the best such node is the goal.
+    `find_path(node_pos)` plans the path from the agent to a node (None: no safe path)."""
+    best, best_score = None, -np.inf
+    for node, score in plan.scores.items():
+        if plan.info.get(node, 0.0) <= rules.local_score_threshold or score <= best_score:
+            continue
+        pos = np.asarray(plan.graph.nodes[node]["pos"], float)
+        unvisited, is_failed = node_state(pos, visited, failed, unvisited_radius)
+        if not unvisited or is_failed or np.hypot(*(pos - goal)) < 1e-6:
+            continue
+        if distance_to_polyline(pos, path) <= rules.on_the_way_m:
+            best, best_score = pos, score
+    if best is None:
+        return goal, path
+    closer = find_path(best)
+    if closer is None or path_length(closer) >= path_length(path):
+        return goal, path
+    return best, closer
+
+
+def select_rotation_targets(targets: Sequence[RotationTarget], yaw: float, pcfg: PlanningConfig,
+                            max_views: int) -> list[RotationTarget]:
+    """On-arrival rotation targets (sec. III-B3): the heaviest panorama / high-loss targets, skipping those
+    already in view (within their source's minimum offset of the heading, and less than 20 deg off level)
+    and those within 20 deg of a chosen one, at most `max_views`; in angular order from the current
+    heading (less turning)."""
+    chosen: list[RotationTarget] = []
+    for t in sorted(targets, key=lambda t: -t.weight):
+        limit = pcfg.rotation.min_offset_deg if t.source == "panorama" else pcfg.high_loss.min_offset_deg
+        if abs(math.degrees(float(wrap_angle(t.yaw - yaw)))) <= limit and abs(math.degrees(t.pitch)) < 20:
+            continue
+        if any(abs(float(wrap_angle(t.yaw - c.yaw))) < math.radians(20) for c in chosen):
+            continue
+        chosen.append(t)
+        if len(chosen) >= max_views:
+            break
+    return sorted(chosen, key=lambda t: float(wrap_angle(t.yaw - yaw)) % (2 * math.pi))
+
+
+__all__ = ["GoalRules", "closer_on_the_way", "distance_to_polyline", "goal_candidates", "local_then_global",
+           "node_state", "panorama_candidates", "rank_goals", "select_rotation_targets", "travel_lengths"]

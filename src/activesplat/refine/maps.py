@@ -1,0 +1,36 @@
+"""`activesplat render-eval DIR`: which renderer evaluates a map folder. An episode's online map holds 3D
+Gaussians (the default rasterizer of `eval.render_eval`); a `refined_<method>/` folder holds the map of its
+refinement method (named in its refine.json), which says how it renders (2dgs: the surfel rasterizer)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+from activesplat.eval.render_eval import format_table, locate, render_eval
+from activesplat.refine.config import METHODS, RefineConfig
+from activesplat.refine.methods import make_method
+
+
+def render_options(folder: Path) -> dict:
+    """`render_eval` arguments a map folder asks for: its refinement method's (refine.json), or none for an
+    episode's online map."""
+    meta = Path(folder) / "refine.json"
+    method = json.loads(meta.read_text()).get("method") if meta.is_file() else None
+    if method not in METHODS:
+        return {}
+    return make_method(method, RefineConfig(), iters=1).eval_kwargs()
+
+
+def render_eval_from_args(args: argparse.Namespace) -> int:
+    """The `render-eval` command: evaluate the map of `args.dir` with its renderer and print a table."""
+    _, _, out = locate(args.dir)
+    options = {"renderer": None, **render_options(Path(out))}
+    result = render_eval(args.dir, n_train=args.n_train, n_test=args.n_test, seed=args.seed,
+                         backend=args.backend, progress=not args.no_progress, **options)
+    print(format_table(result, out))
+    return 0
+
+
+__all__ = ["render_eval_from_args", "render_options"]

@@ -1,0 +1,128 @@
+"""What the 3D Gaussian (`splat.raster`) and 2D surfel (`splat.surfel`) rasterizers share: input checks,
+quaternion rotations (torch for the references, numba for the kernels, with their vector-Jacobian product)
+and small 3x3 helpers of the numba kernels.
+
+numba helpers work on row-major 9-tuples in float32; `inlined(fn)` gives a second dispatcher numba inlines
+at every call site (the vectorised block loops use it; plain calls stay calls).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import torch
+from numba import njit
+from torch import Tensor
+
+from activesplat.errors import InvalidInputError
+
+F32 = np.float32
+ZERO, HALF, ONE, TWO = F32(0.0), F32(0.5), F32(1.0), F32(2.0)
+
+
+# --------------------------------------------------------------------------- input checks
+def check_size(caller: str, width: int, height: int) -> None:
+    """Both image sizes are positive ints (InvalidInputError naming `caller` otherwise)."""
+    for name, value in (("width", width), ("height", height)):
+        if isinstance(value, bool) or not isinstance(value, int) or value <= 0:
+            raise InvalidInputError(f"{caller}: {name} must be a positive int, got {value!r}")
+
+
+def check_tensors(caller: str, shapes: dict[str, tuple[int | None, ...]],
+                  values: dict[str, Any]) -> list[Tensor]:
+    """Validate the shapes (None = the number N of `means`) and finiteness of `values`, in the order of
+    `shapes`; return them as tensors of one float dtype (that of `means`, else float32) on the device of
+    `means`. A missing `background` becomes black."""
+    means = values["means"]
+    if not isinstance(means, Tensor):
+        raise InvalidInputError(f"{caller}: means must be a torch.Tensor, got {type(means).__name__}")
+    dtype = means.dtype if means.dtype in (torch.float32, torch.float64) else torch.float32
+    if values.get("background") is None:
+        values = {**values, "background": torch.zeros(3, dtype=dtype, device=means.device)}
+    n = means.shape[0] if means.ndim == 2 else -1
+    out = []
+    for name, shape in shapes.items():
+        value = values[name]
+        value = value if isinstance(value, Tensor) else torch.as_tensor(value)
+        expected = tuple(n if d is None else d for d in shape)
+        if tuple(value.shape) != expected or n < 0:
+            want = "x".join("N" if d is None else str(d) for d in shape)
+            raise InvalidInputError(f"{caller}: {name} must have shape ({want}), got {tuple(value.shape)}")
+        if not value.is_floating_point():
+            value = value.to(dtype)
+        if not bool(torch.isfinite(value).all()):
+            raise InvalidInputError(f"{caller}: {name} contains NaN or inf")
+        out.append(value.to(device=means.device, dtype=dtype))
+    return out
+
+
+def to_numpy(t: Tensor) -> np.ndarray:
+    """A contiguous float32 numpy copy of a tensor for the kernels."""
+    return np.ascontiguousarray(t.detach().to("cpu", torch.float32).numpy())
+
+
+# --------------------------------------------------------------------------- rotations
+def quat_to_rotmat(quats: Tensor) -> Tensor:
+    """(N,4) wxyz -> (N,3,3) rotation matrices; the quaternions are normalised first."""
+    w, x, y, z = (quats / quats.norm(dim=-1, keepdim=True)).unbind(-1)
+    rows = [
+        1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
+        2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
+        2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y),
+    ]
+    return torch.stack(rows, dim=-1).reshape(-1, 3, 3)
+
+
+@njit(cache=True, error_model="numpy")
+def quat_rotmat(w, x, y, z):
+    """Rotation matrix (row-major 9-tuple) of a unit quaternion wxyz (the kernels' `quat_to_rotmat`)."""
+    return (
+        ONE - TWO * (y * y + z * z), TWO * (x * y - w * z), TWO * (x * z + w * y),
+        TWO * (x * y + w * z), ONE - TWO * (x * x + z * z), TWO * (y * z - w * x),
+        TWO * (x * z - w * y), TWO * (y * z + w * x), ONE - TWO * (x * x + y * y),
+    )
+
+
+@njit(cache=True, error_model="numpy")
+def quat_vjp(q, norm, v_r):
+    """Gradient on the raw quaternion from the gradient on R(q / |q|)."""
+    w, x, y, z = q
+    gw = TWO * (-z * v_r[1] + y * v_r[2] + z * v_r[3] - x * v_r[5] - y * v_r[6] + x * v_r[7])
+    gx = TWO * (y * v_r[1] + z * v_r[2] + y * v_r[3] - TWO * x * v_r[4] - w * v_r[5] + z * v_r[6]
+                + w * v_r[7] - TWO * x * v_r[8])
+    gy = TWO * (-TWO * y * v_r[0] + x * v_r[1] + w * v_r[2] + x * v_r[3] + z * v_r[5] - w * v_r[6]
+                + z * v_r[7] - TWO * y * v_r[8])
+    gz = TWO * (-TWO * z * v_r[0] - w * v_r[1] + x * v_r[2] + w * v_r[3] - TWO * z * v_r[4] + y * v_r[5]
+                + x * v_r[6] + y * v_r[7])
+    dot = w * gw + x * gx + y * gy + z * gz
+    return (gw - w * dot) / norm, (gx - x * dot) / norm, (gy - y * dot) / norm, (gz - z * dot) / norm
+
+
+# --------------------------------------------------------------------------- 3x3 helpers of the kernels
+@njit(cache=True, error_model="numpy")
+def matmul3(a, b):
+    """3x3 product of row-major 9-tuples."""
+    return (
+        a[0] * b[0] + a[1] * b[3] + a[2] * b[6], a[0] * b[1] + a[1] * b[4] + a[2] * b[7],
+        a[0] * b[2] + a[1] * b[5] + a[2] * b[8],
+        a[3] * b[0] + a[4] * b[3] + a[5] * b[6], a[3] * b[1] + a[4] * b[4] + a[5] * b[7],
+        a[3] * b[2] + a[4] * b[5] + a[5] * b[8],
+        a[6] * b[0] + a[7] * b[3] + a[8] * b[6], a[6] * b[1] + a[7] * b[4] + a[8] * b[7],
+        a[6] * b[2] + a[7] * b[5] + a[8] * b[8],
+    )
+
+
+@njit(cache=True, error_model="numpy")
+def transpose3(a):
+    return (a[0], a[3], a[6], a[1], a[4], a[7], a[2], a[5], a[8])
+
+
+def inlined(fn):
+    """A second dispatcher of the numba function ``fn`` that numba inlines at every call (for the
+    vectorised loops; the plain one stays a call)."""
+    return njit(cache=True, error_model="numpy", inline="always")(fn.py_func)
+
+
+__all__ = ["check_size", "check_tensors", "inlined", "matmul3", "quat_rotmat", "quat_to_rotmat", "quat_vjp",
+           "to_numpy", "transpose3"]

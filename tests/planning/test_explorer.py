@@ -1,0 +1,106 @@
+"""The explorer through its public behaviour: the actions `act` returns (bootstrap, goals, escapes), the
+path-ahead check, and turn counts that follow the action sizes."""
+
+import sys
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "workspace"))
+from layouts import RES, corridor  # noqa: E402
+
+import activesplat.planning.explorer as explorer_module  # noqa: E402
+from activesplat.geometry import camera_pose  # noqa: E402
+from activesplat.planning.controller import ControllerConfig  # noqa: E402
+from activesplat.planning.explorer import ActiveSplatExplorer, ExplorerConfig  # noqa: E402
+from activesplat.workspace.clean import extract_workspace  # noqa: E402
+from activesplat.workspace.config import WorkspaceConfig  # noqa: E402
+from activesplat.workspace.paths import path_ahead_clear  # noqa: E402
+from activesplat.workspace.plan import Plan  # noqa: E402
+from activesplat.workspace.voronoi import build_voronoi_graph  # noqa: E402
+
+WCFG = WorkspaceConfig(resolution=RES)
+HERE = np.array([1.0, 1.5])
+WORLD = SimpleNamespace(gaussians=None, high_loss_mask=None, render=None)
+
+
+def _obs(xz, yaw=0.0, collided=False):
+    return SimpleNamespace(pose=camera_pose([xz[0], 1.25, xz[1]], yaw), collided=collided, step=0)
+
+
+def _after_bootstrap(ex, obs) -> None:
+    n = 0
+    while ex.queue:
+        ex.act(obs)
+        n += 1
+    assert n == 72
+
+
+def test_the_bootstrap_and_the_escape_turn_by_the_action_sizes():
+    for turn_deg, look_deg, turns, tilts in ((10.0, 15.0, 36, 3), (30.0, 15.0, 12, 3), (10.0, 45.0, 36, 1)):
+        ctrl = ControllerConfig(turn_deg=turn_deg, look_deg=look_deg)
+        cfg = ExplorerConfig(workspace=WCFG, controller=ctrl)
+        ex = ActiveSplatExplorer(WORLD, 0.0, cfg)
+        actions = [ex.act(_obs(HERE)) for _ in range(2 * turns)]
+        assert actions[0::2] == ["turn_left"] * turns
+        assert actions[1::2][: 2 * tilts] == ["look_down"] * tilts + ["look_up"] * tilts
+        assert ex.dense_mapping
+        # a refused forward move: turns toward the clearest heading (at most half a circle), then 3 steps
+        ex.plan = Plan(workspace=extract_workspace(corridor(), HERE, WCFG))
+        escape = [ex.act(_obs(HERE, collided=True))]
+        while ex.queue:
+            escape.append(ex.act(_obs(HERE)))
+        turn = escape[: escape.index("move_forward")]
+        assert turn and len(set(turn)) == 1 and len(turn) <= turns // 2
+        assert escape[len(turn):] == ["move_forward"] * 3
+
+
+def test_the_path_ahead_is_blocked_only_where_it_gets_narrower_than_the_agent_and_than_here():
+    ws = extract_workspace(corridor(), HERE, WCFG)
+
+    def clear(here, target, tolerance=0.05):
+        return path_ahead_clear(ws, np.array(here), np.array(target), 0.65, tolerance, WCFG)
+
+    assert not clear([2.0, 1.5], [2.0, 1.02])  # from the corridor's middle toward its wall
+    assert clear([2.0, 1.5], [3.5, 1.5])  # along the middle
+    # standing closer to the wall than the agent radius (thin polished workspace), a way out is clear
+    assert ws.clearance_at(np.array([2.0, 1.06])) < WCFG.agent_radius
+    assert clear([2.0, 1.06], [2.6, 1.5])
+    # beside a wall the checked segment starts off the planned one and clearance is quantised to cells: a
+    # dip of less than the tolerance below the agent radius passes, a heading into the wall does not
+    here, graze = np.array([2.0, 1.5]), np.array([2.3, 1.06])
+    dip = float(ws.segments_clearance(here[None], graze[None])[0])
+    assert WCFG.agent_radius - 0.05 <= dip < WCFG.agent_radius
+    assert clear(here, graze) and not clear(here, graze, tolerance=0.0)
+    assert not clear(here, [2.3, 1.0])
+    assert path_ahead_clear(None, here, graze, 0.65, 0.0, WCFG)
+
+
+def test_an_agent_whose_goals_all_failed_escapes_before_looking_around():
+    ex = ActiveSplatExplorer(WORLD, 0.0, ExplorerConfig(workspace=WCFG))
+    ex.plan = Plan(workspace=extract_workspace(corridor(), HERE, WCFG))
+    pose = _obs([2.0, 1.2]).pose
+    ex.queue.clear()
+    ex.idle(pose, stuck=False)
+    assert ex.queue == ["turn_left"] * 6
+    ex.queue.clear()
+    ex.idle(pose, stuck=True)
+    assert ex.queue[-6:] == ["turn_left"] * 6 and "move_forward" in ex.queue
+
+
+def test_a_goal_the_agent_stands_on_is_skipped(monkeypatch):
+    """Arriving at once would replan at once: the explorer must go to the next goal instead of spinning."""
+    ws = extract_workspace(corridor(), HERE, WCFG)
+    graph = build_voronoi_graph(ws, WCFG)
+    pos = {n: np.asarray(d["pos"], float) for n, d in graph.nodes(data=True)}
+    near = min(pos, key=lambda n: np.hypot(*(pos[n] - HERE)))
+    far = max(pos, key=lambda n: pos[n][0])
+    monkeypatch.setattr(explorer_module, "build_plan", lambda *a, **k: Plan(workspace=ws, graph=graph))
+    monkeypatch.setattr(explorer_module, "rank_goals", lambda *a, **k: [near, far])
+    ex = ActiveSplatExplorer(WORLD, 0.0, ExplorerConfig(workspace=WCFG))
+    obs = _obs(pos[near])  # standing on the best-ranked node
+    _after_bootstrap(ex, obs)
+    action = ex.act(obs)
+    assert np.allclose(ex.plan.goal, pos[far]) and action in ("turn_left", "turn_right", "move_forward")
+    assert not ex.dense_mapping  # travelling

@@ -1,0 +1,107 @@
+"""Goal selection (paper sec. III-B, III-C) on a synthetic corridor: the release's long-path rule, node
+information with and without hierarchical planning, local-then-global ordering."""
+
+import dataclasses
+import sys
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "workspace"))
+from layouts import RES, corridor  # noqa: E402
+
+from activesplat.planning.config import PlanningConfig  # noqa: E402
+from activesplat.planning.explorer import ExplorerConfig, goal_rules  # noqa: E402
+from activesplat.planning.goals import (  # noqa: E402
+    closer_on_the_way,
+    distance_to_polyline,
+    local_then_global,
+    rank_goals,
+)
+from activesplat.workspace.clean import extract_workspace  # noqa: E402
+from activesplat.workspace.config import WorkspaceConfig  # noqa: E402
+from activesplat.workspace.paths import plan_safe_path  # noqa: E402
+from activesplat.workspace.plan import Plan  # noqa: E402
+from activesplat.workspace.voronoi import build_voronoi_graph  # noqa: E402
+
+WCFG = WorkspaceConfig(resolution=RES)
+HERE = np.array([1.0, 1.5])
+RULES = goal_rules(ExplorerConfig(workspace=WCFG, long_path_m=3.0))
+RADIUS = PlanningConfig().score.unvisited_radius_m
+
+
+def _corridor_plan(mid_info: float) -> tuple[Plan, np.ndarray, np.ndarray]:
+    ws = extract_workspace(corridor(), HERE, WCFG)
+    graph = build_voronoi_graph(ws, WCFG)
+    pos = {n: np.asarray(d["pos"], float) for n, d in graph.nodes(data=True)}
+    far = max(pos, key=lambda n: pos[n][0])
+    mid = min(pos, key=lambda n: abs(pos[n][0] - 3.0))
+    plan = Plan(workspace=ws, graph=graph, scores={far: 40.0, mid: 20.0 + mid_info},
+                info={far: 20.0, mid: mid_info})
+    goal = pos[far]
+    return plan, goal, plan_safe_path(graph, ws, HERE, goal, WCFG)
+
+
+def _closer(plan, goal, path, visited=()):
+    def find_path(node_pos):
+        return plan_safe_path(plan.graph, plan.workspace, HERE, node_pos, WCFG)
+
+    return closer_on_the_way(plan, goal, path, list(visited), [], RADIUS, RULES, find_path)
+
+
+def test_a_long_path_stops_at_a_worthwhile_node_on_the_way():
+    plan, goal, path = _corridor_plan(mid_info=10.0)
+    new_goal, new_path = _closer(plan, goal, path)
+    assert abs(new_goal[0] - 3.0) < 0.2 and new_path[-1] @ [1, 0] < goal[0] - 1.0
+
+
+def test_a_long_path_is_kept_when_nothing_on_the_way_is_worth_a_stop():
+    for mid_info in (5.0, 0.0):  # no information above the local threshold
+        plan, goal, path = _corridor_plan(mid_info)
+        new_goal, new_path = _closer(plan, goal, path)
+        assert new_goal is goal and new_path is path
+    plan, goal, path = _corridor_plan(mid_info=10.0)
+    # the node on the way was visited already
+    assert _closer(plan, goal, path, visited=[np.array([3.0, 1.5])])[0] is goal
+
+
+def test_distance_to_polyline():
+    path = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 2.0]])
+    assert distance_to_polyline(np.array([1.0, 0.5]), path) == 0.5
+    assert distance_to_polyline(np.array([3.0, 1.0]), path) == 1.0
+    assert np.isclose(distance_to_polyline(np.array([-1.0, -1.0]), path), np.sqrt(2))
+
+
+def test_local_nodes_come_first_while_they_promise_something_then_score_minus_distance():
+    scores = np.array([50.0, 30.0, 45.0])
+    travel = np.array([9.0, 1.0, 2.0])
+    open_ = np.ones(3, bool)
+    in_local = np.array([False, True, False])
+    info = np.array([20.0, 10.0, 20.0])
+    assert local_then_global(scores, info, travel, open_, in_local, RULES) == [1, 0, 2]
+    info[1] = RULES.local_score_threshold  # nothing left worth seeing here: global, distance counts
+    assert local_then_global(scores, info, travel, open_, in_local, RULES) == [2, 0, 1]
+    flat = dataclasses.replace(RULES, hierarchical=False)
+    assert local_then_global(scores, info, travel, open_, in_local, flat) == [0, 2, 1]
+
+
+class HalfSeen:
+    """A map whose every view has its lower half mapped: an invisible share at every node."""
+
+    def render(self, pose, K=None, width=None, height=None):
+        alpha = np.zeros((height, width), np.float32)
+        alpha[height // 2:] = 1.0
+        return SimpleNamespace(alpha=alpha, median_depth=np.full((height, width), 2.0, np.float32))
+
+
+def test_node_information_is_scored_with_and_without_hierarchical_planning():
+    """The long-path rule reads `plan.info`: `no-hp` (hierarchical off) must fill it too."""
+    for hierarchical in (True, False):
+        cfg = ExplorerConfig(workspace=WCFG, hierarchical=hierarchical)
+        ws = extract_workspace(corridor(), HERE, WCFG)
+        plan = Plan(workspace=ws, graph=build_voronoi_graph(ws, WCFG))
+        ranked = rank_goals(plan, HERE, HalfSeen().render, 0.0, [], [], cfg.planning, WCFG, goal_rules(cfg),
+                            np.random.default_rng(0))
+        assert ranked and set(plan.info) == set(plan.scores)
+        assert max(plan.info.values()) > cfg.local_score_threshold
