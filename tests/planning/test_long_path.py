@@ -1,5 +1,6 @@
 """The release's long-path rule (REFERENCE.md section 5) on a synthetic corridor."""
 
+import dataclasses
 import sys
 from pathlib import Path
 
@@ -89,9 +90,9 @@ def test_path_ahead_forgives_one_cell_but_not_a_wall():
     dip = float(ws.segments_clearance(here[None], graze[None])[0])
     assert WCFG.agent_radius - ex.cfg.ahead_tolerance_m <= dip < WCFG.agent_radius
     assert ex._path_ahead_clear(pose)
-    ex.cfg.ahead_tolerance_m = 0.0
+    ex.cfg = dataclasses.replace(ex.cfg, ahead_tolerance_m=0.0)  # the config is frozen
     assert not ex._path_ahead_clear(pose)
-    ex.cfg.ahead_tolerance_m = 0.05
+    ex.cfg = dataclasses.replace(ex.cfg, ahead_tolerance_m=0.05)
     assert not ex._path_ahead_clear(_follower_to(ex, here, np.array([2.3, 1.0])))
 
 

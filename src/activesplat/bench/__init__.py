@@ -15,7 +15,6 @@ command again resumes an interrupted benchmark.
 
 from __future__ import annotations
 
-import argparse
 import importlib.util
 import sys
 import time
@@ -37,7 +36,7 @@ from activesplat.bench.runner import (
 from activesplat.bench.tables import RunRecord, TableConfig, collect, markdown_report, write_csv
 from activesplat.errors import InvalidInputError
 
-__all__ = ["BenchmarkConfig", "BenchmarkReport", "RunSpec", "TableConfig", "benchmark_from_args",
+__all__ = ["BenchmarkConfig", "BenchmarkReport", "RunSpec", "TableConfig", "benchmark_from_command",
            "run_benchmark", "write_report"]
 
 
@@ -172,10 +171,11 @@ def write_report(root: str | Path, specs: Sequence[RunSpec], steps: int | None =
     return BenchmarkReport(root, records, csv_path, md_path, markdown, pngs)
 
 
-def benchmark_from_args(args: argparse.Namespace) -> int:
-    """`activesplat benchmark`: exit code 0 when every run is complete, 1 when some failed."""
-    report = run_benchmark(scenes=args.scenes, policies=args.policies, trials=args.trials, steps=args.steps,
-                           root=args.root, workers=args.workers, executor=args.executor,
-                           ray_address=args.ray_address)
+def benchmark_from_command(cmd) -> int:
+    """`activesplat benchmark` (an `activesplat.config.BenchmarkCommand`): exit code 0 when every run is
+    complete, 1 when some failed. Its RunConfig's settings (the --GROUP.FIELD options) reach every run."""
+    report = run_benchmark(scenes=list(cmd.scenes), policies=list(cmd.policies), trials=cmd.trials,
+                           steps=cmd.steps, root=cmd.root, workers=cmd.workers, executor=cmd.executor,
+                           ray_address=cmd.ray_address, run_options={"config": cmd.run})
     print("\n" + report.markdown)
     return 1 if report.failed else 0

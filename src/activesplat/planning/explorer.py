@@ -18,6 +18,7 @@ from typing import Any, Protocol
 import networkx as nx
 import numpy as np
 
+from activesplat.errors import InvalidInputError, check_fields
 from activesplat.geometry import pose_yaw_pitch, wrap_angle
 from activesplat.planning.config import PlanningConfig
 from activesplat.planning.controller import (
@@ -55,7 +56,7 @@ class WorldModel(Protocol):
                height: int | None = None) -> Any: ...
 
 
-@dataclass
+@dataclass(frozen=True)
 class ExplorerConfig:
     """The explorer's own knobs; the planning / workspace / controller configs hold the paper's numbers."""
 
@@ -83,7 +84,7 @@ class ExplorerConfig:
     max_panoramas: int = 24
     """Most candidate nodes scored by panorama per replan, nearest first (ours: bounds the replan time)."""
     escape_forward_steps: int = 3
-    """Forward steps of a collision escape after turning to the clearest heading."""
+    """Forward steps of a collision escape after turning to the clearest heading (ours)."""
     lookahead_m: float = 0.65
     """Re-check this much of the path ahead at every step (release: 10 forward steps)."""
     ahead_tolerance_m: float = 0.05
@@ -100,12 +101,23 @@ class ExplorerConfig:
     multi_stops: bool = True
     """Rotation stops at multi-connected nodes; off for `position` and `viewpoint`."""
     random_goals: bool = False
-    """Choose goal nodes uniformly at random (the `random` ablation)."""
+    """Choose goal nodes uniformly at random (the `random` ablation of the paper's Tab. III)."""
     seed: int = 0
-    """Seed of the random choices (random goals)."""
+    """Seed of the random choices (random goals; ours)."""
     planning: PlanningConfig = field(default_factory=PlanningConfig)
     workspace: WorkspaceConfig = field(default_factory=WorkspaceConfig)
     controller: ControllerConfig = field(default_factory=ControllerConfig)
+
+    def __post_init__(self) -> None:
+        check_fields(self, non_negative=("bootstrap_turns", "max_rotation_views", "rotation_skip_radii",
+                                         "multi_node_radius_m", "local_score_threshold",
+                                         "global_distance_weight", "long_path_m", "on_the_way_m",
+                                         "escape_forward_steps", "lookahead_m", "ahead_tolerance_m",
+                                         "panorama_height_m"), at_least_one=("max_panoramas",))
+        bad = [t for t in self.bootstrap_tilts if t not in ("look_up", "look_down")]
+        if bad:
+            raise InvalidInputError(f"ExplorerConfig.bootstrap_tilts takes look_up / look_down, "
+                                    f"got {bad[0]!r}")
 
 
 @dataclass

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from activesplat.errors import check_fields
 from activesplat.planning.controller import PathFollower, floor_xz
 from activesplat.planning.explorer import ActiveSplatExplorer, build_plan
 from activesplat.workspace.paths import shortcut
@@ -19,17 +20,23 @@ from activesplat.workspace.paths import shortcut
 _NEIGHBOURS = np.ones((3, 3), np.uint8)
 
 
-@dataclass
+@dataclass(frozen=True)
 class FrontierConfig:
+    """The `fbe` baseline's own knobs (its paths and look-arounds use the explorer's settings)."""
+
     min_cluster_cells: int = 8
-    """Frontier clusters with fewer cells are noise (0.05 m cells: 8 cells ~ 0.4 m of frontier)."""
+    """Frontier clusters with fewer cells are noise (ours; 0.05 m cells: 8 cells ~ 0.4 m of frontier)."""
     skip_radius_m: float = 0.5
     """Frontier cells within this of the agent, a failed goal or a frontier already reached are not goals
     (ours: classic FBE re-selects an unobservable frontier forever)."""
     start_disc_m: float = 0.3
-    """Cells this close to the agent count as passable for the frontier search (it stands there)."""
+    """Cells this close to the agent count as passable for the frontier search (ours: it stands there)."""
     look_around_turns: int = 36
-    """Turns of the look-around on reaching a frontier (a full circle of 10 deg turns)."""
+    """Turns of the look-around on reaching a frontier (ours: a full circle of 10 deg turns)."""
+
+    def __post_init__(self) -> None:
+        check_fields(self, non_negative=("min_cluster_cells", "skip_radius_m", "start_disc_m",
+                                         "look_around_turns"))
 
 
 def frontier_cells(free: np.ndarray, unknown: np.ndarray) -> np.ndarray:
