@@ -65,7 +65,7 @@ class HullConfig:
     invisibility_threshold: float = 0.8
     """Pixels counted as invisible for the hull (release: 0.8)."""
     downsample: int = 2
-    """Cluster at half resolution, like the rotation candidates."""
+    """Cluster at half resolution, like the rotation candidates (release)."""
     dbscan_eps: float = 5.0
     """DBSCAN radius in pixels (release: 5)."""
     dbscan_min_samples: int = 25

@@ -97,9 +97,10 @@ class ExplorerConfig:
     hierarchical: bool = True
     """Local-then-global goal selection over subregions (paper sec. III-C); off for `no-hp`."""
     rotations: bool = True
-    """On-the-spot rotations toward panorama / high-loss targets on arrival; off for `position`."""
+    """On-the-spot rotations toward panorama / high-loss targets on arrival (paper sec. III-B); off for
+    `position`."""
     multi_stops: bool = True
-    """Rotation stops at multi-connected nodes; off for `position` and `viewpoint`."""
+    """Rotation stops at multi-connected nodes (paper sec. III-C); off for `position` and `viewpoint`."""
     random_goals: bool = False
     """Choose goal nodes uniformly at random (the `random` ablation of the paper's Tab. III)."""
     seed: int = 0

@@ -40,13 +40,13 @@ class SimConfig:
     """Geometry lower than this above the floor does not block the agent (thresholds, rugs). Our
     choice; Habitat's navmesh climbs 0.2 m."""
     nav_cell: float = 0.025
-    """Navigability grid cell in metres. A cell is navigable when its clearance exceeds
+    """Navigability grid cell in metres (ours). A cell is navigable when its clearance exceeds
     agent_radius + one cell diagonal, so the continuous camera position always keeps agent_radius."""
     floor_hole_cells: int = 2
     """Floor gaps up to this many nav cells wide (scanned meshes) are closed before the agent disc
     is required to stand on floor. Our choice."""
     ambient: float = 0.55
-    """View-independent shading: colour = albedo * (ambient + (1 - ambient) * |n . light|)."""
+    """View-independent shading (ours): colour = albedo * (ambient + (1 - ambient) * |n . light|)."""
     light_dir: tuple[float, float, float] = (0.3, 0.8, 0.5)
     """Fixed world-space directional light (normalised in the sensor); no headlight, no specular, so
     colours do not depend on the viewpoint."""
