@@ -194,3 +194,18 @@ def test_benchmark_sets_scene_policy_seed_and_steps_itself(capsys, tmp_path):
     assert cmd.steps == 5 and cmd.run.sim.width == 64
     code, _, err = _run(capsys, "benchmark", "--scene", "small-1", "--root", str(tmp_path / "r"))
     assert code == 2 and "unknown option --scene" in err and len(err.strip().splitlines()) == 1
+
+
+def test_benchmark_refuses_a_root_run_with_other_settings(capsys, tmp_path, monkeypatch):
+    monkeypatch.setattr(explore, "run_exploration", lambda *a, **k: pytest.fail("nothing should run"))
+    out = tmp_path / "small-0" / "fbe" / "s0"
+    out.mkdir(parents=True)
+    config = RunConfig(scene="small-0", policy="fbe", steps=5, mapper=MapperConfig(pixel_stride=3))
+    (out / "episode.json").write_text(json.dumps({"config": config.to_dict()}))
+    (out / "metrics.json").write_text(json.dumps({"steps": 5}))
+    argv = ["benchmark", "--scenes", "small-0", "--policies", "fbe", "--steps", "5", "--root", str(tmp_path)]
+    code, _, err = _run(capsys, *argv, "--mapper.pixel-stride", "2")
+    assert code == 2 and "was run with mapper.pixel_stride = 3 but this benchmark asks for 2" in err, err
+    assert len(err.strip().splitlines()) == 1
+    code, out_text, err = _run(capsys, *argv, "--mapper.pixel-stride", "3")  # the same settings: complete
+    assert "1 already complete, 0 to run" in out_text, (out_text, err)

@@ -26,6 +26,7 @@ from activesplat.bench.runner import (
     EXECUTORS,
     RunResult,
     RunSpec,
+    check_configs,
     persist,
     plan_runs,
     read_metrics,
@@ -81,8 +82,10 @@ def run_benchmark(scenes: Sequence[str], policies: Sequence[str], trials: int = 
     """Run every (scene, policy, seed) not yet complete under ROOT, then write the tables and curves.
 
     seeds default to 0..trials-1. `run_options` are extra keyword arguments of
-    `activesplat.explore.run_exploration` (configs, backend). A failed run is reported and shown as n/a; it
-    does not stop the others. Ctrl-C stops the runs, writes the tables of what is complete and re-raises."""
+    `activesplat.explore.run_exploration` (configs, backend); with a `config` (a RunConfig: the settings of
+    every run), runs already complete in ROOT must have been made with it. A failed run is reported and
+    shown as n/a; it does not stop the others. Ctrl-C stops the runs, writes the tables of what is complete
+    and re-raises."""
     config = config or BenchmarkConfig()
     if trials <= 0:
         raise InvalidInputError(f"--trials must be a positive number of trials, got {trials}")
@@ -94,6 +97,8 @@ def run_benchmark(scenes: Sequence[str], policies: Sequence[str], trials: int = 
         raise InvalidInputError("--executor ray needs Ray: pip install 'activesplat[ray]'")
     seeds = list(range(trials)) if seeds is None else [int(s) for s in seeds]
     specs = plan_runs(scenes, policies, seeds, steps, root)
+    if (run_options or {}).get("config") is not None:
+        check_configs(specs, run_options["config"])
     root = Path(root).resolve()
     root.mkdir(parents=True, exist_ok=True)
     todo = [s for s in specs if read_metrics(s.out) is None]
