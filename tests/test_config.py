@@ -209,3 +209,21 @@ def test_benchmark_refuses_a_root_run_with_other_settings(capsys, tmp_path, monk
     assert len(err.strip().splitlines()) == 1
     code, out_text, err = _run(capsys, *argv, "--mapper.pixel-stride", "3")  # the same settings: complete
     assert "1 already complete, 0 to run" in out_text, (out_text, err)
+
+
+def test_refine_takes_the_recorded_settings_then_the_options(capsys, tmp_path, monkeypatch):
+    import activesplat.refine as refine_module
+
+    seen = []
+    monkeypatch.setattr(refine_module, "refine_from_command", lambda cmd: seen.append(cmd) or 0)
+    ep = tmp_path / "ep"
+    ep.mkdir()
+    run = RunConfig(steps=5, refine=dataclasses.replace(RunConfig().refine, lambda_dssim=0.3))
+    (ep / "episode.json").write_text(json.dumps({"start_pose": [], "config": run.to_dict()}))
+    assert main(["refine", str(ep), "--refine.percent-dense", "0.02", "--iters", "7"]) == 0
+    cmd = seen[-1]
+    assert (cmd.refine.lambda_dssim, cmd.refine.percent_dense, cmd.iters) == (0.3, 0.02, 7)
+    (ep / "episode.json").write_text(json.dumps({"start_pose": [], "config": {}}))  # an older episode
+    assert main(["refine", str(ep)]) == 0 and seen[-1].refine == RunConfig().refine
+    code, _, err = _run(capsys, "refine", str(ep), "--refine.lambda-dssim", "2")
+    assert code == 2 and "--refine.lambda-dssim must be in [0, 1]" in err and len(err.splitlines()) == 1

@@ -1,8 +1,11 @@
 """The ``activesplat`` command: one entry point, one subcommand per job.
 
-Every subcommand turns bad input (an :class:`~activesplat.errors.ActiveSplatError`) into a one-line
-``activesplat: error: ...`` message on stderr and exit code 2, never a traceback. Heavy modules are
-imported inside the command functions so that ``activesplat --help`` stays fast.
+``explore``, ``refine`` and ``benchmark`` are parsed by tyro from the dataclasses of
+:mod:`activesplat.config` (every run-configuration field is an option ``--GROUP.FIELD VALUE``); the other
+subcommands by argparse. Every subcommand turns bad input (an :class:`~activesplat.errors.ActiveSplatError`,
+or a tyro parse failure) into a one-line ``activesplat: error: ...`` message on stderr and exit code 2,
+never a traceback. Heavy modules are imported inside the command functions so that ``activesplat --help``
+stays fast.
 """
 
 from __future__ import annotations
@@ -91,12 +94,28 @@ def _hidden_fields(own: Sequence[str] = ()) -> dict:
 
 def _options(cls, hidden: dict) -> list[str]:
     """Every option of a command dataclass, for "did you mean"."""
-    from activesplat.config import DERIVED, RunConfig, option_paths
+    from activesplat.config import RunConfig, option_paths
 
     own = hidden.get(RunConfig, set())
-    flags = [f"--{f.name}" for f in dataclasses.fields(cls) if f.name != "run"]
-    flags += [f"--{p}" for p in option_paths() if p not in DERIVED and p not in own]
-    return [f.replace("_", "-") for f in flags]
+    flags = []
+    for name, tp in command_fields(cls).items():
+        if name == "run":  # flattened: its fields are top-level options
+            flags += [p for p in option_paths() if p not in own]
+        elif dataclasses.is_dataclass(tp):
+            flags += list(option_paths(tp, name + "."))
+        else:
+            flags.append(name)
+    return ["--" + f.replace("_", "-") for f in flags]
+
+
+def command_fields(cls) -> dict:
+    """{field name: type} of a command dataclass (Annotated stripped)."""
+    import typing
+
+    from activesplat.config import strip_annotated
+
+    hints = typing.get_type_hints(cls)
+    return {f.name: strip_annotated(hints[f.name]) for f in dataclasses.fields(cls)}
 
 
 def _parse_error(event, options: list[str]) -> str:
@@ -136,19 +155,25 @@ def _parse_error(event, options: list[str]) -> str:
             return message
         metavar = event.argument.lowered.metavar
         return f"{flag(event.argument)} expects {metavar}: {message}"
+    if isinstance(event, _errors.MissingArgs):
+        names = [a.arg.lowered.metavar if a.arg.is_positional() else flag(a.arg)
+                 for a in event.missing_arguments]
+        return f"missing {', '.join(str(n) for n in names)}"
     return f"bad options ({type(event).__name__})"
 
 
-def parse_command(cls, argv: Sequence[str], prog: str, own: Sequence[str] = ()):
-    """`argv` as a command dataclass (ExploreCommand, BenchmarkCommand); --config gives the defaults of its
-    `run`. Bad input raises CommandLineError with one line naming the option; --help prints and exits."""
+def parse_command(cls, argv: Sequence[str], prog: str, own: Sequence[str] = (), default=None):
+    """`argv` as a command dataclass (ExploreCommand, BenchmarkCommand, RefineCommand), its defaults from
+    `default` or, for a command with a `run`, from --config. Bad input raises CommandLineError with one
+    line naming the option; --help prints and exits."""
     import tyro
     from tyro import _errors
 
     from activesplat.config import load_run_config, name_fields
 
-    path = _config_path(argv)
-    default = cls(run=load_run_config(path)) if path is not None else cls()
+    if default is None and "run" in command_fields(cls):
+        path = _config_path(argv)
+        default = cls(run=load_run_config(path)) if path is not None else cls()
     hidden = _hidden_fields(own)
     options = _options(cls, hidden)
 
@@ -157,7 +182,8 @@ def parse_command(cls, argv: Sequence[str], prog: str, own: Sequence[str] = ()):
 
     try:
         with _errors.on_parse_error(fail):
-            return tyro.cli(cls, args=list(argv), default=default, prog=prog, registry=_registry(hidden))
+            return tyro.cli(cls, args=list(argv), prog=prog, registry=_registry(hidden),
+                            **({} if default is None else {"default": default}))
     except CommandLineError:
         raise
     except ActiveSplatError as exc:  # a check of the outermost dataclass, outside tyro's own handling
@@ -190,10 +216,17 @@ def _cmd_render_eval(args: argparse.Namespace) -> int:
     return render_eval_from_args(args)
 
 
-def _cmd_refine(args: argparse.Namespace) -> int:
-    from activesplat.refine import refine_from_args
+def _cmd_refine(argv: Sequence[str]) -> int:
+    """Settings: the episode's recorded ``refine`` group (if any), then the --refine.FIELD options."""
+    from activesplat.config import RefineCommand, recorded_refine_config
+    from activesplat.refine import refine_from_command
 
-    return refine_from_args(args)
+    cmd = parse_command(RefineCommand, argv, "activesplat refine")
+    recorded = recorded_refine_config(cmd.dir)
+    if recorded is not None:  # parsed again: the options override the recorded settings
+        cmd = parse_command(RefineCommand, argv, "activesplat refine",
+                            default=RefineCommand(dir=cmd.dir, refine=recorded))
+    return refine_from_command(cmd)
 
 
 # --------------------------------------------------------------------------- view / benchmark
@@ -211,8 +244,8 @@ def _cmd_benchmark(argv: Sequence[str]) -> int:
     return benchmark_from_command(cmd)
 
 
-TYRO_COMMANDS: dict[str, Callable[[Sequence[str]], int]] = {"explore": _cmd_explore,
-                                                            "benchmark": _cmd_benchmark}
+TYRO_COMMANDS: dict[str, Callable[[Sequence[str]], int]] = {
+    "explore": _cmd_explore, "refine": _cmd_refine, "benchmark": _cmd_benchmark}
 """Subcommands parsed by tyro from dataclasses (every run-configuration field is an option)."""
 
 
@@ -262,18 +295,9 @@ def build_parser() -> argparse.ArgumentParser:
     p_reval.add_argument("--no-progress", action="store_true", help="no progress bar")
     p_reval.set_defaults(func=_cmd_render_eval)
 
-    # refine
-    p_refine = sub.add_parser("refine", help="offline refinement of an episode's map from its keyframes")
-    p_refine.add_argument("dir", help="episode folder")
-    p_refine.add_argument("--method", default="3dgs", help="3dgs (default) or 2dgs")
-    p_refine.add_argument("--iters", type=int, default=2000, help="optimisation iterations (default 2000)")
-    p_refine.add_argument("--seed", type=int, default=0, help="seed of the view sampling")
-    p_refine.add_argument("--restart", action="store_true",
-                          help="ignore a checkpoint in DIR/refined_METHOD and start again")
-    p_refine.add_argument("--backend", default="auto", choices=("auto", "numba", "torch", "gsplat"),
-                          help="rasterizer backend")
-    p_refine.add_argument("--no-progress", action="store_true", help="no progress bar")
-    p_refine.set_defaults(func=_cmd_refine)
+    # refine: parsed by tyro (TYRO_COMMANDS)
+    sub.add_parser("refine", add_help=False, help="offline refinement of an episode's map from its keyframes "
+                                                  "(settings: --refine.FIELD VALUE)")
 
     # view
     p_view = sub.add_parser("view", help="serve a viser web viewer of a finished episode")

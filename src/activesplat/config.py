@@ -201,6 +201,37 @@ BENCHMARK_OWN = ("scene", "policy", "seed", "steps")
 """RunConfig fields a benchmark sets per run, not from --GROUP.FIELD options."""
 
 
+@dataclass(frozen=True)
+class RefineCommand:
+    """`activesplat refine`: offline refinement of an episode's map from its keyframes. The settings are the
+    episode's recorded ``refine`` group (defaults for an episode that records none), then the options."""
+
+    dir: Annotated[tyro.conf.Positional[Path], tyro.conf.arg(metavar="DIR")]
+    """Episode folder."""
+    method: str = "3dgs"
+    """3dgs or 2dgs."""
+    iters: int = 2000
+    """Optimisation iterations (ours: a CPU budget; 3DGS and 2DGS train 30,000)."""
+    seed: int = 0
+    """Seed of the view sampling."""
+    restart: bool = False
+    """Ignore a checkpoint in DIR/refined_METHOD and start again."""
+    backend: BackendName = "auto"
+    """Rasterizer backend (auto: gsplat with CUDA, else numba)."""
+    progress: bool = True
+    """Show a progress bar."""
+    refine: RefineGroup = field(default_factory=RefineConfig)
+
+
+def recorded_refine_config(episode_dir: str | Path) -> RefineConfig | None:
+    """The ``refine`` settings an episode's episode.json records, None when it records none readable (an
+    episode of an older version)."""
+    try:
+        return load_run_config(Path(episode_dir) / "episode.json").refine
+    except InvalidInputError:
+        return None
+
+
 def load_run_config(path: str | Path) -> RunConfig:
     """The RunConfig recorded in an episode folder, its episode.json, or a JSON file of
     `RunConfig.to_dict`."""
@@ -226,7 +257,7 @@ def option_paths(cls=RunConfig, prefix: str = "") -> dict[str, type]:
     out: dict[str, type] = {}
     for f in dataclasses.fields(cls):
         path = prefix + f.name
-        tp = _strip(typing.get_type_hints(cls)[f.name])
+        tp = strip_annotated(typing.get_type_hints(cls)[f.name])
         if dataclasses.is_dataclass(tp):
             out.update(option_paths(tp, path + "."))
         elif path not in DERIVED:
@@ -285,7 +316,7 @@ def _pop_path(data: dict, path: list[str]):
     return data.pop(path[-1], _ABSENT) if isinstance(data, dict) else _ABSENT
 
 
-def _strip(tp):
+def strip_annotated(tp):
     while typing.get_origin(tp) is Annotated:
         tp = typing.get_args(tp)[0]
     return tp
@@ -302,7 +333,7 @@ def _build(cls, data: dict, prefix: str, source: str):
         raise InvalidInputError(f"{source}: unknown key {prefix + unknown[0]}")
     kwargs = {}
     for name, value in data.items():
-        tp = _strip(hints[name])
+        tp = strip_annotated(hints[name])
         if dataclasses.is_dataclass(tp):
             kwargs[name] = _build(tp, value, prefix + name + ".", source)
         else:
