@@ -45,8 +45,9 @@ from activesplat.splat.config import MapperConfig
 from activesplat.splat.rasterize import BACKENDS
 
 CONFIG_VERSION = 1
-"""Version of the configuration recorded in episode.json; bumped when a field changes meaning or a default
-changes behaviour, so that an old file is refused rather than replayed differently."""
+"""Version of the configuration recorded in episode.json. Bump it when a field is renamed, removed or changes
+meaning, so that an old file is refused rather than replayed differently. A field added later needs no
+bump if its default keeps the old behaviour: a file that lacks it reads as that default."""
 
 DERIVED: dict[str, str] = {
     "explorer.workspace.agent_radius": "agent_radius",
