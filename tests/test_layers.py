@@ -1,6 +1,6 @@
 """The package's dependency order: sim -> splat -> workspace -> planning -> eval / refine -> viz ->
-explore / bench / cli. A module imports only from its own layer or the layers before it (eval never from
-refine), at module level and inside functions alike."""
+config / explore / bench / cli. A module imports only from its own layer or the layers before it (eval never
+from refine), at module level and inside functions alike."""
 
 import ast
 from pathlib import Path
@@ -11,7 +11,7 @@ ROOT = Path(activesplat.__file__).parent
 BASE = ("errors", "geometry", "timing", "episode")
 """Top-level helpers every layer may use."""
 LAYERS = [BASE, ("sim",), ("splat",), ("workspace",), ("planning",), ("eval", "refine"), ("viz",),
-          ("explore", "bench", "cli", "__main__")]
+          ("config", "explore", "bench", "cli", "__main__")]
 
 
 def _layer(name: str) -> int:

@@ -1,13 +1,17 @@
 """The ``activesplat`` command: one entry point, one subcommand per job.
 
-Every subcommand turns bad input (an :class:`~activesplat.errors.ActiveSplatError`) into a one-line
-``activesplat: error: ...`` message on stderr and exit code 2, never a traceback. Heavy modules are
-imported inside the command functions so that ``activesplat --help`` stays fast.
+``explore``, ``refine`` and ``benchmark`` are parsed by tyro from the dataclasses of
+:mod:`activesplat.config` (every run-configuration field is an option ``--GROUP.FIELD VALUE``); the other
+subcommands by argparse. Every subcommand turns bad input (an :class:`~activesplat.errors.ActiveSplatError`,
+or a tyro parse failure) into a one-line ``activesplat: error: ...`` message on stderr and exit code 2,
+never a traceback. Heavy modules are imported inside the command functions so that ``activesplat --help``
+stays fast.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 from collections.abc import Callable, Sequence
 
@@ -38,11 +42,159 @@ def _cmd_scenes_export(args: argparse.Namespace) -> int:
     return 0
 
 
-# --------------------------------------------------------------------------- explore
-def _cmd_explore(args: argparse.Namespace) -> int:
-    from activesplat.explore import explore_from_args
+# --------------------------------------------------------------------------- explore / benchmark (tyro)
+class CommandLineError(ActiveSplatError):
+    """Bad options of a tyro-parsed command (unknown option, wrong type, value out of range)."""
 
-    return explore_from_args(args)
+
+def _config_path(argv: Sequence[str]) -> str | None:
+    """The value of --config, read before the other options, whose defaults it gives."""
+    for i, token in enumerate(argv):
+        if token == "--config" and i + 1 < len(argv):
+            return argv[i + 1]
+        if token.startswith("--config="):
+            return token.split("=", 1)[1]
+    return None
+
+
+def _registry(hidden: dict):
+    """tyro constructors that leave out the fields derived from others (and those a command sets itself)."""
+    import tyro
+    from tyro.constructors import ConstructorRegistry
+    from tyro.constructors._struct_spec_dataclass import dataclass_rule
+
+    registry = ConstructorRegistry()
+
+    @registry.struct_rule
+    def hide(info):
+        names = hidden.get(info.type)
+        if not names:
+            return None
+        spec = dataclass_rule(info)
+        return dataclasses.replace(spec, fields=tuple(
+            dataclasses.replace(f, type=tyro.conf.Suppress[f.type]) if f.name in names else f
+            for f in spec.fields))
+
+    return registry
+
+
+def _hidden_fields(own: Sequence[str] = ()) -> dict:
+    """{dataclass: field names} not offered as options: the derived ones, and `own` fields of RunConfig."""
+    from activesplat.config import DERIVED, RunConfig
+
+    hidden: dict = {RunConfig: set(own)} if own else {}
+    for path in DERIVED:
+        *groups, name = path.split(".")
+        holder = RunConfig()
+        for group in groups:
+            holder = getattr(holder, group)
+        hidden.setdefault(type(holder), set()).add(name)
+    return hidden
+
+
+def _options(cls, hidden: dict) -> list[str]:
+    """Every option of a command dataclass, for "did you mean"."""
+    from activesplat.config import RunConfig, option_paths
+
+    own = hidden.get(RunConfig, set())
+    flags = []
+    for name, tp in command_fields(cls).items():
+        if name == "run":  # flattened: its fields are top-level options
+            flags += [p for p in option_paths() if p not in own]
+        elif dataclasses.is_dataclass(tp):
+            flags += list(option_paths(tp, name + "."))
+        else:
+            flags.append(name)
+    return ["--" + f.replace("_", "-") for f in flags]
+
+
+def command_fields(cls) -> dict:
+    """{field name: type} of a command dataclass (Annotated stripped)."""
+    import typing
+
+    from activesplat.config import strip_annotated
+
+    hints = typing.get_type_hints(cls)
+    return {f.name: strip_annotated(hints[f.name]) for f in dataclasses.fields(cls)}
+
+
+def _parse_error(event, options: list[str]) -> str:
+    """One line for a tyro parse failure, naming the option."""
+    import difflib
+
+    from tyro import _errors
+
+    from activesplat.config import DERIVED, name_fields
+
+    def flag(arg) -> str:
+        return "/".join(arg.lowered.name_or_flags) if arg is not None else "?"
+
+    if isinstance(event, _errors.UnrecognizedArgs):
+        token = event.tokens[0]
+        if not token.startswith("-"):
+            return f"unexpected argument {token!r}"
+        name = token.split("=", 1)[0]
+        source = DERIVED.get(name[2:].replace("-", "_"))
+        if source is not None:
+            return f"{name} is derived from the robot's settings: set --sim.{source.replace('_', '-')}"
+        near = difflib.get_close_matches(name, options, n=1)
+        return f"unknown option {name}" + (f" (did you mean {near[0]}?)" if near else "")
+    if isinstance(event, _errors.InvalidChoice):
+        name, choices = flag(event.argument), ", ".join(event.choices)
+        if "." in name:
+            return f"{name}: unknown value {event.value!r}; choose one of: {choices}"
+        return f"unknown {name.lstrip('-')} {event.value!r}; choose one of: {choices}"
+    if isinstance(event, _errors.BadValue):
+        if event.offending_value is not None:
+            return f"{flag(event.argument)}: cannot take {event.offending_value!r}"
+        nargs = getattr(event.argument.lowered, "nargs", None)
+        return f"{flag(event.argument)}: expects {nargs if isinstance(nargs, int) else 'a'} value(s)"
+    if isinstance(event, _errors.InstantiationFailure):
+        message = name_fields(event.message, flags=True)
+        if event.argument is None:
+            return message
+        metavar = event.argument.lowered.metavar
+        return f"{flag(event.argument)} expects {metavar}: {message}"
+    if isinstance(event, _errors.MissingArgs):
+        names = [a.arg.lowered.metavar if a.arg.is_positional() else flag(a.arg)
+                 for a in event.missing_arguments]
+        return f"missing {', '.join(str(n) for n in names)}"
+    return f"bad options ({type(event).__name__})"
+
+
+def parse_command(cls, argv: Sequence[str], prog: str, own: Sequence[str] = (), default=None):
+    """`argv` as a command dataclass (ExploreCommand, BenchmarkCommand, RefineCommand), its defaults from
+    `default` or, for a command with a `run`, from --config. Bad input raises CommandLineError with one
+    line naming the option; --help prints and exits."""
+    import tyro
+    from tyro import _errors
+
+    from activesplat.config import load_run_config, name_fields
+
+    if default is None and "run" in command_fields(cls):
+        path = _config_path(argv)
+        default = cls(run=load_run_config(path)) if path is not None else cls()
+    hidden = _hidden_fields(own)
+    options = _options(cls, hidden)
+
+    def fail(event) -> None:
+        raise CommandLineError(_parse_error(event, options))
+
+    try:
+        with _errors.on_parse_error(fail):
+            return tyro.cli(cls, args=list(argv), prog=prog, registry=_registry(hidden),
+                            **({} if default is None else {"default": default}))
+    except CommandLineError:
+        raise
+    except ActiveSplatError as exc:  # a check of the outermost dataclass, outside tyro's own handling
+        raise CommandLineError(name_fields(str(exc), flags=True)) from None
+
+
+def _cmd_explore(argv: Sequence[str]) -> int:
+    from activesplat.config import ExploreCommand
+    from activesplat.explore import explore_from_command
+
+    return explore_from_command(parse_command(ExploreCommand, argv, "activesplat explore"))
 
 
 # --------------------------------------------------------------------------- evaluate
@@ -64,10 +216,17 @@ def _cmd_render_eval(args: argparse.Namespace) -> int:
     return render_eval_from_args(args)
 
 
-def _cmd_refine(args: argparse.Namespace) -> int:
-    from activesplat.refine import refine_from_args
+def _cmd_refine(argv: Sequence[str]) -> int:
+    """Settings: the episode's recorded ``refine`` group (if any), then the --refine.FIELD options."""
+    from activesplat.config import RefineCommand, recorded_refine_config
+    from activesplat.refine import refine_from_command
 
-    return refine_from_args(args)
+    cmd = parse_command(RefineCommand, argv, "activesplat refine")
+    recorded = recorded_refine_config(cmd.dir)
+    if recorded is not None:  # parsed again: the options override the recorded settings
+        cmd = parse_command(RefineCommand, argv, "activesplat refine",
+                            default=RefineCommand(dir=cmd.dir, refine=recorded))
+    return refine_from_command(cmd)
 
 
 # --------------------------------------------------------------------------- view / benchmark
@@ -77,10 +236,17 @@ def _cmd_view(args: argparse.Namespace) -> int:
     return view_from_args(args)
 
 
-def _cmd_benchmark(args: argparse.Namespace) -> int:
-    from activesplat.bench import benchmark_from_args
+def _cmd_benchmark(argv: Sequence[str]) -> int:
+    from activesplat.bench import benchmark_from_command
+    from activesplat.config import BENCHMARK_OWN, BenchmarkCommand
 
-    return benchmark_from_args(args)
+    cmd = parse_command(BenchmarkCommand, argv, "activesplat benchmark", own=BENCHMARK_OWN)
+    return benchmark_from_command(cmd)
+
+
+TYRO_COMMANDS: dict[str, Callable[[Sequence[str]], int]] = {
+    "explore": _cmd_explore, "refine": _cmd_refine, "benchmark": _cmd_benchmark}
+"""Subcommands parsed by tyro from dataclasses (every run-configuration field is an option)."""
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -106,26 +272,11 @@ def build_parser() -> argparse.ArgumentParser:
     p_export.add_argument("--z-up", action="store_true", help="the input mesh file is z-up")
     p_export.set_defaults(func=_cmd_scenes_export)
 
-    # explore
-    p_explore = sub.add_parser("explore", help="explore a scene and write an episode folder")
-    p_explore.add_argument("--scene", default="small-0", help="built-in name or mesh file")
-    p_explore.add_argument("--steps", type=int, default=None,
-                           help="step budget (default: 1000 for small scenes, 2000 for medium)")
-    p_explore.add_argument("--policy", default="activesplat",
-                           help="exploration policy: activesplat (default), fbe, random, position, "
-                                "viewpoint, no-hp, visibility-only, hull-only")
-    p_explore.add_argument("--seed", type=int, default=0, help="seed of the random start")
-    p_explore.add_argument("--out", default=None, help="episode folder (default: runs/SCENE-sSEED)")
-    p_explore.add_argument("--overwrite", action="store_true",
-                           help="replace an existing complete episode in --out")
-    p_explore.add_argument("--z-up", action="store_true", help="the scene mesh file is z-up")
-    p_explore.add_argument("--backend", default="auto", choices=("auto", "numba", "torch", "gsplat"),
-                           help="rasterizer backend (auto: gsplat with CUDA, else numba)")
-    p_explore.add_argument("--no-progress", action="store_true", help="no progress bar")
-    p_explore.add_argument("--viewer", action="store_true",
-                           help="serve a live viser web viewer of the run on localhost")
-    p_explore.add_argument("--viewer-port", type=int, default=8080, help="port of --viewer (default 8080)")
-    p_explore.set_defaults(func=_cmd_explore)
+    # explore and benchmark: parsed by tyro (TYRO_COMMANDS); listed here for `activesplat --help`
+    sub.add_parser("explore", add_help=False,
+                   help="explore a scene and write an episode folder (every setting: --GROUP.FIELD VALUE)")
+    sub.add_parser("benchmark", add_help=False,
+                   help="scenes x policies x trials -> CSV and paper-style tables")
 
     # evaluate
     p_eval = sub.add_parser("evaluate", help="recompute completion metrics of an episode from its actions")
@@ -144,18 +295,9 @@ def build_parser() -> argparse.ArgumentParser:
     p_reval.add_argument("--no-progress", action="store_true", help="no progress bar")
     p_reval.set_defaults(func=_cmd_render_eval)
 
-    # refine
-    p_refine = sub.add_parser("refine", help="offline refinement of an episode's map from its keyframes")
-    p_refine.add_argument("dir", help="episode folder")
-    p_refine.add_argument("--method", default="3dgs", help="3dgs (default) or 2dgs")
-    p_refine.add_argument("--iters", type=int, default=2000, help="optimisation iterations (default 2000)")
-    p_refine.add_argument("--seed", type=int, default=0, help="seed of the view sampling")
-    p_refine.add_argument("--restart", action="store_true",
-                          help="ignore a checkpoint in DIR/refined_METHOD and start again")
-    p_refine.add_argument("--backend", default="auto", choices=("auto", "numba", "torch", "gsplat"),
-                          help="rasterizer backend")
-    p_refine.add_argument("--no-progress", action="store_true", help="no progress bar")
-    p_refine.set_defaults(func=_cmd_refine)
+    # refine: parsed by tyro (TYRO_COMMANDS)
+    sub.add_parser("refine", add_help=False, help="offline refinement of an episode's map from its keyframes "
+                                                  "(settings: --refine.FIELD VALUE)")
 
     # view
     p_view = sub.add_parser("view", help="serve a viser web viewer of a finished episode")
@@ -163,26 +305,15 @@ def build_parser() -> argparse.ArgumentParser:
     p_view.add_argument("--port", type=int, default=8080, help="port (default 8080)")
     p_view.set_defaults(func=_cmd_view)
 
-    # benchmark
-    p_bench = sub.add_parser("benchmark", help="scenes x policies x trials -> CSV and paper-style tables")
-    p_bench.add_argument("--scenes", nargs="+", default=["small-0", "small-1", "small-2", "small-3"],
-                         help="scene names or mesh files")
-    p_bench.add_argument("--policies", nargs="+", default=["activesplat", "fbe", "random"], help="policies")
-    p_bench.add_argument("--trials", type=int, default=1, help="trials (seeds 0..trials-1) per scene")
-    p_bench.add_argument("--steps", type=int, default=None, help="step budget (default: per scene size)")
-    p_bench.add_argument("--root", default="runs/benchmark", help="folder of the episodes and tables")
-    p_bench.add_argument("--workers", type=int, default=1, help="parallel processes (local executor)")
-    p_bench.add_argument("--executor", default="local", choices=("local", "ray"),
-                         help="local process pool (default) or a Ray cluster (pip install activesplat[ray])")
-    p_bench.add_argument("--ray-address", default=None, help="Ray cluster address (default: auto / local)")
-    p_bench.set_defaults(func=_cmd_benchmark)
     return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    argv = list(sys.argv[1:] if argv is None else argv)
     try:
+        if argv and argv[0] in TYRO_COMMANDS:
+            return int(TYRO_COMMANDS[argv[0]](argv[1:]) or 0)
+        args = build_parser().parse_args(argv)
         code = args.func(args)
     except ActiveSplatError as exc:
         print(f"activesplat: error: {exc}", file=sys.stderr)

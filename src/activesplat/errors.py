@@ -24,3 +24,17 @@ class InvalidInputError(ActiveSplatError, ValueError):
 
 class EpisodeError(ActiveSplatError, ValueError):
     """A folder that is not a (complete) episode, or one that would be overwritten."""
+
+
+def check_fields(obj, *, positive: tuple[str, ...] = (), non_negative: tuple[str, ...] = (),
+                 unit: tuple[str, ...] = (), at_least_one: tuple[str, ...] = ()) -> None:
+    """Validate the named numeric fields of a config dataclass: ``positive`` > 0, ``non_negative`` >= 0,
+    ``unit`` in [0, 1], ``at_least_one`` >= 1. The first one out of range raises an InvalidInputError
+    naming it as ``ClassName.field``."""
+    rules = [(positive, lambda v: v > 0, "> 0"), (non_negative, lambda v: v >= 0, ">= 0"),
+             (unit, lambda v: 0 <= v <= 1, "in [0, 1]"), (at_least_one, lambda v: v >= 1, ">= 1")]
+    for names, ok, text in rules:
+        for name in names:
+            value = getattr(obj, name)
+            if not ok(value):
+                raise InvalidInputError(f"{type(obj).__name__}.{name} must be {text}, got {value}")

@@ -9,8 +9,6 @@ the action log alone.
 
 from __future__ import annotations
 
-import argparse
-import dataclasses
 import math
 import sys
 import time
@@ -19,7 +17,6 @@ from pathlib import Path
 import numpy as np
 
 from activesplat.episode import EpisodeWriter
-from activesplat.errors import InvalidInputError
 
 TIMING_KEYS = ("mapper", "workspace", "voronoi", "subregions", "rotation_selection", "position_selection",
                "planner")
@@ -32,51 +29,69 @@ def _default_out(scene: str, policy: str, seed: int) -> Path:
 
 
 def run_exploration(scene="small-0", policy: str = "activesplat", steps: int | None = None,
-                    seed: int = 0, out: str | Path | None = None, overwrite: bool = False, z_up: bool = False,
-                    backend: str = "auto", progress: bool = True, explorer_config=None, mapper_config=None,
-                    coverage_config=None, sim_config=None, viewer=None) -> dict:
+                    seed: int = 0, out: str | Path | None = None, overwrite: bool = False,
+                    z_up: bool | None = None, backend: str | None = None, progress: bool = True,
+                    explorer_config=None, mapper_config=None, coverage_config=None, sim_config=None,
+                    viewer=None, config=None) -> dict:
     """Explore `scene` (a built-in name, a mesh path or a `Scene`) with `policy` for `steps` actions and write
-    the episode folder; returns the metrics (also written to metrics.json). `viewer` (e.g. a
-    `viz.viewer.LiveViewer`) gets `update(step, obs, mapper, explorer, final=...)` after every step; None
-    (the default) costs nothing."""
+    the episode folder; returns the metrics (also written to metrics.json).
+
+    `config` (an `activesplat.config.RunConfig`) gives every setting the other arguments do not: scene,
+    policy, steps and seed always come from the arguments, z_up, backend and the groups (`sim_config`, ...)
+    when given. `viewer` (e.g. a `viz.viewer.LiveViewer`) gets `update(step, obs, mapper, explorer,
+    final=...)` after every step; None (the default) costs nothing."""
+    from activesplat.config import RunConfig
+    from activesplat.sim import Scene
+
+    scene_obj = scene if isinstance(scene, Scene) else None
+    changes = {"scene": scene_obj.name if scene_obj is not None else str(scene), "policy": policy,
+               "steps": steps, "seed": seed}
+    for name, value in (("z_up", z_up), ("backend", backend), ("sim", sim_config), ("mapper", mapper_config),
+                        ("explorer", explorer_config), ("coverage", coverage_config)):
+        if value is not None:
+            changes[name] = value
+    run = (config or RunConfig()).replace(**changes)
+    return explore_episode(run, out=out, overwrite=overwrite, progress=progress, viewer=viewer,
+                           scene=scene_obj)
+
+
+def explore_episode(run, out: str | Path | None = None, overwrite: bool = False, progress: bool = True,
+                    viewer=None, scene=None) -> dict:
+    """The episode of a `RunConfig` into `out` (default runs/SCENE-POLICY-sSEED); returns its metrics.
+    episode.json records `run` (its step budget resolved), which `load_run_config` reads back. `scene`: the
+    already loaded `Scene` of `run.scene`, if any."""
     import torch
 
-    from activesplat.eval.coverage import CoverageAccumulator, CoverageConfig
+    from activesplat.eval.coverage import CoverageAccumulator
     from activesplat.geometry import intrinsics
-    from activesplat.planning.policies import POLICY_NAMES, make_policy
-    from activesplat.sim import Scene, SimConfig, Simulator, load_scene
+    from activesplat.planning.policies import make_policy
+    from activesplat.sim import Simulator, load_scene
     from activesplat.splat import Mapper
     from activesplat.timing import Timers
 
-    if policy not in POLICY_NAMES:
-        raise InvalidInputError(f"unknown policy {policy!r}; choose one of: {', '.join(POLICY_NAMES)}")
-    if steps is not None and steps <= 0:
-        raise InvalidInputError(f"--steps must be a positive number of actions, got {steps}")
-    scene_obj = scene if isinstance(scene, Scene) else load_scene(scene, z_up=z_up)
-    scene = scene_obj.name if isinstance(scene, Scene) else scene
-    steps = int(steps or scene_obj.default_steps)
-    sim_config = sim_config or SimConfig()
+    scene_obj = scene if scene is not None else load_scene(run.scene, z_up=run.z_up)
+    steps = int(run.steps or scene_obj.default_steps)
+    run = run.replace(steps=steps)
+    sim_config, seed, policy = run.sim, run.seed, run.policy
     sim = Simulator(scene_obj, seed=seed, config=sim_config)
-    out_dir = Path(out) if out is not None else _default_out(scene, policy, seed)
+    out_dir = Path(out) if out is not None else _default_out(run.scene, policy, seed)
     writer = EpisodeWriter(out_dir, overwrite=overwrite)
 
     torch.manual_seed(seed)
     obs = sim.reset()
-    mapper = Mapper(sim.K, sim.width, sim.height, config=mapper_config, backend=backend)
+    mapper = Mapper(sim.K, sim.width, sim.height, config=run.mapper, backend=run.backend)
     timers = Timers()
     # the floor height comes from the agent's own start pose (its sensor height is known), not the mesh
     floor_height = float(obs.pose[1, 3] - sim_config.sensor_height)
-    explorer_config = explorer_config or _explorer_config_for(sim_config)
-    explorer = make_policy(policy, mapper, floor_height, cfg=explorer_config, timers=timers)
-    cov_cfg = coverage_config or CoverageConfig()
+    explorer = make_policy(policy, mapper, floor_height, cfg=run.explorer, timers=timers,
+                           frontier=run.frontier)
+    cov_cfg = run.coverage
     coverage = CoverageAccumulator(scene_obj.sample_surface(cov_cfg.n_gt_points, seed=cov_cfg.seed), cov_cfg)
     K_eval = intrinsics(cov_cfg.resolution, cov_cfg.resolution, sim_config.hfov_deg)
     meta = {
-        "scene": scene, "scene_name": scene_obj.name, "z_up": z_up, "seed": seed, "policy": policy,
+        "scene": run.scene, "scene_name": scene_obj.name, "z_up": run.z_up, "seed": seed, "policy": policy,
         "steps": steps, "start_pose": sim.start_pose.tolist(), "floor_height": floor_height,
-        "backend": mapper.backend,
-        "config": {"sim": dataclasses.asdict(sim_config), "explorer": _config_dict(explorer.cfg),
-                   "mapper": _config_dict(mapper.config), "coverage": dataclasses.asdict(cov_cfg)},
+        "backend": mapper.backend, "config": run.to_dict(),
     }
     writer.start(meta, obs.pose)
 
@@ -142,19 +157,6 @@ def _observe(obs, mapper, explorer, coverage, sim, K_eval, cov_cfg, timers) -> N
     timers.time("evaluation", _count_coverage, coverage, sim, obs.pose, K_eval, cov_cfg)
 
 
-def _explorer_config_for(sim_config):
-    """The planner's knowledge of its own body and actions comes from the robot's configuration."""
-    from activesplat.planning.controller import ControllerConfig
-    from activesplat.planning.explorer import ExplorerConfig
-    from activesplat.workspace.config import WorkspaceConfig
-
-    return ExplorerConfig(
-        controller=ControllerConfig(turn_deg=sim_config.turn_deg, look_deg=sim_config.look_deg,
-                                    forward_m=sim_config.forward_step),
-        workspace=WorkspaceConfig(agent_radius=sim_config.agent_radius, agent_height=sim_config.agent_height),
-        panorama_height_m=sim_config.sensor_height)
-
-
 def _count_coverage(coverage, sim, pose, K_eval, cov_cfg) -> None:
     """Evaluation, not the robot's work: ground-truth depth at 128 x 128 into the completion metric."""
     coverage.add_frame(sim.render(pose, cov_cfg.resolution, cov_cfg.resolution)[1], pose, K_eval)
@@ -181,13 +183,6 @@ def _save_map(mapper, explorer, out_dir: Path, floor_height: float) -> None:
     path = explorer.plan.path if explorer.follower is not None else None
     draw_topdown(out_dir / "topdown.png", plan.grids, plan.workspace, plan.graph, path=path, trajectory=traj,
                  title=f"{explorer.name}: map, Voronoi graph (subregions), trajectory")
-
-
-def _config_dict(cfg) -> dict:
-    try:
-        return dataclasses.asdict(cfg)
-    except TypeError:
-        return {}
 
 
 def _progress(steps: int, scene: str, policy: str, enabled: bool):
@@ -219,18 +214,17 @@ def _fmt(v) -> str:
     return "n/a" if v is None or (isinstance(v, float) and math.isnan(v)) else f"{v:.2f}"
 
 
-def explore_from_args(args: argparse.Namespace) -> int:
-    out = Path(args.out) if args.out else _default_out(args.scene, args.policy, args.seed)
+def explore_from_command(cmd) -> int:
+    """`activesplat explore`: the episode of an `activesplat.config.ExploreCommand`, and its summary."""
+    run = cmd.run
+    out = Path(cmd.out) if cmd.out else _default_out(run.scene, run.policy, run.seed)
     viewer = None
-    if getattr(args, "viewer", False):  # viser is imported only here
+    if cmd.viewer:  # viser is imported only here
         from activesplat.viz.viewer import LiveViewer
 
-        viewer = LiveViewer(port=args.viewer_port)
+        viewer = LiveViewer(port=cmd.viewer_port)
     try:
-        metrics = run_exploration(scene=args.scene, policy=args.policy, steps=args.steps, seed=args.seed,
-                                  out=out, overwrite=args.overwrite, z_up=args.z_up,
-                                  backend=getattr(args, "backend", "auto"),
-                                  progress=not getattr(args, "no_progress", False), viewer=viewer)
+        metrics = explore_episode(run, out=out, overwrite=cmd.overwrite, progress=cmd.progress, viewer=viewer)
         print(format_summary(metrics, out))
         if viewer is not None:
             viewer.hold()  # keeps serving the final state until Ctrl-C

@@ -15,7 +15,6 @@ command again resumes an interrupted benchmark.
 
 from __future__ import annotations
 
-import argparse
 import importlib.util
 import sys
 import time
@@ -27,6 +26,7 @@ from activesplat.bench.runner import (
     EXECUTORS,
     RunResult,
     RunSpec,
+    check_configs,
     persist,
     plan_runs,
     read_metrics,
@@ -37,7 +37,7 @@ from activesplat.bench.runner import (
 from activesplat.bench.tables import RunRecord, TableConfig, collect, markdown_report, write_csv
 from activesplat.errors import InvalidInputError
 
-__all__ = ["BenchmarkConfig", "BenchmarkReport", "RunSpec", "TableConfig", "benchmark_from_args",
+__all__ = ["BenchmarkConfig", "BenchmarkReport", "RunSpec", "TableConfig", "benchmark_from_command",
            "run_benchmark", "write_report"]
 
 
@@ -82,8 +82,10 @@ def run_benchmark(scenes: Sequence[str], policies: Sequence[str], trials: int = 
     """Run every (scene, policy, seed) not yet complete under ROOT, then write the tables and curves.
 
     seeds default to 0..trials-1. `run_options` are extra keyword arguments of
-    `activesplat.explore.run_exploration` (configs, backend). A failed run is reported and shown as n/a; it
-    does not stop the others. Ctrl-C stops the runs, writes the tables of what is complete and re-raises."""
+    `activesplat.explore.run_exploration` (configs, backend); with a `config` (a RunConfig: the settings of
+    every run), runs already complete in ROOT must have been made with it. A failed run is reported and
+    shown as n/a; it does not stop the others. Ctrl-C stops the runs, writes the tables of what is complete
+    and re-raises."""
     config = config or BenchmarkConfig()
     if trials <= 0:
         raise InvalidInputError(f"--trials must be a positive number of trials, got {trials}")
@@ -95,6 +97,8 @@ def run_benchmark(scenes: Sequence[str], policies: Sequence[str], trials: int = 
         raise InvalidInputError("--executor ray needs Ray: pip install 'activesplat[ray]'")
     seeds = list(range(trials)) if seeds is None else [int(s) for s in seeds]
     specs = plan_runs(scenes, policies, seeds, steps, root)
+    if (run_options or {}).get("config") is not None:
+        check_configs(specs, run_options["config"])
     root = Path(root).resolve()
     root.mkdir(parents=True, exist_ok=True)
     todo = [s for s in specs if read_metrics(s.out) is None]
@@ -172,10 +176,11 @@ def write_report(root: str | Path, specs: Sequence[RunSpec], steps: int | None =
     return BenchmarkReport(root, records, csv_path, md_path, markdown, pngs)
 
 
-def benchmark_from_args(args: argparse.Namespace) -> int:
-    """`activesplat benchmark`: exit code 0 when every run is complete, 1 when some failed."""
-    report = run_benchmark(scenes=args.scenes, policies=args.policies, trials=args.trials, steps=args.steps,
-                           root=args.root, workers=args.workers, executor=args.executor,
-                           ray_address=args.ray_address)
+def benchmark_from_command(cmd) -> int:
+    """`activesplat benchmark` (an `activesplat.config.BenchmarkCommand`): exit code 0 when every run is
+    complete, 1 when some failed. Its RunConfig's settings (the --GROUP.FIELD options) reach every run."""
+    report = run_benchmark(scenes=list(cmd.scenes), policies=list(cmd.policies), trials=cmd.trials,
+                           steps=cmd.steps, root=cmd.root, workers=cmd.workers, executor=cmd.executor,
+                           ray_address=cmd.ray_address, run_options={"config": cmd.run})
     print("\n" + report.markdown)
     return 1 if report.failed else 0

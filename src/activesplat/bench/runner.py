@@ -154,6 +154,36 @@ def plan_runs(scenes: Sequence[str], policies: Sequence[str], seeds: Sequence[in
     return specs
 
 
+def check_configs(specs: Sequence[RunSpec], config) -> None:
+    """Refuse a ROOT whose finished runs were made with other settings than `config` (a RunConfig whose
+    scene, policy, seed and steps each run replaces): one table would mix configurations."""
+    for spec in specs:
+        if read_metrics(spec.out) is None:
+            continue
+        try:
+            recorded = json.loads((spec.out / "episode.json").read_text())["config"]
+        except (OSError, ValueError, KeyError, TypeError):
+            continue
+        want = config.replace(scene=spec.scene, policy=spec.policy, seed=spec.seed,
+                              steps=recorded.get("steps")).to_dict()
+        was, now = _flat(recorded), _flat(want)
+        differ = [k for k in now if was.get(k) != now[k]]
+        if differ:
+            key = differ[0]
+            raise InvalidInputError(f"{spec.out} was run with {key} = {was.get(key)!r} but this benchmark "
+                                    f"asks for {now[key]!r}: use another --root")
+
+
+def _flat(d: dict, prefix: str = "") -> dict:
+    out = {}
+    for k, v in d.items():
+        if isinstance(v, dict):
+            out.update(_flat(v, f"{prefix}{k}."))
+        else:
+            out[prefix + k] = list(v) if isinstance(v, tuple) else v
+    return out
+
+
 def _unique(items: Iterable) -> list:
     return list(dict.fromkeys(items))
 

@@ -14,28 +14,35 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from activesplat.errors import check_fields
 from activesplat.geometry import backproject
 
 
-@dataclass
+@dataclass(frozen=True)
 class CoverageConfig:
     """Evaluation protocol constants (docs/protocol.md §6)."""
 
     resolution: int = 128
-    """Replay depth is rendered at 128 x 128 (half the 256 x 256 sensor), same field of view."""
+    """Replay depth is rendered at 128 x 128 (half the 256 x 256 sensor), same field of view (paper
+    protocol)."""
     n_gt_points: int = 200_000
-    """Points sampled area-uniformly on the ground-truth mesh."""
+    """Points sampled area-uniformly on the ground-truth mesh (paper protocol: 200,000)."""
     seed: int = 0
-    """Seed of the ground-truth point sample (fixed so that runs compare)."""
+    """Seed of the ground-truth point sample (ours: fixed so that runs compare)."""
     cap_m: float = 1.0
-    """The running minimum distance starts at 1 m, which caps completion."""
+    """The running minimum distance starts at 1 m, which caps completion (paper protocol)."""
     threshold_m: float = 0.05
-    """A ground-truth point counts as completed when observed within 5 cm."""
+    """A ground-truth point counts as completed when observed within 5 cm (paper protocol)."""
     far_voxel_m: float = 0.02
     """Beyond the cap (uncapped variant only) distances are measured to observed points thinned to one per
-    voxel of this size: error below sqrt(3) x size on distances over 1 m; exact within the cap."""
+    voxel of this size (ours): error below sqrt(3) x size on distances over 1 m; exact within the cap."""
     batch_frames: int = 50
-    """Frames whose points are pooled into one KD-tree per update (a speed knob; the result is exact)."""
+    """Frames whose points are pooled into one KD-tree per update (ours: a speed knob; the result is
+    exact)."""
+
+    def __post_init__(self) -> None:
+        check_fields(self, positive=("cap_m", "threshold_m", "far_voxel_m"),
+                     at_least_one=("resolution", "n_gt_points", "batch_frames"))
 
 
 def _tree(points: np.ndarray) -> cKDTree:

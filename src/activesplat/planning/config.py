@@ -7,14 +7,17 @@ default here.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Literal
+
+from activesplat.errors import InvalidInputError, check_fields
 
 
-@dataclass
+@dataclass(frozen=True)
 class PanoramaConfig:
     """Panorama at a Voronoi node (paper sec. III-D2 "Panorama Rendering")."""
 
     n_cameras: int = 3
-    """Pinhole cameras rotated 0/120/240 deg in yaw."""
+    """Pinhole cameras rotated 0/120/240 deg in yaw (paper: three 120 deg cameras)."""
     hfov_deg: float = 120.0
     """Horizontal field of view of each camera (paper: 120 deg)."""
     vfov_deg: float = 150.0
@@ -24,8 +27,15 @@ class PanoramaConfig:
     height: int = 150
     """Panorama height in pixels (paper: 150)."""
 
+    def __post_init__(self) -> None:
+        check_fields(self, positive=("hfov_deg", "vfov_deg"), at_least_one=("n_cameras", "width_per_camera",
+                                                                               "height"))
+        if not (self.hfov_deg < 180 and self.vfov_deg < 180):
+            raise InvalidInputError(f"PanoramaConfig fields of view must be < 180 deg, got {self.hfov_deg} / "
+                                    f"{self.vfov_deg}")
 
-@dataclass
+
+@dataclass(frozen=True)
 class RotationCandidateConfig:
     """Rotation candidates from DBSCAN over low-visibility pixels (sec. III-B2; release values)."""
 
@@ -42,15 +52,20 @@ class RotationCandidateConfig:
     min_offset_deg: float = 15.0
     """A target is used only if more than this off the current heading (release: 15 deg)."""
 
+    def __post_init__(self) -> None:
+        check_fields(self, unit=("invisibility_threshold",), positive=("dbscan_eps",),
+                     non_negative=("min_cluster_invisibility", "min_offset_deg"),
+                     at_least_one=("downsample", "dbscan_min_samples"))
 
-@dataclass
+
+@dataclass(frozen=True)
 class HullConfig:
     """3D convex-hull volume of invisible regions (sec. III-B2, "back-projects contour pixels")."""
 
     invisibility_threshold: float = 0.8
     """Pixels counted as invisible for the hull (release: 0.8)."""
     downsample: int = 2
-    """Cluster at half resolution, like the rotation candidates."""
+    """Cluster at half resolution, like the rotation candidates (release)."""
     dbscan_eps: float = 5.0
     """DBSCAN radius in pixels (release: 5)."""
     dbscan_min_samples: int = 25
@@ -58,8 +73,12 @@ class HullConfig:
     dilate_px: int = 15
     """Elliptic dilation of each cluster before taking its outer contour (release: 15 x 15)."""
 
+    def __post_init__(self) -> None:
+        check_fields(self, unit=("invisibility_threshold",), positive=("dbscan_eps",),
+                     non_negative=("dilate_px",), at_least_one=("downsample", "dbscan_min_samples"))
 
-@dataclass
+
+@dataclass(frozen=True)
 class HighLossConfig:
     """High-loss samples of eq. 10, tracked over time (sec. III-B2). The eq. 10 thresholds themselves
     (tau_o2 = 0.8, epsilon_1 = 0.3 m) live in the mapper's config, which computes the mask."""
@@ -69,7 +88,9 @@ class HighLossConfig:
     min_pixels: int = 20
     """Fewer high-loss pixels than this: no sample (release: 20)."""
     dbscan_eps: float = 5.0
+    """DBSCAN neighbourhood radius in grid pixels (release: 5)."""
     dbscan_min_samples: int = 10
+    """DBSCAN core-point size (release: 10)."""
     min_cluster_sum: float = 25.0
     """Clusters smaller than this are ignored (release: 25)."""
     min_offset_deg: float = 5.0
@@ -77,10 +98,15 @@ class HighLossConfig:
     drop_within_deg: float = 5.0
     """A tracked sample is dropped once the camera heading is within this of it (release: 5 deg)."""
     max_samples: int = 32
-    """Most samples kept; the oldest are forgotten first."""
+    """Most samples kept; the oldest are forgotten first (ours)."""
+
+    def __post_init__(self) -> None:
+        check_fields(self, positive=("dbscan_eps",), non_negative=("min_pixels", "min_cluster_sum",
+                                                                   "min_offset_deg", "drop_within_deg"),
+                     at_least_one=("grid", "dbscan_min_samples", "max_samples"))
 
 
-@dataclass
+@dataclass(frozen=True)
 class ScoreConfig:
     """Node score of eq. 12: S = w_o s_o + w_c s_c + w_u s_u + w_h s_h (- failed penalty).
 
@@ -102,11 +128,16 @@ class ScoreConfig:
     """Subtracted from nodes whose goal failed before (release: 60)."""
     unvisited_radius_m: float = 0.65
     """A node is unvisited when farther than this from every past position (release: 10 x 0.065 m)."""
-    preset: str = "paper"
+    preset: Literal["paper", "release"] = "paper"
     """"paper" (continuous shares, weights above) or "release" (the release's quantised formula)."""
 
+    def __post_init__(self) -> None:
+        check_fields(self, non_negative=("w_o", "w_c", "w_u", "w_h", "failed_penalty", "unvisited_radius_m"))
+        if self.preset not in ("paper", "release"):
+            raise InvalidInputError(f"ScoreConfig.preset must be 'paper' or 'release', got {self.preset!r}")
 
-@dataclass
+
+@dataclass(frozen=True)
 class PlanningConfig:
     """Everything the viewpoint selection needs, grouped."""
 

@@ -12,12 +12,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from activesplat.errors import check_fields
 from activesplat.geometry import pose_yaw_pitch, wrap_angle
 
 
-@dataclass
+@dataclass(frozen=True)
 class ControllerConfig:
-    """Action geometry and the release's path-following thresholds."""
+    """Action geometry and the release's path-following thresholds. In a run the action sizes come from the
+    simulator's (`activesplat.config.RunConfig`)."""
 
     turn_deg: float = 10.0
     """TURN_LEFT / TURN_RIGHT angle (Habitat protocol, docs/protocol.md §1)."""
@@ -31,6 +33,10 @@ class ControllerConfig:
     """A waypoint is reached within this many forward steps (~0.1 m, release)."""
     max_pitch_deg: float = 45.0
     """On-the-spot rotations keep the pitch within +-45 deg (paper / release)."""
+
+    def __post_init__(self) -> None:
+        check_fields(self, positive=("turn_deg", "look_deg", "forward_m", "heading_tolerance_deg",
+                                     "arrive_steps"), non_negative=("max_pitch_deg",))
 
     @property
     def arrive_radius(self) -> float:

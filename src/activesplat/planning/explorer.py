@@ -19,6 +19,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from activesplat.errors import check_fields
 from activesplat.geometry import pose_yaw_pitch
 from activesplat.planning.config import PlanningConfig
 from activesplat.planning.controller import (
@@ -48,7 +49,7 @@ class WorldModel(Protocol):
                height: int | None = None) -> Any: ...
 
 
-@dataclass
+@dataclass(frozen=True)
 class ExplorerConfig:
     """The explorer's own knobs; the planning / workspace / controller configs hold the paper's numbers."""
 
@@ -94,16 +95,25 @@ class ExplorerConfig:
     hierarchical: bool = True
     """Local-then-global goal selection over subregions (paper sec. III-C); off for `no-hp`."""
     rotations: bool = True
-    """On-the-spot rotations toward panorama / high-loss targets on arrival; off for `position`."""
+    """On-the-spot rotations toward panorama / high-loss targets on arrival (paper sec. III-B); off for
+    `position`."""
     multi_stops: bool = True
-    """Rotation stops at multi-connected nodes; off for `position` and `viewpoint`."""
+    """Rotation stops at multi-connected nodes (paper sec. III-C); off for `position` and `viewpoint`."""
     random_goals: bool = False
-    """Choose goal nodes uniformly at random (the `random` ablation)."""
+    """Choose goal nodes uniformly at random (the `random` ablation of the paper's Tab. III)."""
     seed: int = 0
-    """Seed of the random choices (random goals)."""
+    """Seed of the random choices (random goals; ours)."""
     planning: PlanningConfig = field(default_factory=PlanningConfig)
     workspace: WorkspaceConfig = field(default_factory=WorkspaceConfig)
     controller: ControllerConfig = field(default_factory=ControllerConfig)
+
+    def __post_init__(self) -> None:
+        check_fields(self, non_negative=("bootstrap_yaw_deg", "bootstrap_pitch_deg", "idle_yaw_deg",
+                                         "max_rotation_views", "rotation_skip_radii",
+                                         "multi_node_radius_m", "local_score_threshold",
+                                         "global_distance_weight", "long_path_m", "on_the_way_m",
+                                         "escape_forward_steps", "lookahead_m", "ahead_tolerance_m",
+                                         "panorama_height_m"), at_least_one=("max_panoramas",))
 
 
 @dataclass(frozen=True)

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from activesplat.errors import check_fields
 from activesplat.planning.controller import floor_xz
 from activesplat.planning.explorer import Explorer, turns_for
 from activesplat.workspace.clean import Workspace
@@ -23,17 +24,23 @@ from activesplat.workspace.topdown import TopDownGrids
 _NEIGHBOURS = np.ones((3, 3), np.uint8)
 
 
-@dataclass
+@dataclass(frozen=True)
 class FrontierConfig:
+    """The `fbe` baseline's own knobs (its paths and look-arounds use the explorer's settings)."""
+
     min_cluster_cells: int = 8
-    """Frontier clusters with fewer cells are noise (0.05 m cells: 8 cells ~ 0.4 m of frontier)."""
+    """Frontier clusters with fewer cells are noise (ours; 0.05 m cells: 8 cells ~ 0.4 m of frontier)."""
     skip_radius_m: float = 0.5
     """Frontier cells within this of the agent, a failed goal or a frontier already reached are not goals
     (ours: classic FBE re-selects an unobservable frontier forever)."""
     start_disc_m: float = 0.3
-    """Cells this close to the agent count as passable for the frontier search (it stands there)."""
+    """Cells this close to the agent count as passable for the frontier search (ours: it stands there)."""
     look_around_deg: float = 360.0
-    """On reaching a frontier the agent turns left this far on the spot (a full circle)."""
+    """On reaching a frontier the agent turns left this far on the spot (ours: a full circle)."""
+
+    def __post_init__(self) -> None:
+        check_fields(self, non_negative=("min_cluster_cells", "skip_radius_m", "start_disc_m",
+                                         "look_around_deg"))
 
 
 def frontier_cells(free: np.ndarray, unknown: np.ndarray) -> np.ndarray:

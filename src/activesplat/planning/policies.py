@@ -8,7 +8,7 @@ from collections.abc import Callable
 
 from activesplat.errors import InvalidInputError
 from activesplat.planning.explorer import ActiveSplatExplorer, Explorer, ExplorerConfig, WorldModel
-from activesplat.planning.frontier import FrontierExplorer
+from activesplat.planning.frontier import FrontierConfig, FrontierExplorer
 from activesplat.timing import Timers
 
 
@@ -45,12 +45,14 @@ def describe_policies() -> str:
 
 
 def make_policy(name: str, world: WorldModel, floor_height: float, cfg: ExplorerConfig | None = None,
-                timers: Timers | None = None) -> Explorer:
-    """Build the named policy for one episode."""
+                timers: Timers | None = None, frontier: FrontierConfig | None = None) -> Explorer:
+    """Build the named policy for one episode (`frontier`: the settings of the `fbe` baseline)."""
     if name not in _VARIANTS:
         raise InvalidInputError(f"unknown policy {name!r}; choose one of: {', '.join(POLICY_NAMES)}")
     cfg = _VARIANTS[name][1](cfg or ExplorerConfig())
-    cls = FrontierExplorer if name == "fbe" else ActiveSplatExplorer
-    explorer = cls(world, floor_height, cfg, timers)
+    if name == "fbe":
+        explorer = FrontierExplorer(world, floor_height, cfg, timers, frontier=frontier)
+    else:
+        explorer = ActiveSplatExplorer(world, floor_height, cfg, timers)
     explorer.name = name
     return explorer

@@ -6,6 +6,6 @@ writes ``DIR/refined_<method>/`` (gaussians.ply, render_metrics.json, refine.jso
 """
 
 from activesplat.refine.config import METHODS, RefineConfig
-from activesplat.refine.trainer import Refiner, RefineResult, refine, refine_from_args
+from activesplat.refine.trainer import Refiner, RefineResult, refine, refine_from_command
 
-__all__ = ["METHODS", "RefineConfig", "RefineResult", "Refiner", "refine", "refine_from_args"]
+__all__ = ["METHODS", "RefineConfig", "RefineResult", "Refiner", "refine", "refine_from_command"]

@@ -51,15 +51,15 @@ class RefineConfig:
     # the whole run (3DGS get_expon_lr_func with lr_delay_steps = 0)
 
     # --- adaptive density control (3DGS; iteration numbers of the 30k reference run)
-    densify_interval: int = 100  # densification_interval
-    densify_from_iter: int = 500  # densify_from_iter
-    densify_until_iter: int = 15_000  # densify_until_iter (cap; see densify_until_frac)
+    densify_interval: int = 100  # 3DGS densification_interval
+    densify_from_iter: int = 500  # 3DGS densify_from_iter
+    densify_until_iter: int = 15_000  # 3DGS densify_until_iter (cap; see densify_until_frac)
     densify_until_frac: float = 0.5  # project: stop at min(15k, frac x N); 3DGS 15k / 30k = 0.5
-    grad_threshold: float = 2e-4  # densify_grad_threshold, NDC units (pixel gradient x W/2, H/2)
-    percent_dense: float = 0.01  # clone if max scale <= 0.01 x extent, else split
+    grad_threshold: float = 2e-4  # 3DGS densify_grad_threshold, NDC units (pixel gradient x W/2, H/2)
+    percent_dense: float = 0.01  # 3DGS: clone if max scale <= 0.01 x extent, else split
     split_samples: int = 2  # N new Gaussians per split (3DGS N = 2)
     split_scale_divisor: float = 1.6  # split children scale / (0.8 N) (3DGS)
-    opacity_reset_interval: int = 3000  # opacity_reset_interval
+    opacity_reset_interval: int = 3000  # 3DGS opacity_reset_interval
     opacity_reset_value: float = 0.01  # 3DGS: opacity = min(opacity, 0.01)
     prune_opacity: float = 0.005  # 3DGS min_opacity
     prune_max_extent: float = 0.1  # 3DGS big_points_ws: max scale > 0.1 x extent (after the 1st reset)
@@ -71,10 +71,10 @@ class RefineConfig:
     # n = 0.2, f = 100; our rasterizer's distortion is in plain metres^2. (dm/dz)^2 = (n/z^2)^2 at a typical
     # indoor depth z = 2.5 m is 1.0e-3, so 2DGS's 100 becomes 100 x 1.0e-3 = 0.1 (project conversion)
     lambda_dist: float = 0.1
-    lambda_normal: float = 0.05  # normal consistency weight
+    lambda_normal: float = 0.05  # 2DGS normal consistency weight
     dist_from_frac: float = 0.1  # 2DGS: distortion from iteration 3000 of 30k
     normal_from_frac: float = 7000 / 30000  # 2DGS: normal consistency from iteration 7000 of 30k
-    surfel_ply_log_thickness: float = -13.815510557964274  # log(1e-6 m): scale_2 of a surfel in the PLY
+    surfel_ply_log_thickness: float = -13.815510557964274  # ours: log(1e-6 m), scale_2 of a surfel in the PLY
     # project: surfel orientation at initialisation. A Gaussian clearly flatter along one axis (smallest /
     # middle scale < surfel_flat_ratio) keeps that axis as the normal; a near-isotropic one (the online
     # map's Gaussians start isotropic and stay within a few % of it) takes the normal of the plane fitted
@@ -84,8 +84,8 @@ class RefineConfig:
     surfel_normal_neighbours: int = 16
 
     # --- bookkeeping
-    checkpoint_every: int = 500  # iterations between checkpoints (also written at the end and on Ctrl-C)
-    psnr_ema: float = 0.98  # smoothing of the progress bar's running loss / PSNR
+    checkpoint_every: int = 500  # ours: iterations between checkpoints (also at the end and on Ctrl-C)
+    psnr_ema: float = 0.98  # ours: smoothing of the progress bar's running loss / PSNR
 
     def __post_init__(self) -> None:
         for f in fields(self):

@@ -435,11 +435,12 @@ def refine(episode_dir: str | Path, method: str = "3dgs", iters: int = 2000, *,
     return refiner.result(metrics)
 
 
-def refine_from_args(args) -> int:
-    """``activesplat refine DIR [--method 3dgs|2dgs] [--iters N] [--seed S] [--restart] [--backend B]``."""
-    check_arguments(args.dir, args.method, args.iters)
-    res = refine(args.dir, args.method, args.iters, seed=args.seed, backend=args.backend,
-                 restart=args.restart, progress=not args.no_progress)
+def refine_from_command(cmd) -> int:
+    """``activesplat refine DIR [--method 3dgs|2dgs] [--iters N] [--seed S] [--restart] [--backend B]
+    [--refine.FIELD VALUE ...]`` (an `activesplat.config.RefineCommand`)."""
+    check_arguments(cmd.dir, cmd.method, cmd.iters)
+    res = refine(cmd.dir, cmd.method, cmd.iters, config=cmd.refine, seed=cmd.seed, backend=cmd.backend,
+                 restart=cmd.restart, progress=cmd.progress)
     rate = res.iterations / res.train_seconds if res.train_seconds else float("nan")
     print(f"refined {res.method}: {res.iterations} iterations ({rate:.2f} it/s), "
           f"{res.n_gaussians_initial} -> {res.n_gaussians} Gaussians "
@@ -466,4 +467,4 @@ def format_metrics(metrics: dict) -> str:
 
 
 __all__ = ["RefineResult", "Refiner", "check_arguments", "output_dir", "refine",
-           "refine_from_args"]
+           "refine_from_command"]

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from activesplat.errors import InvalidInputError, check_fields
+
 
 @dataclass(frozen=True)
 class SimConfig:
@@ -39,14 +41,25 @@ class SimConfig:
     """Geometry lower than this above the floor does not block the agent (thresholds, rugs). Our
     choice; Habitat's navmesh climbs 0.2 m."""
     nav_cell: float = 0.025
-    """Navigability grid cell in metres. A cell is navigable when its clearance exceeds
+    """Navigability grid cell in metres (ours). A cell is navigable when its clearance exceeds
     agent_radius + one cell diagonal, so the continuous camera position always keeps agent_radius."""
     floor_hole_cells: int = 2
     """Floor gaps up to this many nav cells wide (scanned meshes) are closed before the agent disc
     is required to stand on floor. Our choice."""
     ambient: float = 0.55
-    """View-independent shading: colour = albedo * (ambient + (1 - ambient) * |n . light|)."""
+    """View-independent shading (ours): colour = albedo * (ambient + (1 - ambient) * |n . light|)."""
     light_dir: tuple[float, float, float] = (0.3, 0.8, 0.5)
     """Fixed world-space directional light (normalised in the sensor); no headlight, no specular, so
     colours do not depend on the viewpoint."""
+
+    def __post_init__(self) -> None:
+        check_fields(self, positive=("width", "height", "hfov_deg", "sensor_height", "max_depth",
+                                     "agent_radius", "agent_height", "forward_step", "turn_deg", "look_deg",
+                                     "nav_cell"),
+                     non_negative=("step_margin", "floor_hole_cells"), unit=("ambient",))
+        if not self.hfov_deg < 180:
+            raise InvalidInputError(f"SimConfig.hfov_deg must be < 180, got {self.hfov_deg}")
+        if not -90 <= self.pitch_min_deg <= 0 <= self.pitch_max_deg <= 90:
+            raise InvalidInputError(f"SimConfig.pitch_min_deg / pitch_max_deg must satisfy -90 <= min <= 0 "
+                                    f"<= max <= 90, got {self.pitch_min_deg} / {self.pitch_max_deg}")
 

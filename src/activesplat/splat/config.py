@@ -16,9 +16,9 @@ from activesplat.errors import InvalidInputError
 class Schedule:
     """When to map and when to store a keyframe, counted in accepted frames (docs/protocol.md §2)."""
 
-    map_every: int  # run densification + optimisation on every n-th frame
-    keyframe_every: int  # store every n-th frame in the keyframe buffer
-    iterations: int  # Adam iterations per mapped frame
+    map_every: int  # run densification + optimisation on every n-th frame (release: 5, looking around 2)
+    keyframe_every: int  # store every n-th frame in the keyframe buffer (release: 5, looking around 1)
+    iterations: int  # Adam iterations per mapped frame (release: 2)
 
 
 @dataclass(frozen=True)
@@ -31,10 +31,10 @@ class LearningRates:
     """
 
     means: float = 1e-3  # project: release 1e-4 (see MapperConfig, "depth bias")
-    colors: float = 2.5e-3  # on plain RGB, converted to f_dc units by GaussianMap
-    quats: float = 1e-3
-    opacities: float = 0.05  # on the opacity logit
-    scales: float = 1e-3  # on the log-scale
+    colors: float = 2.5e-3  # release: on plain RGB, converted to f_dc units by GaussianMap
+    quats: float = 1e-3  # release
+    opacities: float = 0.05  # release: on the opacity logit
+    scales: float = 1e-3  # release: on the log-scale
 
 
 @dataclass(frozen=True)
@@ -115,8 +115,8 @@ class MapperConfig:
     densify_max_depth_m: float | None = None  # release applies the depth test only below 5 m; None = off
 
     # --- high-loss mask, eq. 10 (computed before densification, on the median depth as the release)
-    high_loss_opacity: float = 0.8  # tau_o2
-    high_loss_depth_m: float = 0.3  # epsilon_1
+    high_loss_opacity: float = 0.8  # tau_o2 (paper eq. 10)
+    high_loss_depth_m: float = 0.3  # epsilon_1 (paper eq. 10)
 
     # --- pruning (paper: "as in 3DGS"; the release prunes nothing)
     prune_opacity: float = 0.005  # 3DGS min_opacity
@@ -133,7 +133,7 @@ class MapperConfig:
     schedule: Schedule = field(default_factory=lambda: Schedule(map_every=5, keyframe_every=5, iterations=2))
     dense_schedule: Schedule = field(default_factory=lambda: Schedule(map_every=2, keyframe_every=1,
                                                                        iterations=2))
-    window_overlap: int = 10  # keyframes chosen by overlap; window = these + last keyframe + current
+    window_overlap: int = 10  # release: keyframes chosen by overlap; window = these + last keyframe + current
     overlap_pixels: int = 1600  # release / SplaTAM: pixels sampled for the overlap test
     overlap_border_px: int = 20  # release / SplaTAM: projections this close to the border do not count
     current_frame_first: bool = True  # project: iteration 0 always trains the current (densified) frame
@@ -142,7 +142,7 @@ class MapperConfig:
     # keeps moving Gaussians out of view
     sparse_adam: bool = True
 
-    seed: int = 0  # numpy generator for overlap sampling and window picks
+    seed: int = 0  # ours: numpy generator for overlap sampling and window picks
 
     def __post_init__(self) -> None:
         for f in fields(self):

@@ -85,7 +85,7 @@ class WorkspaceConfig:
     angle corner reaches ~0.41 x the junction clearance - 0.04 m, so 0.25 m cleans the ends of corridors
     up to ~1.4 m wide and keeps the corner spurs of rooms, which lead to good view positions)."""
     merge_distance: float = 1e-3
-    """Voronoi vertices closer than this (metres) are merged (qhull duplicates on co-circular sites)."""
+    """Voronoi vertices closer than this (metres) are merged (ours: qhull duplicates on co-circular sites)."""
 
     # --- subregions (paper sec. III-C, docs/protocol.md §5) ---
     subregion_cut: float = 2.0

@@ -1,0 +1,229 @@
+"""The typed run configuration: --GROUP.FIELD options, --help, one-line errors for bad input, derived robot
+geometry, episode.json written and read back by --config (same actions), benchmark overrides."""
+
+import dataclasses
+import json
+import re
+
+import pytest
+
+from activesplat import explore
+from activesplat.cli import main, parse_command
+from activesplat.config import (
+    CONFIG_VERSION,
+    DERIVED,
+    BenchmarkCommand,
+    ExploreCommand,
+    RunConfig,
+    load_run_config,
+    option_paths,
+)
+from activesplat.errors import InvalidInputError
+from activesplat.sim import SimConfig
+from activesplat.splat.config import MapperConfig
+
+TINY = ["--sim.width", "48", "--sim.height", "48", "--coverage.n-gt-points", "1000", "--coverage.resolution",
+        "32", "--coverage.batch-frames", "5", "--backend", "numba", "--no-progress"]
+
+
+def _run(capsys, *argv):
+    code = main(list(argv))
+    captured = capsys.readouterr()
+    return code, captured.out, captured.err
+
+
+def test_group_field_options_set_nested_fields():
+    cmd = parse_command(ExploreCommand, ["--mapper.pixel-stride", "3", "--explorer.planning.score.w-o", "5",
+                                         "--mapper.lr.means", "2e-3", "--policy", "fbe", "--steps", "40",
+                                         "--explorer.bootstrap-pitch-deg", "30",
+                                         "--mapper.densify-max-depth-m", "5", "--frontier.min-cluster-cells",
+                                         "4", "--no-progress"], "activesplat explore")
+    run = cmd.run
+    assert run.mapper.pixel_stride == 3 and run.mapper.lr.means == 2e-3
+    assert run.mapper.densify_max_depth_m == 5.0
+    assert run.explorer.planning.score.w_o == 5.0 and run.frontier.min_cluster_cells == 4
+    assert run.explorer.bootstrap_pitch_deg == 30.0
+    assert (run.policy, run.steps, cmd.progress) == ("fbe", 40, False)
+    assert run.sim == SimConfig() and run.mapper.init_opacity == MapperConfig().init_opacity
+
+
+def test_robot_geometry_is_derived_from_the_sim_settings():
+    run = parse_command(ExploreCommand, ["--sim.agent-radius", "0.2", "--sim.turn-deg", "15",
+                                         "--sim.forward-step", "0.1", "--sim.sensor-height", "1.1"], "x").run
+    ws, ctrl = run.explorer.workspace, run.explorer.controller
+    assert (ws.agent_radius, ctrl.turn_deg, ctrl.forward_m) == (0.2, 15, 0.1)
+    assert run.explorer.panorama_height_m == 1.1
+    # Python callers get the same: the derived fields follow sim whatever the explorer group says
+    assert RunConfig(sim=SimConfig(agent_height=1.2)).explorer.workspace.agent_height == 1.2
+    assert not any(p in option_paths() for p in DERIVED)
+
+
+def test_help_documents_each_field_with_its_default_and_source(capsys, monkeypatch):
+    monkeypatch.setenv("COLUMNS", "120")
+    with pytest.raises(SystemExit) as exc:
+        main(["explore", "--help"])
+    assert exc.value.code == 0
+    text = capsys.readouterr().out
+    assert "--mapper.pixel-stride" in text and "one Gaussian per stride x stride pixels" in text
+    assert "--explorer.workspace.agent-radius" not in text and "--sim.agent-radius" in text
+    for legacy in ("--scene", "--steps", "--policy", "--seed", "--out", "--overwrite", "--backend",
+                   "--viewer", "--viewer-port", "--z-up", "--no-progress", "--config"):
+        assert re.search(rf"^\s+(--[\w-]+, )?{legacy}\b", text, re.M), legacy
+    # every configuration field: a doc with its default and where the value comes from
+    blocks, current = {}, None
+    for line in text.splitlines():
+        m = re.match(r"^\s{1,3}(--[a-z][\w.-]*)", line)
+        if m:
+            current = m.group(1)
+            blocks[current] = line
+        elif current and re.match(r"^\s{5,}\S", line):
+            blocks[current] += " " + line.strip()
+        else:
+            current = None
+    fields = {"--" + p.replace("_", "-") for p in option_paths() if "." in p}
+    assert fields <= set(blocks), sorted(fields - set(blocks))[:5]
+    source = re.compile(r"paper|release|ours|our choice|project|REFERENCE|3DGS|2DGS|SplaTAM|Habitat|eq\.|"
+                        r"protocol|Yamauchi", re.I)
+    undocumented = [f for f in sorted(fields) if "(default:" not in blocks[f] or not source.search(blocks[f])]
+    assert not undocumented, undocumented
+
+
+@pytest.mark.parametrize("argv, needle", [
+    (["--mapper.pixel-strid", "3"], "--mapper.pixel-strid (did you mean --mapper.pixel-stride?)"),
+    (["--mapper.pixel-stride", "two"], "--mapper.pixel-stride expects INT"),
+    (["--mapper.pixel-stride", "0"], "--mapper.pixel-stride must be >= 1, got 0"),
+    (["--sim.width", "-5"], "--sim.width must be > 0"),
+    (["--mapper.init-opacity", "1.5"], "--mapper.init-opacity must be in (0, 1)"),
+    (["--explorer.planning.score.preset", "best"], "--explorer.planning.score.preset: unknown value 'best'"),
+    (["--explorer.workspace.agent-radius", "0.3"], "set --sim.agent-radius"),
+    (["--sim.light-dir", "1", "2"], "--sim.light-dir: expects 3 value(s)"),
+    (["--steps", "0"], "--steps must be a positive"),
+    (["--policy", "nope"], "unknown policy 'nope'"),
+])
+def test_bad_options_are_one_line_errors_naming_the_field(capsys, tmp_path, argv, needle):
+    code, _, err = _run(capsys, "explore", *argv, "--out", str(tmp_path / "never"))
+    assert code == 2 and needle in err, err
+    assert err.startswith("activesplat: error: ") and len(err.strip().splitlines()) == 1
+    assert "Traceback" not in err and not (tmp_path / "never").exists()
+
+
+def _write_config(tmp_path, edit) -> str:
+    data = RunConfig(steps=5).to_dict()
+    edit(data)
+    path = tmp_path / "episode.json"
+    path.write_text(json.dumps({"scene": "small-0", "start_pose": [], "config": data}))
+    return str(path)
+
+
+@pytest.mark.parametrize("edit, needle", [
+    (lambda d: d.update(version=CONFIG_VERSION + 1), f"config version {CONFIG_VERSION + 1}"),
+    (lambda d: d.pop("version"), "config version None"),
+    (lambda d: d["mapper"].update(pixel_strides=2), "unknown key mapper.pixel_strides"),
+    (lambda d: d["mapper"]["lr"].update(means="fast"), "mapper.lr.means must be a number"),
+    (lambda d: d["mapper"].update(pixel_stride=0), "mapper.pixel_stride must be >= 1"),
+    (lambda d: d["explorer"]["workspace"].update(agent_radius=0.3),
+     "explorer.workspace.agent_radius is derived"),
+    (lambda d: d.update(policy="nope"), "policy must be one of"),
+])
+def test_bad_config_files_are_one_line_errors_naming_the_key(capsys, tmp_path, edit, needle):
+    path = _write_config(tmp_path, edit)
+    code, _, err = _run(capsys, "explore", "--config", path, "--out", str(tmp_path / "never"))
+    assert code == 2 and needle in err and path in err, err
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
+
+
+def test_config_dict_round_trip_keeps_every_field():
+    run = RunConfig(scene="small-2", policy="no-hp", seed=4, steps=77, sim=SimConfig(agent_radius=0.15),
+                    mapper=MapperConfig(pixel_stride=3, densify_max_depth_m=5.0))
+    again = RunConfig.from_dict(json.loads(json.dumps(run.to_dict())))
+    assert again == run and again.explorer.workspace.agent_radius == 0.15
+    with pytest.raises(InvalidInputError, match="scene must be a string"):
+        RunConfig.from_dict({**run.to_dict(), "scene": 3})
+
+
+def test_config_rerun_of_an_episode_takes_the_same_actions(capsys, tmp_path):
+    first, again, other = tmp_path / "first", tmp_path / "again", tmp_path / "other"
+    code, out, err = _run(capsys, "explore", "--steps", "10", "--seed", "3", "--policy", "random",
+                          "--explorer.bootstrap-yaw-deg", "20", "--mapper.pixel-stride", "3",
+                          "--out", str(first), *TINY)
+    assert code == 0, err
+    recorded = load_run_config(first)
+    assert (recorded.steps, recorded.seed, recorded.policy) == (10, 3, "random")
+    assert recorded.explorer.bootstrap_yaw_deg == 20.0 and recorded.mapper.pixel_stride == 3
+    assert recorded.sim.width == 48 and recorded.backend == "numba"
+
+    code, _, err = _run(capsys, "explore", "--config", str(first / "episode.json"), "--out", str(again),
+                        "--no-progress")
+    assert code == 0, err
+    assert (again / "actions.txt").read_text() == (first / "actions.txt").read_text()
+    assert load_run_config(again) == recorded
+
+    # options override the file
+    code, _, err = _run(capsys, "explore", "--config", str(first), "--steps", "4", "--coverage.n-gt-points",
+                        "800", "--out", str(other), "--no-progress")
+    assert code == 0, err
+    changed = load_run_config(other)
+    coverage = dataclasses.replace(recorded.coverage, n_gt_points=800)
+    assert changed == recorded.replace(steps=4, coverage=coverage)
+    assert len((other / "actions.txt").read_text().split()) == 4
+
+
+def test_benchmark_overrides_reach_every_run(capsys, tmp_path, monkeypatch):
+    seen = []
+
+    def fake(scene, policy, steps, seed, out, overwrite, **options):
+        seen.append((policy, seed, options["config"]))
+        out.mkdir(parents=True, exist_ok=True)
+        raise RuntimeError("not run")
+
+    monkeypatch.setattr(explore, "run_exploration", fake)
+    code, _, err = _run(capsys, "benchmark", "--scenes", "small-0", "--policies", "activesplat", "fbe",
+                        "--trials", "2", "--steps", "5", "--root", str(tmp_path),
+                        "--mapper.pixel-stride", "3", "--frontier.min-cluster-cells", "4",
+                        "--sim.agent-radius", "0.12")
+    assert code == 1  # every run failed (the stand-in raises)
+    assert [(p, s) for p, s, _ in seen] == [("activesplat", 0), ("activesplat", 1), ("fbe", 0), ("fbe", 1)]
+    for _, _, config in seen:
+        assert config.mapper.pixel_stride == 3 and config.frontier.min_cluster_cells == 4
+        assert config.explorer.workspace.agent_radius == 0.12
+
+
+def test_benchmark_sets_scene_policy_seed_and_steps_itself(capsys, tmp_path):
+    cmd = parse_command(BenchmarkCommand, ["--steps", "5", "--sim.width", "64"], "activesplat benchmark",
+                        own=("scene", "policy", "seed", "steps"))
+    assert cmd.steps == 5 and cmd.run.sim.width == 64
+    code, _, err = _run(capsys, "benchmark", "--scene", "small-1", "--root", str(tmp_path / "r"))
+    assert code == 2 and "unknown option --scene" in err and len(err.strip().splitlines()) == 1
+
+
+def test_benchmark_refuses_a_root_run_with_other_settings(capsys, tmp_path, monkeypatch):
+    monkeypatch.setattr(explore, "run_exploration", lambda *a, **k: pytest.fail("nothing should run"))
+    out = tmp_path / "small-0" / "fbe" / "s0"
+    out.mkdir(parents=True)
+    config = RunConfig(scene="small-0", policy="fbe", steps=5, mapper=MapperConfig(pixel_stride=3))
+    (out / "episode.json").write_text(json.dumps({"config": config.to_dict()}))
+    (out / "metrics.json").write_text(json.dumps({"steps": 5}))
+    argv = ["benchmark", "--scenes", "small-0", "--policies", "fbe", "--steps", "5", "--root", str(tmp_path)]
+    code, _, err = _run(capsys, *argv, "--mapper.pixel-stride", "2")
+    assert code == 2 and "was run with mapper.pixel_stride = 3 but this benchmark asks for 2" in err, err
+    assert len(err.strip().splitlines()) == 1
+    code, out_text, err = _run(capsys, *argv, "--mapper.pixel-stride", "3")  # the same settings: complete
+    assert "1 already complete, 0 to run" in out_text, (out_text, err)
+
+
+def test_refine_takes_the_recorded_settings_then_the_options(capsys, tmp_path, monkeypatch):
+    import activesplat.refine as refine_module
+
+    seen = []
+    monkeypatch.setattr(refine_module, "refine_from_command", lambda cmd: seen.append(cmd) or 0)
+    ep = tmp_path / "ep"
+    ep.mkdir()
+    run = RunConfig(steps=5, refine=dataclasses.replace(RunConfig().refine, lambda_dssim=0.3))
+    (ep / "episode.json").write_text(json.dumps({"start_pose": [], "config": run.to_dict()}))
+    assert main(["refine", str(ep), "--refine.percent-dense", "0.02", "--iters", "7"]) == 0
+    cmd = seen[-1]
+    assert (cmd.refine.lambda_dssim, cmd.refine.percent_dense, cmd.iters) == (0.3, 0.02, 7)
+    (ep / "episode.json").write_text(json.dumps({"start_pose": [], "config": {}}))  # an older episode
+    assert main(["refine", str(ep)]) == 0 and seen[-1].refine == RunConfig().refine
+    code, _, err = _run(capsys, "refine", str(ep), "--refine.lambda-dssim", "2")
+    assert code == 2 and "--refine.lambda-dssim must be in [0, 1]" in err and len(err.splitlines()) == 1
