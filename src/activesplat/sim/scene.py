@@ -17,7 +17,9 @@ from activesplat.sim.sensor import RGBDSensor
 from activesplat.sim.textures import build_atlas
 
 MESH_SUFFIXES = (".glb", ".gltf", ".ply", ".obj")
-BUILTIN_PATTERN = re.compile(r"^(small|medium)-(\d+)$")
+BUILTIN_PATTERN = re.compile(r"^(small|medium)-(\d+)(-plain)?$")
+"""Built-in names: kind, seed, and an optional `-plain` suffix (flat colour per material, no texture)."""
+BUILTIN_NAMES = "small-<seed>, medium-<seed> (optionally with -plain)"
 DEFAULT_STEPS = {"small": 1000, "medium": 2000, "file": 1000}
 """Step budgets (REFERENCE 1: 1000 actions for small scenes, 2000 for medium; 1000 for user meshes)."""
 _MAX_FURNITURE_TRIES = 6
@@ -99,15 +101,17 @@ class Scene:
 # --------------------------------------------------------------------------- built-in houses
 def build_house(name: str, config: HouseConfig | None = None) -> Scene:
     """`small-<seed>` or `medium-<seed>`; refurnishes (new furniture seed) until the navigable space
-    is one component (secondary pockets below _MAX_SECONDARY_AREA are tolerated)."""
+    is one component (secondary pockets below _MAX_SECONDARY_AREA are tolerated). A `-plain` suffix
+    gives the same house (layout, furniture, triangles) with one flat colour per material."""
     config = config or HouseConfig()
     match = BUILTIN_PATTERN.match(name)
     if match is None:
-        raise SceneError(f"unknown built-in scene {name!r}: expected small-<seed> or medium-<seed>")
-    kind, seed = match.group(1), int(match.group(2))
+        raise SceneError(f"unknown built-in scene {name!r}: expected {BUILTIN_NAMES}")
+    kind, seed, plain = match.group(1), int(match.group(2)), match.group(3) is not None
     for attempt in range(_MAX_FURNITURE_TRIES):
-        house = make_layout(name, seed, config, furniture_seed=attempt)
-        scene = Scene(name, house_mesh(house, seed, config), 0.0, DEFAULT_STEPS[kind], rooms=house.n_rooms)
+        house = make_layout(f"{kind}-{seed}", seed, config, furniture_seed=attempt)
+        mesh = house_mesh(house, seed, config, plain=plain)
+        scene = Scene(name, mesh, 0.0, DEFAULT_STEPS[kind], rooms=house.n_rooms)
         navmap = scene.navmap
         secondary = (navmap.grid & ~navmap.largest).sum() * navmap.resolution**2
         if secondary <= _MAX_SECONDARY_AREA:
@@ -201,13 +205,14 @@ def load_mesh_scene(path, z_up: bool = False) -> Scene:
 
 
 def load_scene(name, z_up: bool = False) -> Scene:
-    """A built-in house (`small-<seed>`, `medium-<seed>`) or a mesh file (.glb/.gltf/.ply/.obj)."""
+    """A built-in house (`small-<seed>`, `medium-<seed>`, either with `-plain`) or a mesh file
+    (.glb/.gltf/.ply/.obj)."""
     text = str(name)
     if BUILTIN_PATTERN.match(text):
         return build_house(text)
     if Path(text).suffix.lower() in MESH_SUFFIXES or Path(text).exists() or "/" in text:
         return load_mesh_scene(text, z_up=z_up)
-    raise SceneError(f"unknown scene {text!r}: expected small-<seed>, medium-<seed> or a mesh file "
+    raise SceneError(f"unknown scene {text!r}: expected {BUILTIN_NAMES} or a mesh file "
                      f"({', '.join(MESH_SUFFIXES)})")
 
 
@@ -219,6 +224,8 @@ def describe_builtin_scenes(seeds=(0, 1, 2)) -> str:
              f"{DEFAULT_STEPS['small']} steps",
              f"  medium-<seed>  {config.medium_rooms[0]}-{config.medium_rooms[1]} rooms + corridor, "
              f"{DEFAULT_STEPS['medium']} steps",
+             "  <name>-plain   the same house with one flat colour per material (textureless walls),",
+             "                 e.g. small-0-plain, medium-2-plain",
              "  or a mesh file: .glb .gltf .ply .obj (y up; --z-up for z-up files)", "",
              f"{'name':<12}{'rooms':>6}{'size (m)':>14}{'floor (m^2)':>13}"]
     for kind in ("small", "medium"):
