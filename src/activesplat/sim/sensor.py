@@ -1,5 +1,6 @@
-"""Embree RGB-D sensor: one ray per pixel centre, z-depth in metres, colour from texture and/or
-vertex colours with view-independent shading (fixed directional light, |n . l|)."""
+"""Embree RGB-D sensor: one ray per pixel centre, z-depth in metres, colour from each face's
+material (own texture and sampler, base colour factor, vertex colours; see sim/materials.py) with
+view-independent shading (fixed directional light, |n . l|)."""
 
 from __future__ import annotations
 
@@ -9,6 +10,7 @@ from embreex import rtcore_scene
 from embreex.mesh_construction import TriangleMesh
 
 from activesplat.sim.config import SimConfig
+from activesplat.sim.materials import CLAMP_TO_EDGE, MIRRORED_REPEAT, Surface, surface_from_trimesh
 
 
 def camera_rays(K: np.ndarray, width: int, height: int) -> np.ndarray:
@@ -20,68 +22,62 @@ def camera_rays(K: np.ndarray, width: int, height: int) -> np.ndarray:
     return np.stack([x, y, np.ones_like(x)], axis=-1).reshape(-1, 3)
 
 
-def _material_image(material) -> tuple[np.ndarray | None, np.ndarray]:
-    """(texture RGB float image or None, base colour factor RGB) of a trimesh material."""
-    factor = np.ones(3)
-    image = None
-    if isinstance(material, trimesh.visual.material.PBRMaterial):
-        image = material.baseColorTexture
-        if material.baseColorFactor is not None:
-            factor = np.asarray(material.baseColorFactor[:3], dtype=np.float64) / 255.0
-    elif isinstance(material, trimesh.visual.material.SimpleMaterial):
-        image = material.image
-        factor = np.asarray(material.diffuse[:3], dtype=np.float64) / 255.0
-    if image is not None:
-        image = np.asarray(image.convert("RGB"), dtype=np.float32) / 255.0
-    return image, factor
-
-
-def surface_colours(mesh: trimesh.Trimesh):
-    """Colour sources of a mesh: texture (H, W, 3) float or None, per-face corner UVs (F, 3, 2)
-    float32 or None, per-face corner colours (F, 3, 3) float32 or None (None = white)."""
-    visual = mesh.visual
-    faces = mesh.faces
-    if isinstance(visual, trimesh.visual.TextureVisuals):
-        image, factor = _material_image(visual.material)
-        corner = None if np.allclose(factor, 1.0) else np.broadcast_to(factor, (len(faces), 3, 3))
-        if image is not None and visual.uv is not None and len(visual.uv) == len(mesh.vertices):
-            uv = np.asarray(visual.uv, dtype=np.float32)[faces]
-            return image, uv, None if corner is None else corner.astype(np.float32)
-        return None, None, np.broadcast_to(factor, (len(faces), 3, 3)).astype(np.float32)
-    kind = getattr(visual, "kind", None)
-    if kind == "vertex":
-        return None, None, (np.asarray(visual.vertex_colors[:, :3], np.float32) / 255.0)[faces]
-    if kind == "face":
-        colours = np.asarray(visual.face_colors[:, :3], np.float32) / 255.0
-        return None, None, np.repeat(colours[:, None, :], 3, axis=1)
-    return None, None, np.full((len(faces), 3, 3), 0.7, dtype=np.float32)
-
-
 class RGBDSensor:
     """Ray casts a mesh with Embree; shared by the agent's camera and arbitrary evaluation poses."""
 
-    def __init__(self, mesh: trimesh.Trimesh, config: SimConfig | None = None):
+    def __init__(self, mesh: trimesh.Trimesh, config: SimConfig | None = None,
+                 surface: Surface | None = None):
         self.config = config = config or SimConfig()
         self.vertices = np.ascontiguousarray(mesh.vertices, dtype=np.float32)
         self.faces = np.ascontiguousarray(mesh.faces, dtype=np.int32)
         self._scene = rtcore_scene.EmbreeScene()
         TriangleMesh(self._scene, self.vertices, self.faces)
-        self.texture, self.face_uv, self.face_rgb = surface_colours(mesh)
+        self.surface = surface = surface if surface is not None else surface_from_trimesh(mesh)
+        if len(surface) != len(self.faces):
+            raise ValueError(f"surface has {len(surface)} faces, mesh {len(self.faces)}")
+        self._store_textures(surface)
         self.face_shade = self._face_shading()
-        self._texel_planes = self._texel_coordinates()
         self._rays: dict[tuple, np.ndarray] = {}
 
-    def _texel_coordinates(self):
-        """Per face, texel column and row as affine functions of Embree's (u, v): (F, 3) arrays
-        [at corner 0, d/du, d/dv], so shading gathers 6 scalars per pixel instead of 3 UV pairs."""
-        if self.texture is None:
-            return None
-        th, tw = self.texture.shape[:2]
-        uv = self.face_uv.astype(np.float64)
-        col = uv[:, :, 0] * tw
-        row = (1.0 - uv[:, :, 1]) * th
+    def _store_textures(self, surface: Surface) -> None:
+        """Every material's texture, unchanged, in one flat texel array (entry 0: a white texel for
+        untextured materials) with per-material offset, size and wrap modes; per face the texel
+        column and row as affine functions of Embree's (u, v): (F, 3) arrays [at corner 0, d/du,
+        d/dv], so shading gathers 6 scalars per pixel instead of 3 UV pairs."""
+        mats = surface.materials
+        textured = [m.texture is not None for m in mats]
+        self.face_material = surface.face_material
+        self.textured = surface.face_uv is not None and any(textured)
+        base = np.stack([m.base_colour for m in mats]).astype(np.float32)
+        corner = surface.face_colour
+        if corner is not None:
+            self.face_rgb = corner * base[self.face_material][:, None, :]
+            self.face_base = None
+        else:
+            self.face_rgb = None
+            self.face_base = None if np.all(base == 1.0) else base[self.face_material]
+        if not self.textured:
+            return
+        blocks, offsets, sizes, offset = [np.full((1, 3), 255, np.uint8)], [], [], 1
+        for m in mats:
+            if m.texture is None:
+                offsets.append(0)
+                sizes.append((1, 1))
+                continue
+            offsets.append(offset)
+            sizes.append(m.texture.shape[:2])
+            blocks.append(m.texture.reshape(-1, 3))
+            offset += blocks[-1].shape[0]
+        self.texels = np.concatenate(blocks)
+        self.tex_offset = np.asarray(offsets, np.int64)
+        self.tex_h, self.tex_w = (np.asarray(v, np.int64) for v in zip(*sizes, strict=True))
+        self.wrap_s = np.asarray([m.wrap_s for m in mats], np.int32)
+        self.wrap_t = np.asarray([m.wrap_t for m in mats], np.int32)
+        uv = surface.face_uv.astype(np.float64)
+        col = uv[:, :, 0] * self.tex_w[self.face_material, None]
+        row = uv[:, :, 1] * self.tex_h[self.face_material, None]
         planes = [np.stack([c[:, 0], c[:, 1] - c[:, 0], c[:, 2] - c[:, 0]], axis=1) for c in (col, row)]
-        return [p.astype(np.float32) for p in planes]
+        self._texel_planes = [p.astype(np.float32) for p in planes]
 
     def _face_shading(self) -> np.ndarray:
         """ambient + (1 - ambient) * |n . l| per face: fixed world light, view-independent."""
@@ -129,16 +125,35 @@ class RGBDSensor:
         return rgb_u8.reshape(height, width, 3), depth.astype(np.float32).reshape(height, width)
 
     def shade(self, face: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """Colour of surface points given by face index and Embree barycentrics (u, v): albedo from
-        the nearest texel and/or interpolated corner colours, times the face shading."""
+        """Colour of surface points given by face index and Embree barycentrics (u, v): the nearest
+        texel of the face's material texture (after its sampler's wrap modes) times its base colour
+        and the interpolated vertex colours, times the face shading."""
         colour = np.ones((len(face), 3), dtype=np.float32)
-        if self.texture is not None:
-            th, tw = self.texture.shape[:2]
+        if self.textured:
+            mat = self.face_material[face]
             (c0, cu, cv), (r0, ru, rv) = (p[face].T for p in self._texel_planes)
-            col = np.clip((c0 + u * cu + v * cv).astype(np.int64), 0, tw - 1)
-            row = np.clip((r0 + u * ru + v * rv).astype(np.int64), 0, th - 1)
-            colour = self.texture.reshape(-1, 3)[row * tw + col]
+            width, height = self.tex_w[mat], self.tex_h[mat]
+            col = _wrap(np.floor(c0 + u * cu + v * cv).astype(np.int64), width, self.wrap_s[mat])
+            row = _wrap(np.floor(r0 + u * ru + v * rv).astype(np.int64), height, self.wrap_t[mat])
+            texel = self.texels[self.tex_offset[mat] + row * width + col]
+            colour = texel.astype(np.float32) / np.float32(255.0)
         if self.face_rgb is not None:
             w = np.stack([1.0 - u - v, u, v], axis=1).astype(np.float32)
             colour = colour * np.einsum("nk,nkd->nd", w, self.face_rgb[face])
+        elif self.face_base is not None:
+            colour = colour * self.face_base[face]
         return colour * self.face_shade[face, None]
+
+
+def _wrap(index: np.ndarray, size: np.ndarray, mode: np.ndarray) -> np.ndarray:
+    """Texel index along one axis after the glTF wrap mode of each point's sampler (REPEAT,
+    MIRRORED_REPEAT, CLAMP_TO_EDGE; OpenGL semantics, on whole texels)."""
+    out = np.mod(index, size)
+    mirrored = mode == MIRRORED_REPEAT
+    if mirrored.any():
+        m = np.mod(index, 2 * size)
+        out = np.where(mirrored, np.where(m >= size, 2 * size - 1 - m, m), out)
+    clamped = mode == CLAMP_TO_EDGE
+    if clamped.any():
+        out = np.where(clamped, np.clip(index, 0, size - 1), out)
+    return out
