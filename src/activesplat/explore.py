@@ -34,7 +34,7 @@ def _default_out(scene: str, policy: str, seed: int) -> Path:
 def run_exploration(scene="small-0", policy: str = "activesplat", steps: int | None = None,
                     seed: int = 0, out: str | Path | None = None, overwrite: bool = False, z_up: bool = False,
                     backend: str = "auto", progress: bool = True, explorer_config=None, mapper_config=None,
-                    coverage_config=None, sim_config=None, viewer=None) -> dict:
+                    coverage_config=None, sim_config=None, viewer=None, floor=None) -> dict:
     """Explore `scene` (a built-in name, a mesh path or a `Scene`) with `policy` for `steps` actions and write
     the episode folder; returns the metrics (also written to metrics.json). `viewer` (e.g. a
     `viz.viewer.LiveViewer`) gets `update(step, obs, mapper, explorer, final=...)` after every step; None
@@ -52,7 +52,7 @@ def run_exploration(scene="small-0", policy: str = "activesplat", steps: int | N
         raise InvalidInputError(f"unknown policy {policy!r}; choose one of: {', '.join(POLICY_NAMES)}")
     if steps is not None and steps <= 0:
         raise InvalidInputError(f"--steps must be a positive number of actions, got {steps}")
-    scene_obj = scene if isinstance(scene, Scene) else load_scene(scene, z_up=z_up)
+    scene_obj = scene if isinstance(scene, Scene) else load_scene(scene, z_up=z_up, floor=floor)
     scene = scene_obj.name if isinstance(scene, Scene) else scene
     steps = int(steps or scene_obj.default_steps)
     sim_config = sim_config or SimConfig()
@@ -75,6 +75,7 @@ def run_exploration(scene="small-0", policy: str = "activesplat", steps: int | N
         "scene": scene, "scene_name": scene_obj.name, "z_up": z_up, "seed": seed, "policy": policy,
         "steps": steps, "start_pose": sim.start_pose.tolist(), "floor_height": floor_height,
         "backend": mapper.backend,
+        "floor": floor,  # storey choice of a multi-storey mesh (None: its only storey)
         "config": {"sim": dataclasses.asdict(sim_config), "explorer": _config_dict(explorer.cfg),
                    "mapper": _config_dict(mapper.config), "coverage": dataclasses.asdict(cov_cfg)},
     }
@@ -229,6 +230,7 @@ def explore_from_args(args: argparse.Namespace) -> int:
     try:
         metrics = run_exploration(scene=args.scene, policy=args.policy, steps=args.steps, seed=args.seed,
                                   out=out, overwrite=args.overwrite, z_up=args.z_up,
+                                  floor=getattr(args, "floor", None),
                                   backend=getattr(args, "backend", "auto"),
                                   progress=not getattr(args, "no_progress", False), viewer=viewer)
         print(format_summary(metrics, out))
