@@ -12,6 +12,9 @@ from embreex.mesh_construction import TriangleMesh
 from activesplat.sim.config import SimConfig
 from activesplat.sim.materials import CLAMP_TO_EDGE, MIRRORED_REPEAT, Surface, surface_from_trimesh
 
+FLOAT_TEXELS = 4_000_000
+"""Scenes with at most this many texels keep them as float32 (48 MB); larger ones as uint8."""
+
 
 def camera_rays(K: np.ndarray, width: int, height: int) -> np.ndarray:
     """(H*W, 3) camera-frame directions through pixel centres with z = 1, so the ray parameter of
@@ -42,8 +45,8 @@ class RGBDSensor:
     def _store_textures(self, surface: Surface) -> None:
         """Every material's texture, unchanged, in one flat texel array (entry 0: a white texel for
         untextured materials) with per-material offset, size and wrap modes; per face the texel
-        column and row as affine functions of Embree's (u, v): (F, 3) arrays [at corner 0, d/du,
-        d/dv], so shading gathers 6 scalars per pixel instead of 3 UV pairs."""
+        column and row as affine functions of Embree's (u, v): an (F, 6) array [column at corner 0,
+        d/du, d/dv, row at corner 0, d/du, d/dv], so shading gathers one row per pixel."""
         mats = surface.materials
         textured = [m.texture is not None for m in mats]
         self.face_material = surface.face_material
@@ -68,16 +71,29 @@ class RGBDSensor:
             sizes.append(m.texture.shape[:2])
             blocks.append(m.texture.reshape(-1, 3))
             offset += blocks[-1].shape[0]
-        self.texels = np.concatenate(blocks)
-        self.tex_offset = np.asarray(offsets, np.int64)
-        self.tex_h, self.tex_w = (np.asarray(v, np.int64) for v in zip(*sizes, strict=True))
-        self.wrap_s = np.asarray([m.wrap_s for m in mats], np.int32)
-        self.wrap_t = np.asarray([m.wrap_t for m in mats], np.int32)
+        texels = np.concatenate(blocks)
+        # float32 texels (the values texel / 255 the shading uses) when small: one gather, no convert
+        self.texels = texels.astype(np.float32) / np.float32(255.0) if len(texels) <= FLOAT_TEXELS else texels
+        tex_offset = np.asarray(offsets, np.int64)
+        tex_h, tex_w = (np.asarray(v, np.int64) for v in zip(*sizes, strict=True))
+        wrap = np.asarray([(m.wrap_s, m.wrap_t) for m in mats], np.int32)
+        used = np.unique(self.face_material)
+        sizes = np.concatenate([tex_w[used], tex_h[used]])
+        self._pow2 = bool(np.all((sizes & (sizes - 1)) == 0))
+        # [texel offset, width, height]: scalars when one material covers every face, else per face
+        # (one row gather per pixel). Wrap modes likewise per face only when the materials disagree.
+        table = np.stack([tex_offset, tex_w, tex_h], axis=1)
+        self._tex = tuple(int(x) for x in table[used[0]]) if len(used) == 1 else None
+        index_type = np.int32 if len(texels) < 2**31 else np.int64
+        self._face_tex = None if len(used) == 1 else table.astype(index_type)[self.face_material]
+        uniform = len(np.unique(wrap[used], axis=0)) == 1
+        self._wrap = tuple(int(w) for w in wrap[used[0]]) if uniform else None
+        self._face_wrap = None if uniform else wrap[self.face_material]
         uv = surface.face_uv.astype(np.float64)
-        col = uv[:, :, 0] * self.tex_w[self.face_material, None]
-        row = uv[:, :, 1] * self.tex_h[self.face_material, None]
-        planes = [np.stack([c[:, 0], c[:, 1] - c[:, 0], c[:, 2] - c[:, 0]], axis=1) for c in (col, row)]
-        self._texel_planes = [p.astype(np.float32) for p in planes]
+        c = uv[:, :, 0] * tex_w[self.face_material, None]
+        r = uv[:, :, 1] * tex_h[self.face_material, None]
+        planes = [x for t in (c, r) for x in (t[:, 0], t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])]
+        self._texel_planes = np.stack(planes, axis=1).astype(np.float32)
 
     def _face_shading(self) -> np.ndarray:
         """ambient + (1 - ambient) * |n . l| per face: fixed world light, view-independent."""
@@ -130,13 +146,14 @@ class RGBDSensor:
         and the interpolated vertex colours, times the face shading."""
         colour = np.ones((len(face), 3), dtype=np.float32)
         if self.textured:
-            mat = self.face_material[face]
-            (c0, cu, cv), (r0, ru, rv) = (p[face].T for p in self._texel_planes)
-            width, height = self.tex_w[mat], self.tex_h[mat]
-            col = _wrap(np.floor(c0 + u * cu + v * cv).astype(np.int64), width, self.wrap_s[mat])
-            row = _wrap(np.floor(r0 + u * ru + v * rv).astype(np.int64), height, self.wrap_t[mat])
-            texel = self.texels[self.tex_offset[mat] + row * width + col]
-            colour = texel.astype(np.float32) / np.float32(255.0)
+            c0, cu, cv, r0, ru, rv = self._texel_planes[face].T
+            offset, width, height = self._tex if self._tex is not None else self._face_tex[face].T
+            wrap_s, wrap_t = self._wrap if self._wrap is not None else self._face_wrap[face].T
+            col = _wrap(np.floor(c0 + u * cu + v * cv).astype(np.int64), width, wrap_s, self._pow2)
+            row = _wrap(np.floor(r0 + u * ru + v * rv).astype(np.int64), height, wrap_t, self._pow2)
+            colour = self.texels[offset + row * width + col]
+            if colour.dtype == np.uint8:
+                colour = colour.astype(np.float32) / np.float32(255.0)
         if self.face_rgb is not None:
             w = np.stack([1.0 - u - v, u, v], axis=1).astype(np.float32)
             colour = colour * np.einsum("nk,nkd->nd", w, self.face_rgb[face])
@@ -145,13 +162,21 @@ class RGBDSensor:
         return colour * self.face_shade[face, None]
 
 
-def _wrap(index: np.ndarray, size: np.ndarray, mode: np.ndarray) -> np.ndarray:
-    """Texel index along one axis after the glTF wrap mode of each point's sampler (REPEAT,
-    MIRRORED_REPEAT, CLAMP_TO_EDGE; OpenGL semantics, on whole texels)."""
-    out = np.mod(index, size)
+def _wrap(index: np.ndarray, size: np.ndarray, mode, pow2: bool) -> np.ndarray:
+    """Texel index along one axis after the glTF wrap mode (one for all points, or one per point):
+    REPEAT, MIRRORED_REPEAT, CLAMP_TO_EDGE, with OpenGL semantics on whole texels. `pow2`: every
+    size is a power of two, so the modulo is a bitwise and (also right for negative indices)."""
+    if np.isscalar(mode):
+        if mode == CLAMP_TO_EDGE:
+            return np.clip(index, 0, size - 1)
+        if mode == MIRRORED_REPEAT:
+            m = index & (2 * size - 1) if pow2 else np.mod(index, 2 * size)
+            return np.where(m >= size, 2 * size - 1 - m, m)
+        return index & (size - 1) if pow2 else np.mod(index, size)
+    out = index & (size - 1) if pow2 else np.mod(index, size)
     mirrored = mode == MIRRORED_REPEAT
     if mirrored.any():
-        m = np.mod(index, 2 * size)
+        m = index & (2 * size - 1) if pow2 else np.mod(index, 2 * size)
         out = np.where(mirrored, np.where(m >= size, 2 * size - 1 - m, m), out)
     clamped = mode == CLAMP_TO_EDGE
     if clamped.any():
