@@ -110,6 +110,9 @@ def view_quad(path, width=48):
     pose[:3, 3] = [0.5, 0.5, 1.0]
     K = intrinsics(width, width, 90.0)
     rgb, depth = sensor.render(pose, K, width, width)
+    reference = sensor.render_reference(pose, K, width, width)  # numpy shading of the numba kernel
+    np.testing.assert_array_equal(rgb, reference[0])
+    np.testing.assert_array_equal(depth, reference[1])
     cols, rows = np.meshgrid(np.arange(width) + 0.5, np.arange(width) + 0.5)
     x = 0.5 + (cols - K[0, 2]) / K[0, 0]
     y = 0.5 - (rows - K[1, 2]) / K[1, 1]

@@ -4,11 +4,14 @@ view-independent shading (fixed directional light, |n . l|)."""
 
 from __future__ import annotations
 
+from functools import cached_property
+
 import numpy as np
 import trimesh
 from embreex import rtcore_scene
 from embreex.mesh_construction import TriangleMesh
 
+from activesplat.sim._shade_numba import shade_pixels
 from activesplat.sim.config import SimConfig
 from activesplat.sim.materials import CLAMP_TO_EDGE, MIRRORED_REPEAT, Surface, surface_from_trimesh
 
@@ -82,13 +85,13 @@ class RGBDSensor:
         self._pow2 = bool(np.all((sizes & (sizes - 1)) == 0))
         # [texel offset, width, height]: scalars when one material covers every face, else per face
         # (one row gather per pixel). Wrap modes likewise per face only when the materials disagree.
-        table = np.stack([tex_offset, tex_w, tex_h], axis=1)
-        self._tex = tuple(int(x) for x in table[used[0]]) if len(used) == 1 else None
-        index_type = np.int32 if len(texels) < 2**31 else np.int64
-        self._face_tex = None if len(used) == 1 else table.astype(index_type)[self.face_material]
         uniform = len(np.unique(wrap[used], axis=0)) == 1
         self._wrap = tuple(int(w) for w in wrap[used[0]]) if uniform else None
-        self._face_wrap = None if uniform else wrap[self.face_material]
+        table = np.concatenate([np.stack([tex_offset, tex_w, tex_h], axis=1), wrap], axis=1)
+        self._tex = tuple(int(x) for x in table[used[0], :3]) if len(used) == 1 else None
+        index_type = np.int32 if len(texels) < 2**31 else np.int64
+        # the numba kernel reads all five columns per face; the numpy reference the first three
+        self._face_tex = table.astype(index_type)[self.face_material]
         uv = surface.face_uv.astype(np.float64)
         c = uv[:, :, 0] * tex_w[self.face_material, None]
         r = uv[:, :, 1] * tex_h[self.face_material, None]
@@ -128,7 +131,34 @@ class RGBDSensor:
         return origins, dirs
 
     def render(self, pose: np.ndarray, K: np.ndarray, width: int, height: int):
-        """(rgb uint8 (H, W, 3), depth float32 (H, W) z-depth metres, 0 past max_depth or no hit)."""
+        """(rgb uint8 (H, W, 3), depth float32 (H, W) z-depth metres, 0 past max_depth or no hit);
+        the colour of each hit as `shade` computes it, in one compiled pass over the pixels."""
+        origins, dirs = self.world_rays(pose, K, width, height)
+        hit = self.cast(origins, dirs)
+        rgb = np.empty((width * height, 3), dtype=np.uint8)
+        depth = np.empty(width * height, dtype=np.float32)
+        shade_pixels(hit["primID"], hit["tfar"], hit["u"], hit["v"], np.float32(self.config.max_depth),
+                     self.textured, *self._kernel_arrays, self.face_shade, rgb, depth)
+        return rgb.reshape(height, width, 3), depth.reshape(height, width)
+
+    @cached_property
+    def _kernel_arrays(self) -> tuple:
+        """Texel planes, per-face texture table, texels, corner colours, base colours for
+        shade_pixels; empty arrays stand for the absent ones."""
+        def present(array, shape, dtype=np.float32):
+            return array if array is not None else np.zeros(shape, dtype)
+
+        if self.textured:
+            planes, table, texels = self._texel_planes, self._face_tex, self.texels
+        else:
+            planes, table = np.zeros((0, 6), np.float32), np.zeros((0, 5), np.int32)
+            texels = np.zeros((0, 3), np.float32)
+        divisor = np.float32(255.0 if texels.dtype == np.uint8 else 1.0)
+        return (planes, table, texels, divisor, present(self.face_rgb, (0, 3, 3)),
+                present(self.face_base, (0, 3)))
+
+    def render_reference(self, pose: np.ndarray, K: np.ndarray, width: int, height: int):
+        """`render` in plain numpy (`shade` on the hits): the slow, readable reference of the kernel."""
         origins, dirs = self.world_rays(pose, K, width, height)
         hit = self.cast(origins, dirs)
         prim = hit["primID"]
@@ -147,8 +177,13 @@ class RGBDSensor:
         colour = np.ones((len(face), 3), dtype=np.float32)
         if self.textured:
             c0, cu, cv, r0, ru, rv = self._texel_planes[face].T
-            offset, width, height = self._tex if self._tex is not None else self._face_tex[face].T
-            wrap_s, wrap_t = self._wrap if self._wrap is not None else self._face_wrap[face].T
+            if self._tex is not None:
+                offset, width, height = self._tex
+                wrap_s, wrap_t = self._wrap
+            else:
+                offset, width, height, wrap_s, wrap_t = self._face_tex[face].T
+                if self._wrap is not None:
+                    wrap_s, wrap_t = self._wrap
             col = _wrap(np.floor(c0 + u * cu + v * cv).astype(np.int64), width, wrap_s, self._pow2)
             row = _wrap(np.floor(r0 + u * ru + v * rv).astype(np.int64), height, wrap_t, self._pow2)
             colour = self.texels[offset + row * width + col]
