@@ -50,7 +50,7 @@ _UNSUPPORTED_GEOMETRY = {
 BASISU_HELP = ("KTX2 / Basis Universal textures (KHR_texture_basisu) cannot be decoded here: no maintained "
                "Python decoder installs without the native libktx (pyktx builds only against it). Convert "
                "the textures to PNG or JPEG (e.g. KTX-Software: `ktx extract --transcode rgba8 in.ktx2 "
-               "out.png`, or `gltf-transform png in.glb out.glb` with KTX support) and load that file")
+               "out.png`) and load the file that references them")
 
 
 class GltfWarning(UserWarning):
@@ -159,9 +159,10 @@ def _split_glb(data: bytes, path: Path) -> tuple[dict, bytes | None]:
 
 
 # --------------------------------------------------------------------------- materials
-def _warn(path: Path, material: str, problem: str) -> None:
-    warnings.warn(f"{path}: material {material!r}: {problem}; its faces show the base colour",
-                  GltfWarning, stacklevel=4)
+def warn_material(path: Path, material: str | None, problem: str) -> None:
+    """A GltfWarning shown as `FILE:0: GltfWarning: material 'NAME': PROBLEM; ...` (no source line)."""
+    warnings.warn_explicit(f"material {material!r}: {problem}; its faces show the base colour", GltfWarning,
+                           filename=str(path), lineno=0)
 
 
 def _texture_source(gltf: _Gltf, texture: dict, material: str) -> int | None:
@@ -190,14 +191,14 @@ def _decode_image(gltf: _Gltf, index: int, material: str, cache: dict) -> np.nda
         else:
             blob = gltf._uri_bytes(image["uri"])
     except (OSError, ValueError, KeyError) as exc:
-        _warn(gltf.path, material, f"texture {where!r} is missing ({type(exc).__name__})")
+        warn_material(gltf.path, material, f"texture {where!r} is missing ({type(exc).__name__})")
         cache[index] = None
         return None
     try:
         with Image.open(io.BytesIO(blob)) as img:
             cache[index] = image_rgb(img)
     except Exception as exc:  # Pillow raises many types on unknown or corrupt images
-        _warn(gltf.path, material, f"texture {where!r} is not an image format Pillow reads "
+        warn_material(gltf.path, material, f"texture {where!r} is not an image format Pillow reads "
                                    f"({type(exc).__name__})")
         cache[index] = None
     return cache[index]
@@ -221,12 +222,12 @@ def _read_material(gltf: _Gltf, index: int | None, images: dict) -> tuple[Materi
         return material, 0, None
     textures = gltf.header.get("textures", [])
     if not 0 <= info.get("index", -1) < len(textures):
-        _warn(gltf.path, name, f"texture index {info.get('index')} does not exist")
+        warn_material(gltf.path, name, f"texture index {info.get('index')} does not exist")
         return material, 0, None
     texture = textures[info["index"]]
     source = _texture_source(gltf, texture, name)
     if source is None:
-        _warn(gltf.path, name, "texture has no image")
+        warn_material(gltf.path, name, "texture has no image")
         return material, 0, None
     material.texture = _decode_image(gltf, source, name, images)
     if material.texture is not None and "sampler" in texture:
@@ -234,7 +235,7 @@ def _read_material(gltf: _Gltf, index: int | None, images: dict) -> tuple[Materi
         for axis in ("S", "T"):
             mode = sampler.get(f"wrap{axis}", REPEAT)
             if mode not in WRAP_MODES:
-                _warn(gltf.path, name, f"unknown wrap{axis} {mode} (REPEAT used)")
+                warn_material(gltf.path, name, f"unknown wrap{axis} {mode} (REPEAT used)")
                 mode = REPEAT
             setattr(material, f"wrap_{axis.lower()}", mode)
     transform = info.get("extensions", {}).get("KHR_texture_transform")
@@ -366,7 +367,7 @@ def _check_uvs(surface: Surface, path: Path) -> None:
         material = surface.materials[m]
         if material.texture is not None:
             count = int((bad & (surface.face_material == m)).sum())
-            _warn(path, material.name, f"{count} faces have non-finite (NaN/inf) UVs")
+            warn_material(path, material.name, f"{count} faces have non-finite (NaN/inf) UVs")
     surface.drop_texture(bad)
 
 

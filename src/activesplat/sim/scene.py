@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import re
-import warnings
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
@@ -13,7 +12,7 @@ import trimesh
 
 from activesplat.errors import InvalidInputError, SceneError, SceneNotFoundError
 from activesplat.sim.config import SimConfig
-from activesplat.sim.gltf import GltfWarning, read_gltf, write_glb
+from activesplat.sim.gltf import read_gltf, warn_material, write_glb
 from activesplat.sim.house import HouseConfig, house_mesh, make_layout
 from activesplat.sim.materials import Material, Surface, surface_from_trimesh
 from activesplat.sim.navmap import NavMap, build_navmap
@@ -193,8 +192,7 @@ def _obj_missing_textures(path: Path) -> None:
             if parts and parts[0] == "newmtl":
                 material = " ".join(parts[1:])
             elif parts and parts[0] == "map_Kd" and len(parts) > 1 and not (mtl.parent / parts[-1]).is_file():
-                warnings.warn(f"{path}: material {material!r}: texture {parts[-1]!r} is missing; its faces "
-                              f"show the base colour", GltfWarning, stacklevel=3)
+                warn_material(path, material, f"texture {parts[-1]!r} is missing")
 
 
 def _read_mesh(path: Path) -> tuple[trimesh.Trimesh, Surface]:
