@@ -212,10 +212,12 @@ def test_node_transforms_texcoord_sets_and_texture_transform(tmp_path):
     np.testing.assert_allclose(surface.face_uv[0], quad_uv(0.0, 1.0)[TRIS[0]] * 2.0 + [0.5, 0.0])
 
 
-def _room(tmp_path, material, images=(), textures=(), uv=None, name="room.glb", glb=True):
-    """A 4 x 4 m floor (walkable) with one material; UVs 0..2 unless given."""
+def _room(tmp_path, material, images=(), textures=(), uv=None, name="room.glb", glb=True, drop_uv=False):
+    """A 4 x 4 m floor (walkable) with one material; UVs 0..2 unless given (none with drop_uv)."""
     floor = np.array([[0, 0, 0], [0, 0, 4], [4, 0, 4], [4, 0, 0]], np.float32)
     attrs = {"POSITION": floor, "TEXCOORD_0": quad_uv(0.0, 2.0) if uv is None else uv}
+    if drop_uv:
+        del attrs["TEXCOORD_0"]
     path = tmp_path / name
     path.write_bytes(make_gltf([(attrs, TRIS, 0)], [material], images=images, textures=textures, glb=glb))
     return path
@@ -229,7 +231,7 @@ def _floor_colour(scene: Scene) -> np.ndarray:
     return obs.rgb[obs.depth > 0].reshape(-1, 3)
 
 
-@pytest.mark.parametrize("problem", ["missing_file", "not_an_image", "nan_uv"])
+@pytest.mark.parametrize("problem", ["missing_file", "not_an_image", "nan_uv", "no_uv"])
 def test_bad_textures_warn_and_show_the_base_colour(tmp_path, problem):
     material = textured_material("oak floor", factor=(0.2, 0.6, 0.4, 1.0))
     uv = None
@@ -243,7 +245,7 @@ def test_bad_textures_warn_and_show_the_base_colour(tmp_path, problem):
         uv[0] = np.nan  # a corner of both triangles
     path = _room(tmp_path, material, images=images, textures=[{"source": 0}], uv=uv,
                  name="room.gltf" if problem == "missing_file" else "room.glb",
-                 glb=problem != "missing_file")
+                 glb=problem != "missing_file", drop_uv=problem == "no_uv")
     with pytest.warns(GltfWarning, match="material 'oak floor'.*base colour"):
         scene = load_scene(path)
     colours = _floor_colour(scene)

@@ -340,6 +340,9 @@ def read_gltf(path) -> tuple[np.ndarray, np.ndarray, Surface]:
                 uv = gltf.accessor(attrs[f"TEXCOORD_{tex_coord}"]).astype(np.float64)
                 uv = _transform_uv(uv, transform)
                 any_uv = True
+            if uv is None and material.texture is not None:  # no TEXCOORD_n: NaN, so the base colour shows
+                uv = np.full((len(pos), 2), np.nan)
+                any_uv = True
             face_uv.append((uv if uv is not None else np.zeros((len(pos), 2)))[tri].astype(np.float32))
             col = None
             if "COLOR_0" in attrs:
@@ -367,7 +370,7 @@ def _check_uvs(surface: Surface, path: Path) -> None:
         material = surface.materials[m]
         if material.texture is not None:
             count = int((bad & (surface.face_material == m)).sum())
-            warn_material(path, material.name, f"{count} faces have non-finite (NaN/inf) UVs")
+            warn_material(path, material.name, f"{count} faces have no or non-finite (NaN/inf) UVs")
     surface.drop_texture(bad)
 
 
