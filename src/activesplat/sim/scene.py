@@ -14,9 +14,9 @@ from activesplat.errors import InvalidInputError, SceneError, SceneNotFoundError
 from activesplat.sim.config import SimConfig
 from activesplat.sim.gltf import read_gltf, warn_material, write_glb
 from activesplat.sim.house import HouseConfig, house_mesh, make_layout
-from activesplat.sim.materials import Material, Surface, surface_from_trimesh
+from activesplat.sim.materials import Surface, surface_from_trimesh
 from activesplat.sim.navmap import NavMap, build_navmap
-from activesplat.sim.sensor import RGBDSensor
+from activesplat.sim.sensor import RGBDSensor, hit_distance
 from activesplat.sim.textures import build_atlas
 
 MESH_SUFFIXES = (".glb", ".gltf", ".ply", ".obj")
@@ -283,16 +283,16 @@ def find_storeys(mesh: trimesh.Trimesh, bin_size: float = 0.05,
     if len(storeys) == 1:
         return storeys
     rng = np.random.default_rng(0)
-    caster = RGBDSensor(mesh, surface=Surface([Material("geometry", np.ones(3))], np.zeros(len(mesh.faces))))
-    out = []
-    for b, storey in zip(kept, storeys, strict=True):
+    picks = []
+    for b in kept:
         idx = np.flatnonzero(bins == b)
-        pick = rng.choice(idx, size=min(256, len(idx)), p=a[idx] / a[idx].sum())
-        origins = centres[pick] + [0.0, 0.02, 0.0]
-        up = np.tile([0.0, 1.0, 0.0], (len(pick), 1))
-        covered = caster.distance(origins, up) < 1e6
-        out.append(Storey(storey.height, storey.area, open_above=bool(covered.mean() < 0.5)))
-    return out
+        picks.append(rng.choice(idx, size=min(256, len(idx)), p=a[idx] / a[idx].sum()))
+    origins = centres[np.concatenate(picks)] + [0.0, 0.02, 0.0]
+    up = np.tile([0.0, 1.0, 0.0], (len(origins), 1))
+    covered = np.split(hit_distance(mesh.vertices, mesh.faces, origins, up) < 1e6,
+                       np.cumsum([len(p) for p in picks])[:-1])
+    return [Storey(s.height, s.area, open_above=bool(c.mean() < 0.5))
+            for s, c in zip(storeys, covered, strict=True)]
 
 
 def choose_storey(storeys: list[Storey], floor: int | float | None, name: str) -> tuple[float, float]:

@@ -28,6 +28,16 @@ def camera_rays(K: np.ndarray, width: int, height: int) -> np.ndarray:
     return np.stack([x, y, np.ones_like(x)], axis=-1).reshape(-1, 3)
 
 
+def hit_distance(vertices: np.ndarray, faces: np.ndarray, origins: np.ndarray,
+                 directions: np.ndarray) -> np.ndarray:
+    """Embree ray parameter of the closest hit of each ray on a bare triangle mesh (1e37 on a miss)."""
+    scene = rtcore_scene.EmbreeScene()
+    TriangleMesh(scene, np.ascontiguousarray(vertices, dtype=np.float32),
+                 np.ascontiguousarray(faces, dtype=np.int32))
+    return scene.run(np.ascontiguousarray(origins, dtype=np.float32),
+                     np.ascontiguousarray(directions, dtype=np.float32), query="DISTANCE")
+
+
 class RGBDSensor:
     """Ray casts a mesh with Embree; shared by the agent's camera and arbitrary evaluation poses."""
 
