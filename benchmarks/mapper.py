@@ -11,8 +11,9 @@ it only while the agent turns on the spot, so this slightly over-counts the dens
 ``--episode`` the script walks: the bootstrap look-around (36 turns, each followed by a tilt), then
 forward, turning on the spot by a seeded random 60-120 deg when a move is blocked.
 
-Forgetting curve. The first ``--probe`` keyframes are rendered right after they are mapped ("when
-mapped") and again every ``--every`` steps; a map that forgets loses PSNR on them as the episode goes on.
+Forgetting curve. The first ``--probe`` keyframes that were mapped frames are rendered right after
+mapping ("when mapped") and again every ``--every`` steps; a map that forgets loses PSNR on them as the
+episode goes on.
 
 Final numbers. With ``--episode``, the final map is evaluated by ``activesplat render-eval`` (the 50 train
 views over the trajectory and the 50 random test views of the episode's scene) into ``--out``. Always:
@@ -164,7 +165,7 @@ def main() -> None:
         records.append(stats)
         if step % 2 == 0:
             voxels.update(map(tuple, observed_voxels(depth, pose, sim.K)))
-        if stats.keyframe and len(probes) < args.probe:
+        if stats.keyframe and stats.mapped and len(probes) < args.probe:  # mapped: its PSNR "when mapped"
             probes[step] = {"rgb": rgb, "pose": pose, "psnr": {step: psnr(mapper, rgb, pose)}}
         if step > 0 and (step % args.every == 0 or step == len(poses) - 1):
             curve_steps.append(step)

@@ -21,6 +21,20 @@ Handler = Callable[[argparse.Namespace], int | None]
 
 
 # --------------------------------------------------------------------------- scenes
+FLOOR_HELP = ("storey of a multi-storey mesh: an index from the bottom (0, 1, ...) or a floor height in "
+              "metres (3.0); needed when the mesh has several storeys under a ceiling")
+
+
+def floor_arg(text: str) -> int | float:
+    """--floor: an integer is a storey index, anything with a '.' (or a trailing 'm') a height."""
+    value = text.strip().removesuffix("m")
+    try:
+        return float(value) if "." in value or "e" in value.lower() else int(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a storey index (1) or a height in metres (3.0), "
+                                         f"got {text!r}") from None
+
+
 def _cmd_scenes_list(args: argparse.Namespace) -> int:
     from activesplat.sim import describe_builtin_scenes
 
@@ -36,7 +50,7 @@ def _cmd_scenes_export(args: argparse.Namespace) -> int:
 
     if Path(args.file).suffix.lower() != ".glb":  # checked before the (slow) scene build
         raise InvalidInputError(f"export file must end in .glb: {args.file}")
-    scene = load_scene(args.name, z_up=args.z_up)
+    scene = load_scene(args.name, z_up=args.z_up, floor=args.floor)
     path = scene.export(args.file)
     print(f"wrote {path}")
     return 0
@@ -150,7 +164,7 @@ def _parse_error(event, options: list[str]) -> str:
         nargs = getattr(event.argument.lowered, "nargs", None)
         return f"{flag(event.argument)}: expects {nargs if isinstance(nargs, int) else 'a'} value(s)"
     if isinstance(event, _errors.InstantiationFailure):
-        message = name_fields(event.message, flags=True)
+        message = name_fields(event.message, flags=True).strip().split("\n")[0]  # tyro adds detail lines
         if event.argument is None:
             return message
         metavar = event.argument.lowered.metavar
@@ -270,6 +284,7 @@ def build_parser() -> argparse.ArgumentParser:
     p_export.add_argument("name", help="built-in name (small-0, medium-3, ...) or a mesh file")
     p_export.add_argument("file", help="output file (.glb)")
     p_export.add_argument("--z-up", action="store_true", help="the input mesh file is z-up")
+    p_export.add_argument("--floor", type=floor_arg, default=None, help=FLOOR_HELP)
     p_export.set_defaults(func=_cmd_scenes_export)
 
     # explore and benchmark: parsed by tyro (TYRO_COMMANDS); listed here for `activesplat --help`

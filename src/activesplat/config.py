@@ -99,6 +99,9 @@ class RunConfig:
     """The scene mesh file is z-up (built-in scenes and glTF files are y-up)."""
     backend: BackendName = "auto"
     """Rasterizer backend (auto: gsplat with CUDA, else numba)."""
+    floor: int | float | str | None = None
+    """Storey of a multi-storey mesh: an index from the bottom (0, 1, ...) or a floor height in metres
+    (3.0); None: the mesh's only storey (an error lists the storeys when there are several)."""
 
     sim: SimGroup = field(default_factory=SimConfig)
     mapper: MapperGroup = field(default_factory=MapperConfig)
@@ -114,6 +117,14 @@ class RunConfig:
         if self.backend not in BACKENDS:
             raise InvalidInputError(f"RunConfig.backend must be one of {', '.join(BACKENDS)}, "
                                     f"got {self.backend!r}")
+        if isinstance(self.floor, str):  # from a file or an untyped caller: "1" is an index, "3.0" a height
+            text = self.floor.strip().removesuffix("m")
+            try:
+                floor = float(text) if "." in text or "e" in text.lower() else int(text)
+            except ValueError:
+                raise InvalidInputError(f"RunConfig.floor must be a storey index (1) or a floor height in "
+                                        f"metres (3.0), got {self.floor!r}") from None
+            object.__setattr__(self, "floor", floor)
         if self.steps is not None and (isinstance(self.steps, bool) or self.steps <= 0):
             raise InvalidInputError(f"RunConfig.steps must be a positive number of actions, got {self.steps}")
         derived = self
@@ -219,6 +230,9 @@ class RefineCommand:
     """Ignore a checkpoint in DIR/refined_METHOD and start again."""
     backend: BackendName = "auto"
     """Rasterizer backend (auto: gsplat with CUDA, else numba)."""
+    floor: int | float | str | None = None
+    """Storey of a multi-storey mesh: an index from the bottom (0, 1, ...) or a floor height in metres
+    (3.0); None: the mesh's only storey (an error lists the storeys when there are several)."""
     progress: bool = True
     """Show a progress bar."""
     refine: RefineGroup = field(default_factory=RefineConfig)

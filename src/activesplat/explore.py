@@ -32,7 +32,7 @@ def run_exploration(scene="small-0", policy: str = "activesplat", steps: int | N
                     seed: int = 0, out: str | Path | None = None, overwrite: bool = False,
                     z_up: bool | None = None, backend: str | None = None, progress: bool = True,
                     explorer_config=None, mapper_config=None, coverage_config=None, sim_config=None,
-                    viewer=None, config=None) -> dict:
+                    viewer=None, config=None, floor=None) -> dict:
     """Explore `scene` (a built-in name, a mesh path or a `Scene`) with `policy` for `steps` actions and write
     the episode folder; returns the metrics (also written to metrics.json).
 
@@ -46,7 +46,8 @@ def run_exploration(scene="small-0", policy: str = "activesplat", steps: int | N
     scene_obj = scene if isinstance(scene, Scene) else None
     changes = {"scene": scene_obj.name if scene_obj is not None else str(scene), "policy": policy,
                "steps": steps, "seed": seed}
-    for name, value in (("z_up", z_up), ("backend", backend), ("sim", sim_config), ("mapper", mapper_config),
+    for name, value in (("z_up", z_up), ("floor", floor), ("backend", backend), ("sim", sim_config),
+                        ("mapper", mapper_config),
                         ("explorer", explorer_config), ("coverage", coverage_config)):
         if value is not None:
             changes[name] = value
@@ -69,7 +70,7 @@ def explore_episode(run, out: str | Path | None = None, overwrite: bool = False,
     from activesplat.splat import Mapper
     from activesplat.timing import Timers
 
-    scene_obj = scene if scene is not None else load_scene(run.scene, z_up=run.z_up)
+    scene_obj = scene if scene is not None else load_scene(run.scene, z_up=run.z_up, floor=run.floor)
     steps = int(run.steps or scene_obj.default_steps)
     run = run.replace(steps=steps)
     sim_config, seed, policy = run.sim, run.seed, run.policy
@@ -91,7 +92,9 @@ def explore_episode(run, out: str | Path | None = None, overwrite: bool = False,
     meta = {
         "scene": run.scene, "scene_name": scene_obj.name, "z_up": run.z_up, "seed": seed, "policy": policy,
         "steps": steps, "start_pose": sim.start_pose.tolist(), "floor_height": floor_height,
-        "backend": mapper.backend, "config": run.to_dict(),
+        "backend": mapper.backend,
+        "floor": run.floor,  # storey choice of a multi-storey mesh (None: its only storey)
+        "config": run.to_dict(),
     }
     writer.start(meta, obs.pose)
 

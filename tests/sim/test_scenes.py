@@ -96,3 +96,43 @@ def test_vertex_coloured_mesh_keeps_its_colours(tmp_path):
     box.mesh.export(path)
     a, b = Simulator(box, seed=3), Simulator(load_scene(path), seed=3)
     np.testing.assert_array_equal(a.reset().rgb, b.reset().rgb)
+
+
+def test_plain_house_has_the_same_triangles_and_flat_colours(small0, tmp_path):
+    """small-0-plain: the triangles and free space of small-0; every pixel's colour is a function of
+    its face's material colour and normal only (flat albedo times the per-face |n . l| shading)."""
+    plain = load_scene("small-0-plain")
+    assert plain.name == "small-0-plain" and plain.rooms == small0.rooms
+    np.testing.assert_array_equal(plain.mesh.vertices, small0.mesh.vertices)
+    np.testing.assert_array_equal(plain.mesh.faces, small0.mesh.faces)
+    np.testing.assert_array_equal(plain.navmap.grid, small0.navmap.grid)
+    assert not isinstance(plain.mesh.visual, trimesh.visual.TextureVisuals)
+    sim = Simulator(plain, seed=3)
+    spread = {}
+    for scene in (plain, small0):
+        sensor = Simulator(scene, start=sim.start_pose).sensor
+        origins, dirs = sensor.world_rays(sim.start_pose, sim.K, sim.width, sim.height)
+        face = sensor.cast(origins, dirs)["primID"]
+        rgb, _ = sensor.render(sim.start_pose, sim.K, sim.width, sim.height)
+        rgb, face = rgb.reshape(-1, 3), face.ravel()
+        hit = face >= 0
+        normal = np.round(plain.mesh.face_normals[face[hit]], 3)
+        albedo = plain.mesh.visual.face_colors[face[hit], :3]
+        key = np.unique(np.hstack([normal, albedo]), axis=0, return_inverse=True)[1].ravel()
+        spread[scene.name] = max(np.ptp(rgb[hit][key == k], axis=0).max() for k in np.unique(key))
+    assert spread["small-0-plain"] == 0
+    assert spread["small-0"] > 20  # the textured house varies within a material and orientation
+    path = plain.export(tmp_path / "plain.glb")  # vertex colours in the glb, the same frame back
+    again = Simulator(load_scene(path), start=sim.start_pose)
+    np.testing.assert_array_equal(again.reset().rgb, sim.reset().rgb)
+
+
+def test_plain_names_work_wherever_builtin_names_do(tmp_path):
+    from activesplat.bench.runner import default_steps, validate_scene
+    from activesplat.sim import describe_builtin_scenes
+
+    validate_scene("medium-2-plain")
+    assert default_steps("medium-2-plain") == default_steps("medium-2")
+    assert "-plain" in describe_builtin_scenes(seeds=(0,))
+    with pytest.raises(Exception, match="plain"):
+        load_scene("small-0-shiny")

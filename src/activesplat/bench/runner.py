@@ -90,7 +90,7 @@ def validate_scene(scene: str) -> None:
     """A built-in name or an existing mesh file; checked before any run starts (the mesh itself is read by
     the run, so a corrupt file fails that run only)."""
     from activesplat.errors import SceneError
-    from activesplat.sim.scene import BUILTIN_PATTERN, MESH_SUFFIXES
+    from activesplat.sim.scene import BUILTIN_NAMES, BUILTIN_PATTERN, MESH_SUFFIXES
 
     if BUILTIN_PATTERN.match(scene):
         return
@@ -99,7 +99,7 @@ def validate_scene(scene: str) -> None:
         return
     if path.suffix.lower() in MESH_SUFFIXES:
         raise SceneError(f"scene file not found: {scene}")
-    raise SceneError(f"unknown scene {scene!r}: expected small-<seed>, medium-<seed> or a mesh file "
+    raise SceneError(f"unknown scene {scene!r}: expected {BUILTIN_NAMES} or a mesh file "
                      f"({', '.join(MESH_SUFFIXES)})")
 
 

@@ -32,7 +32,7 @@ def evaluate_episode(path: str | Path, write: bool = True) -> dict:
     meta = episode.meta
     if "scene" not in meta:
         raise EpisodeError(f"{episode.dir}/episode.json names no scene")
-    scene = load_scene(meta["scene"], z_up=bool(meta.get("z_up", False)))
+    scene = load_scene(meta["scene"], z_up=bool(meta.get("z_up", False)), floor=meta.get("floor"))
     cov = meta.get("config", {}).get("coverage", {})
     cfg = CoverageConfig(**{k: v for k, v in cov.items() if k in CoverageConfig.__dataclass_fields__})
     result = replay_coverage(scene, episode.start_pose, episode.actions, cfg, expected_poses=episode.poses,

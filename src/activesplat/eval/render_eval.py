@@ -197,7 +197,7 @@ def render_eval(episode_dir: str | Path, gaussians_path: str | Path | None = Non
     if len(gmap) == 0:
         raise EpisodeError(f"{gaussians_path} holds no Gaussians: nothing to render")
     sim_config = _sim_config(meta)
-    scene = load_scene(meta["scene"], z_up=bool(meta.get("z_up", False)))
+    scene = load_scene(meta["scene"], z_up=bool(meta.get("z_up", False)), floor=meta.get("floor"))
     sim = Simulator(scene, start=episode.start_pose, config=sim_config)
     width, height = sim.width, sim.height
     K = intrinsics(width, height, sim_config.hfov_deg)

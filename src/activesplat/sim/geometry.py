@@ -34,6 +34,7 @@ class MeshBuilder:
         self.atlas = atlas
         self._verts: list[np.ndarray] = []
         self._uvs: list[np.ndarray] = []
+        self._materials: list[str] = []
 
     def add_quad(self, origin, edge_a, edge_b, material: str) -> None:
         """Quad origin + s*edge_a + t*edge_b, s, t in [0, 1]; normal = edge_a x edge_b."""
@@ -49,6 +50,7 @@ class MeshBuilder:
                 uv = self.atlas.tile_uv(material, local[:, 0], local[:, 1])
                 self._verts.append(pos[[0, 1, 2, 0, 2, 3]])
                 self._uvs.append(uv[[0, 1, 2, 0, 2, 3]])
+                self._materials.append(material)
 
     def add_box(self, lo, hi, material: MaterialChooser, faces=ALL_FACES) -> None:
         """Axis-aligned box [lo, hi]; `faces` picks which of the six sides to emit."""
@@ -64,12 +66,17 @@ class MeshBuilder:
                 continue
             self.add_quad(face_centre - 0.5 * edge_a - 0.5 * edge_b, edge_a, edge_b, name)
 
-    def build(self) -> trimesh.Trimesh:
-        """One unmerged triangle soup with TextureVisuals (PBR base colour = the atlas)."""
+    def build(self, plain: bool = False) -> trimesh.Trimesh:
+        """One unmerged triangle soup with TextureVisuals (PBR base colour = the atlas), or with
+        plain=True the same triangles with one flat colour per material (face colours, no texture)."""
         # Rounded to float32 (what glTF stores), so an exported scene is bit-identical to this one.
         verts = np.concatenate(self._verts).astype(np.float32).astype(np.float64)
-        uvs = np.concatenate(self._uvs).astype(np.float32).astype(np.float64)
         faces = np.arange(len(verts)).reshape(-1, 3)
+        if plain:
+            flat = {name: self.atlas.flat_colour(name) for name in set(self._materials)}
+            colours = np.repeat([flat[name] for name in self._materials], 2, axis=0)  # 2 triangles a quad
+            return trimesh.Trimesh(vertices=verts, faces=faces, face_colors=colours, process=False)
+        uvs = np.concatenate(self._uvs).astype(np.float32).astype(np.float64)
         material = trimesh.visual.material.PBRMaterial(
             baseColorTexture=Image.fromarray(self.atlas.image), metallicFactor=0.0, roughnessFactor=1.0,
             doubleSided=True,

@@ -415,8 +415,9 @@ def make_layout(name: str, seed: int, cfg: HouseConfig, furniture_seed: int = 0)
     return house
 
 
-def house_mesh(house: House, atlas_seed: int, cfg: HouseConfig):
-    """Triangle mesh of a plan: floors, ceilings, walls (interior faces only), lintels, furniture."""
+def house_mesh(house: House, atlas_seed: int, cfg: HouseConfig, plain: bool = False):
+    """Triangle mesh of a plan: floors, ceilings, walls (interior faces only), lintels, furniture;
+    plain=True gives every surface its material's flat colour instead of the textured atlas."""
     builder = MeshBuilder(build_atlas(atlas_seed))
     t, h = cfg.wall_thickness, house.ceiling
     for r in house.rooms:
@@ -441,4 +442,4 @@ def house_mesh(house: House, atlas_seed: int, cfg: HouseConfig):
         builder.add_box(lo, hi, wall_material, faces=("-y", *broad))
     for lo, hi, material in house.boxes:
         builder.add_box(lo, hi, material)
-    return builder.build()
+    return builder.build(plain=plain)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import re
+from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
 
@@ -11,16 +12,29 @@ import trimesh
 
 from activesplat.errors import InvalidInputError, SceneError, SceneNotFoundError
 from activesplat.sim.config import SimConfig
+from activesplat.sim.gltf import read_gltf, warn_material, write_glb
 from activesplat.sim.house import HouseConfig, house_mesh, make_layout
+from activesplat.sim.materials import Surface, surface_from_trimesh
 from activesplat.sim.navmap import NavMap, build_navmap
-from activesplat.sim.sensor import RGBDSensor
+from activesplat.sim.sensor import RGBDSensor, hit_distance
 from activesplat.sim.textures import build_atlas
 
 MESH_SUFFIXES = (".glb", ".gltf", ".ply", ".obj")
-BUILTIN_PATTERN = re.compile(r"^(small|medium)-(\d+)$")
+BUILTIN_PATTERN = re.compile(r"^(small|medium)-(\d+)(-plain)?$")
+"""Built-in names: kind, seed, and an optional `-plain` suffix (flat colour per material, no texture)."""
+BUILTIN_NAMES = "small-<seed>, medium-<seed> (optionally with -plain)"
 DEFAULT_STEPS = {"small": 1000, "medium": 2000, "file": 1000}
 """Step budgets (docs/protocol.md §1: 1000 actions for small scenes, 2000 for medium; 1000 for user
 meshes)."""
+STOREY_MIN_GAP = 1.8
+"""Two levels closer than this (m) are one storey (the agent is 1.5 m tall; tables, sofas, steps)."""
+STOREY_MIN_AREA_FRACTION = 0.25
+"""A level needs this fraction of the largest level's upward area (furniture tops stay below it)."""
+STOREY_SNAP = 0.5
+"""--floor HEIGHT picks the storey within this distance (m)."""
+STOREY_BAND_BELOW = 0.1
+"""In a multi-storey mesh the ground-truth surface of storey k is y in [floor_k, floor_k+1) shifted
+down by this (m): its floor and everything up to the underside of the next storey."""
 _MAX_FURNITURE_TRIES = 6
 _MAX_SECONDARY_AREA = 0.05
 """Largest navigable area (m^2) allowed outside the main component of a built-in house."""
@@ -31,12 +45,16 @@ class Scene:
     and Embree sensor. `rooms` is the room count of built-in houses (None for user meshes)."""
 
     def __init__(self, name: str, mesh: trimesh.Trimesh, floor_height: float, default_steps: int,
-                 rooms: int | None = None):
+                 rooms: int | None = None, surface: Surface | None = None):
         self.name = name
         self.mesh = mesh
+        self.surface = surface if surface is not None else surface_from_trimesh(mesh)
         self.floor_height = float(floor_height)
         self.default_steps = int(default_steps)
         self.rooms = rooms
+        self.storeys: list[Storey] = [Storey(self.floor_height, 0.0)]
+        self.surface_band: tuple[float, float] | None = None
+        """(low, high) y of the faces that belong to this storey (None: all faces)."""
         self._navmaps: dict[tuple, NavMap] = {}
         self._sensors: dict[SimConfig, RGBDSensor] = {}
 
@@ -72,22 +90,24 @@ class Scene:
     def sensor_for(self, config: SimConfig) -> RGBDSensor:
         """Embree sensor of this mesh (cached per config)."""
         if config not in self._sensors:
-            self._sensors[config] = RGBDSensor(self.mesh, config)
+            self._sensors[config] = RGBDSensor(self.mesh, config, surface=self.surface)
         return self._sensors[config]
 
     def export(self, path) -> Path:
-        """Write the exact simulator mesh (world frame, y up, texture) as binary glTF (.glb)."""
+        """Write the exact simulator mesh (world frame, y up, materials with their textures and
+        samplers) as binary glTF (.glb)."""
         path = Path(path)
         if path.suffix.lower() != ".glb":
             raise InvalidInputError(f"export file must end in .glb: {path}")
-        path.parent.mkdir(parents=True, exist_ok=True)
-        self.mesh.export(path, file_type="glb")
-        return path
+        return write_glb(path, self.mesh.vertices, self.mesh.faces, self.surface)
 
     def sample_surface(self, n: int, seed: int = 0) -> np.ndarray:
         """(n, 3) points, uniform by area over the whole mesh, reproducible per seed."""
         rng = np.random.default_rng(seed)
         tri = np.asarray(self.mesh.triangles, dtype=np.float64)
+        if self.surface_band is not None:  # a multi-storey mesh: this storey's faces only
+            y = tri[:, :, 1].mean(axis=1)
+            tri = tri[(y >= self.surface_band[0]) & (y < self.surface_band[1])]
         area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
         face = rng.choice(len(tri), size=n, p=area / area.sum())
         a, b = rng.random(n), rng.random(n)
@@ -100,15 +120,17 @@ class Scene:
 # --------------------------------------------------------------------------- built-in houses
 def build_house(name: str, config: HouseConfig | None = None) -> Scene:
     """`small-<seed>` or `medium-<seed>`; refurnishes (new furniture seed) until the navigable space
-    is one component (secondary pockets below _MAX_SECONDARY_AREA are tolerated)."""
+    is one component (secondary pockets below _MAX_SECONDARY_AREA are tolerated). A `-plain` suffix
+    gives the same house (layout, furniture, triangles) with one flat colour per material."""
     config = config or HouseConfig()
     match = BUILTIN_PATTERN.match(name)
     if match is None:
-        raise SceneError(f"unknown built-in scene {name!r}: expected small-<seed> or medium-<seed>")
-    kind, seed = match.group(1), int(match.group(2))
+        raise SceneError(f"unknown built-in scene {name!r}: expected {BUILTIN_NAMES}")
+    kind, seed, plain = match.group(1), int(match.group(2)), match.group(3) is not None
     for attempt in range(_MAX_FURNITURE_TRIES):
-        house = make_layout(name, seed, config, furniture_seed=attempt)
-        scene = Scene(name, house_mesh(house, seed, config), 0.0, DEFAULT_STEPS[kind], rooms=house.n_rooms)
+        house = make_layout(f"{kind}-{seed}", seed, config, furniture_seed=attempt)
+        mesh = house_mesh(house, seed, config, plain=plain)
+        scene = Scene(name, mesh, 0.0, DEFAULT_STEPS[kind], rooms=house.n_rooms)
         navmap = scene.navmap
         secondary = (navmap.grid & ~navmap.largest).sum() * navmap.resolution**2
         if secondary <= _MAX_SECONDARY_AREA:
@@ -148,11 +170,7 @@ def box_room(width: float = 4.0, depth: float = 3.0, height: float = 2.6, textur
 
 
 # --------------------------------------------------------------------------- user meshes
-def _read_mesh(path: Path) -> trimesh.Trimesh:
-    try:
-        mesh = trimesh.load(path, force="mesh", process=False)
-    except Exception as exc:  # trimesh raises many types on corrupt files
-        raise SceneError(f"cannot read mesh file {path}: {type(exc).__name__}: {exc}") from None
+def _check_mesh(mesh: trimesh.Trimesh, path: Path) -> trimesh.Trimesh:
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
         raise SceneError(f"mesh file {path} contains no triangles")
     if not np.all(np.isfinite(mesh.vertices)):
@@ -160,27 +178,152 @@ def _read_mesh(path: Path) -> trimesh.Trimesh:
     return mesh
 
 
-def estimate_floor_height(mesh: trimesh.Trimesh, bin_size: float = 0.05) -> float:
-    """y of the walkable floor: the height bin holding the largest area of upward-facing faces
-    (face normal within ~25 deg of +y); falls back to |n_y| for meshes with flipped winding."""
+def _obj_missing_textures(path: Path) -> None:
+    """Warn, per material, about texture files an .obj's material libraries name but that are absent
+    (trimesh then shows the material's diffuse colour)."""
+    try:
+        lines = path.read_text(errors="replace").splitlines()
+    except OSError:
+        return
+    for lib in (ln.split(None, 1)[1].strip() for ln in lines if ln.startswith("mtllib ") and " " in ln):
+        mtl = path.parent / lib
+        material = None
+        for line in mtl.read_text(errors="replace").splitlines() if mtl.is_file() else []:
+            parts = line.split()
+            if parts and parts[0] == "newmtl":
+                material = " ".join(parts[1:])
+            elif parts and parts[0] == "map_Kd" and len(parts) > 1 and not (mtl.parent / parts[-1]).is_file():
+                warn_material(path, material, f"texture {parts[-1]!r} is missing")
+
+
+def _read_mesh(path: Path) -> tuple[trimesh.Trimesh, Surface]:
+    """Geometry (no visual) and per-face appearance of a mesh file: glTF through read_gltf (materials,
+    samplers, node transforms), .obj as one part per material, .ply as one mesh."""
+    suffix = path.suffix.lower()
+    try:
+        if suffix in (".glb", ".gltf"):
+            vertices, faces, surface = read_gltf(path)
+            return _check_mesh(trimesh.Trimesh(vertices, faces, process=False), path), surface
+        if suffix == ".obj":
+            _obj_missing_textures(path)
+        loaded = trimesh.load(path, process=False, **({} if suffix == ".obj" else {"force": "mesh"}))
+    except SceneError:
+        raise
+    except Exception as exc:  # the readers raise many types on corrupt files
+        raise SceneError(f"cannot read mesh file {path}: {type(exc).__name__}: {exc}") from None
+    if isinstance(loaded, trimesh.Scene):  # one geometry per material, node transforms applied
+        parts = [g for g in loaded.dump() if isinstance(g, trimesh.Trimesh) and len(g.faces)]
+        if not parts:
+            raise SceneError(f"mesh file {path} contains no triangles")
+        surface = Surface.concatenate([surface_from_trimesh(g, name=f"material {i}")
+                                       for i, g in enumerate(parts)])
+        mesh = trimesh.util.concatenate([trimesh.Trimesh(g.vertices, g.faces, process=False) for g in parts])
+        return _check_mesh(mesh, path), surface
+    mesh = _check_mesh(loaded, path)
+    return mesh, surface_from_trimesh(mesh)
+
+
+@dataclass(frozen=True)
+class Storey:
+    """A level of a mesh: floor height (m), upward-facing area in its height bin (m^2), and whether
+    nothing lies above it (a flat roof or an open terrace rather than a floor under a ceiling)."""
+
+    height: float
+    area: float
+    open_above: bool = False
+
+    def describe(self, index: int) -> str:
+        kind = "open above (roof?)" if self.open_above else "under a ceiling"
+        return f"{index}: y = {self.height:.2f} m, {self.area:.1f} m^2, {kind}"
+
+
+def _upward_faces(mesh: trimesh.Trimesh):
+    """Heights, areas and centres of near-horizontal faces facing +y (normal within ~25 deg);
+    |n_y| for meshes with flipped winding."""
     normals, areas = mesh.face_normals, mesh.area_faces
-    heights = mesh.triangles_center[:, 1]
     for upward in (normals[:, 1] > 0.9, np.abs(normals[:, 1]) > 0.9):
         if areas[upward].sum() > 0:
             break
     else:
         raise SceneError("mesh has no horizontal faces, so no walkable floor")
-    h, a = heights[upward], areas[upward]
+    centres = mesh.triangles_center[upward]
+    return centres[:, 1], areas[upward], centres
+
+
+def _median_height(h: np.ndarray, a: np.ndarray) -> float:
+    order = np.argsort(h)
+    cum = np.cumsum(a[order])
+    return float(h[order][np.searchsorted(cum, 0.5 * cum[-1])])
+
+
+def estimate_floor_height(mesh: trimesh.Trimesh, bin_size: float = 0.05) -> float:
+    """y of the walkable floor: the height bin holding the largest area of upward-facing faces."""
+    h, a, _ = _upward_faces(mesh)
     bins = np.floor((h - h.min()) / bin_size).astype(np.int64)
-    best = int(np.argmax(np.bincount(bins, weights=a)))
-    in_bin = bins == best
-    order = np.argsort(h[in_bin])
-    cum = np.cumsum(a[in_bin][order])
-    return float(h[in_bin][order][np.searchsorted(cum, 0.5 * cum[-1])])
+    in_bin = bins == int(np.argmax(np.bincount(bins, weights=a)))
+    return _median_height(h[in_bin], a[in_bin])
 
 
-def load_mesh_scene(path, z_up: bool = False) -> Scene:
-    """A user mesh; z_up files are rotated into the y-up world frame ((x, y, z) -> (x, z, -y))."""
+def find_storeys(mesh: trimesh.Trimesh, bin_size: float = 0.05,
+                 min_gap: float = STOREY_MIN_GAP) -> list[Storey]:
+    """Levels of a mesh, bottom to top: height bins of upward area at least STOREY_MIN_AREA_FRACTION
+    of the largest (and 1 m^2), greedily kept by area when at least `min_gap` from a kept one. With
+    several, each is tested for geometry above it (vertical rays from area-sampled floor points)."""
+    h, a, centres = _upward_faces(mesh)
+    bins = np.floor((h - h.min()) / bin_size).astype(np.int64)
+    area = np.bincount(bins, weights=a)
+    threshold = min(area.max(), max(1.0, STOREY_MIN_AREA_FRACTION * area.max()))  # largest always kept
+    kept: list[int] = []
+    for b in np.argsort(-area, kind="stable"):
+        if area[b] < threshold:
+            break
+        if all(abs(int(b) - k) * bin_size >= min_gap for k in kept):
+            kept.append(int(b))
+    kept.sort()
+    storeys = [Storey(_median_height(h[bins == b], a[bins == b]), float(area[b])) for b in kept]
+    if len(storeys) == 1:
+        return storeys
+    rng = np.random.default_rng(0)
+    picks = []
+    for b in kept:
+        idx = np.flatnonzero(bins == b)
+        picks.append(rng.choice(idx, size=min(256, len(idx)), p=a[idx] / a[idx].sum()))
+    origins = centres[np.concatenate(picks)] + [0.0, 0.02, 0.0]
+    up = np.tile([0.0, 1.0, 0.0], (len(origins), 1))
+    covered = np.split(hit_distance(mesh.vertices, mesh.faces, origins, up) < 1e6,
+                       np.cumsum([len(p) for p in picks])[:-1])
+    return [Storey(s.height, s.area, open_above=bool(c.mean() < 0.5))
+            for s, c in zip(storeys, covered, strict=True)]
+
+
+def choose_storey(storeys: list[Storey], floor: int | float | None, name: str) -> tuple[float, float]:
+    """(floor height, height of the next storey above or inf) for `floor`: None (the only storey
+    under a ceiling, else the only storey), an int index from the bottom, or a float height in metres."""
+    listing = "; ".join(s.describe(i) for i, s in enumerate(storeys))
+    hint = "choose one with --floor INDEX (0 = lowest) or --floor HEIGHT in metres (e.g. 3.0)"
+    if floor is None:
+        indoor = [i for i, s in enumerate(storeys) if not s.open_above]
+        candidates = indoor if indoor else list(range(len(storeys)))
+        if len(candidates) > 1:
+            raise SceneError(f"{name} has {len(candidates)} storeys ({listing}); {hint}")
+        index = candidates[0]
+    elif isinstance(floor, (int, np.integer)) and not isinstance(floor, bool):
+        if not 0 <= floor < len(storeys):
+            raise SceneError(f"{name}: --floor {floor} is not a storey index ({listing})")
+        index = int(floor)
+    else:
+        height = float(floor)
+        near = [i for i, s in enumerate(storeys) if abs(s.height - height) <= STOREY_SNAP]
+        if not np.isfinite(height) or not near:
+            raise SceneError(f"{name}: no storey within {STOREY_SNAP} m of --floor {floor} ({listing})")
+        index = min(near, key=lambda i: abs(storeys[i].height - height))
+    above = [s.height for s in storeys[index + 1 :]]
+    return storeys[index].height, (above[0] if above else float("inf"))
+
+
+def load_mesh_scene(path, z_up: bool = False, floor: int | float | None = None) -> Scene:
+    """A user mesh; z_up files are rotated into the y-up world frame ((x, y, z) -> (x, z, -y)).
+    `floor` picks the storey of a multi-storey mesh (see choose_storey)."""
     path = Path(path)
     if not path.exists():
         raise SceneNotFoundError(f"scene file not found: {path}")
@@ -189,26 +332,35 @@ def load_mesh_scene(path, z_up: bool = False) -> Scene:
     if path.suffix.lower() not in MESH_SUFFIXES:
         raise SceneError(f"unsupported mesh format {path.suffix!r} for {path}: "
                          f"use {', '.join(MESH_SUFFIXES)}")
-    mesh = _read_mesh(path)
+    mesh, surface = _read_mesh(path)
     if z_up:
         mesh.apply_transform(trimesh.transformations.rotation_matrix(-np.pi / 2, [1, 0, 0]))
     try:
-        floor = estimate_floor_height(mesh)
+        storeys = find_storeys(mesh)
+        height, top = choose_storey(storeys, floor, str(path))
     except SceneError as exc:
-        raise SceneError(f"{path}: {exc}") from None
-    scene = Scene(str(path), mesh, floor, DEFAULT_STEPS["file"])
+        msg = str(exc)
+        raise SceneError(msg if msg.startswith(str(path)) else f"{path}: {msg}") from None
+    scene = Scene(str(path), mesh, height, DEFAULT_STEPS["file"], surface=surface)
+    scene.storeys = storeys
+    if len(storeys) > 1:
+        scene.surface_band = (height - STOREY_BAND_BELOW, top - STOREY_BAND_BELOW)
     scene.navmap  # noqa: B018 - raises SceneError when nothing is walkable
     return scene
 
 
-def load_scene(name, z_up: bool = False) -> Scene:
-    """A built-in house (`small-<seed>`, `medium-<seed>`) or a mesh file (.glb/.gltf/.ply/.obj)."""
+def load_scene(name, z_up: bool = False, floor: int | float | None = None) -> Scene:
+    """A built-in house (`small-<seed>`, `medium-<seed>`, either with `-plain`) or a mesh file
+    (.glb/.gltf/.ply/.obj). `floor` chooses the storey of a multi-storey mesh: an int index from the
+    bottom or a float height in metres (see find_storeys); built-in houses have one storey (0 or 0.0)."""
     text = str(name)
     if BUILTIN_PATTERN.match(text):
+        if floor not in (None, 0) or isinstance(floor, bool):
+            raise SceneError(f"{text} has one storey (index 0, y = 0.0 m); got --floor {floor}")
         return build_house(text)
     if Path(text).suffix.lower() in MESH_SUFFIXES or Path(text).exists() or "/" in text:
-        return load_mesh_scene(text, z_up=z_up)
-    raise SceneError(f"unknown scene {text!r}: expected small-<seed>, medium-<seed> or a mesh file "
+        return load_mesh_scene(text, z_up=z_up, floor=floor)
+    raise SceneError(f"unknown scene {text!r}: expected {BUILTIN_NAMES} or a mesh file "
                      f"({', '.join(MESH_SUFFIXES)})")
 
 
@@ -220,6 +372,8 @@ def describe_builtin_scenes(seeds=(0, 1, 2)) -> str:
              f"{DEFAULT_STEPS['small']} steps",
              f"  medium-<seed>  {config.medium_rooms[0]}-{config.medium_rooms[1]} rooms + corridor, "
              f"{DEFAULT_STEPS['medium']} steps",
+             "  <name>-plain   the same house with one flat colour per material (textureless walls),",
+             "                 e.g. small-0-plain, medium-2-plain",
              "  or a mesh file: .glb .gltf .ply .obj (y up; --z-up for z-up files)", "",
              f"{'name':<12}{'rooms':>6}{'size (m)':>14}{'floor (m^2)':>13}"]
     for kind in ("small", "medium"):

@@ -1,14 +1,22 @@
-"""Embree RGB-D sensor: one ray per pixel centre, z-depth in metres, colour from texture and/or
-vertex colours with view-independent shading (fixed directional light, |n . l|)."""
+"""Embree RGB-D sensor: one ray per pixel centre, z-depth in metres, colour from each face's
+material (own texture and sampler, base colour factor, vertex colours; see sim/materials.py) with
+view-independent shading (fixed directional light, |n . l|)."""
 
 from __future__ import annotations
+
+from functools import cached_property
 
 import numpy as np
 import trimesh
 from embreex import rtcore_scene
 from embreex.mesh_construction import TriangleMesh
 
+from activesplat.sim._shade_numba import shade_pixels
 from activesplat.sim.config import SimConfig
+from activesplat.sim.materials import CLAMP_TO_EDGE, MIRRORED_REPEAT, Surface, surface_from_trimesh
+
+FLOAT_TEXELS = 4_000_000
+"""Scenes with at most this many texels keep them as float32 (48 MB); larger ones as uint8."""
 
 
 def camera_rays(K: np.ndarray, width: int, height: int) -> np.ndarray:
@@ -20,68 +28,85 @@ def camera_rays(K: np.ndarray, width: int, height: int) -> np.ndarray:
     return np.stack([x, y, np.ones_like(x)], axis=-1).reshape(-1, 3)
 
 
-def _material_image(material) -> tuple[np.ndarray | None, np.ndarray]:
-    """(texture RGB float image or None, base colour factor RGB) of a trimesh material."""
-    factor = np.ones(3)
-    image = None
-    if isinstance(material, trimesh.visual.material.PBRMaterial):
-        image = material.baseColorTexture
-        if material.baseColorFactor is not None:
-            factor = np.asarray(material.baseColorFactor[:3], dtype=np.float64) / 255.0
-    elif isinstance(material, trimesh.visual.material.SimpleMaterial):
-        image = material.image
-        factor = np.asarray(material.diffuse[:3], dtype=np.float64) / 255.0
-    if image is not None:
-        image = np.asarray(image.convert("RGB"), dtype=np.float32) / 255.0
-    return image, factor
-
-
-def surface_colours(mesh: trimesh.Trimesh):
-    """Colour sources of a mesh: texture (H, W, 3) float or None, per-face corner UVs (F, 3, 2)
-    float32 or None, per-face corner colours (F, 3, 3) float32 or None (None = white)."""
-    visual = mesh.visual
-    faces = mesh.faces
-    if isinstance(visual, trimesh.visual.TextureVisuals):
-        image, factor = _material_image(visual.material)
-        corner = None if np.allclose(factor, 1.0) else np.broadcast_to(factor, (len(faces), 3, 3))
-        if image is not None and visual.uv is not None and len(visual.uv) == len(mesh.vertices):
-            uv = np.asarray(visual.uv, dtype=np.float32)[faces]
-            return image, uv, None if corner is None else corner.astype(np.float32)
-        return None, None, np.broadcast_to(factor, (len(faces), 3, 3)).astype(np.float32)
-    kind = getattr(visual, "kind", None)
-    if kind == "vertex":
-        return None, None, (np.asarray(visual.vertex_colors[:, :3], np.float32) / 255.0)[faces]
-    if kind == "face":
-        colours = np.asarray(visual.face_colors[:, :3], np.float32) / 255.0
-        return None, None, np.repeat(colours[:, None, :], 3, axis=1)
-    return None, None, np.full((len(faces), 3, 3), 0.7, dtype=np.float32)
+def hit_distance(vertices: np.ndarray, faces: np.ndarray, origins: np.ndarray,
+                 directions: np.ndarray) -> np.ndarray:
+    """Embree ray parameter of the closest hit of each ray on a bare triangle mesh (1e37 on a miss)."""
+    scene = rtcore_scene.EmbreeScene()
+    TriangleMesh(scene, np.ascontiguousarray(vertices, dtype=np.float32),
+                 np.ascontiguousarray(faces, dtype=np.int32))
+    return scene.run(np.ascontiguousarray(origins, dtype=np.float32),
+                     np.ascontiguousarray(directions, dtype=np.float32), query="DISTANCE")
 
 
 class RGBDSensor:
     """Ray casts a mesh with Embree; shared by the agent's camera and arbitrary evaluation poses."""
 
-    def __init__(self, mesh: trimesh.Trimesh, config: SimConfig | None = None):
+    def __init__(self, mesh: trimesh.Trimesh, config: SimConfig | None = None,
+                 surface: Surface | None = None):
         self.config = config = config or SimConfig()
         self.vertices = np.ascontiguousarray(mesh.vertices, dtype=np.float32)
         self.faces = np.ascontiguousarray(mesh.faces, dtype=np.int32)
         self._scene = rtcore_scene.EmbreeScene()
         TriangleMesh(self._scene, self.vertices, self.faces)
-        self.texture, self.face_uv, self.face_rgb = surface_colours(mesh)
+        self.surface = surface = surface if surface is not None else surface_from_trimesh(mesh)
+        if len(surface) != len(self.faces):
+            raise ValueError(f"surface has {len(surface)} faces, mesh {len(self.faces)}")
+        self._store_textures(surface)
         self.face_shade = self._face_shading()
-        self._texel_planes = self._texel_coordinates()
         self._rays: dict[tuple, np.ndarray] = {}
 
-    def _texel_coordinates(self):
-        """Per face, texel column and row as affine functions of Embree's (u, v): (F, 3) arrays
-        [at corner 0, d/du, d/dv], so shading gathers 6 scalars per pixel instead of 3 UV pairs."""
-        if self.texture is None:
-            return None
-        th, tw = self.texture.shape[:2]
-        uv = self.face_uv.astype(np.float64)
-        col = uv[:, :, 0] * tw
-        row = (1.0 - uv[:, :, 1]) * th
-        planes = [np.stack([c[:, 0], c[:, 1] - c[:, 0], c[:, 2] - c[:, 0]], axis=1) for c in (col, row)]
-        return [p.astype(np.float32) for p in planes]
+    def _store_textures(self, surface: Surface) -> None:
+        """Every material's texture, unchanged, in one flat texel array (entry 0: a white texel for
+        untextured materials) with per-material offset, size and wrap modes; per face the texel
+        column and row as affine functions of Embree's (u, v): an (F, 6) array [column at corner 0,
+        d/du, d/dv, row at corner 0, d/du, d/dv], so shading gathers one row per pixel."""
+        mats = surface.materials
+        textured = [m.texture is not None for m in mats]
+        self.face_material = surface.face_material
+        self.textured = surface.face_uv is not None and any(textured)
+        base = np.stack([m.base_colour for m in mats]).astype(np.float32)
+        corner = surface.face_colour
+        if corner is not None:
+            self.face_rgb = corner * base[self.face_material][:, None, :]
+            self.face_base = None
+        else:
+            self.face_rgb = None
+            self.face_base = None if np.all(base == 1.0) else base[self.face_material]
+        if not self.textured:
+            return
+        blocks, offsets, sizes, offset = [np.full((1, 3), 255, np.uint8)], [], [], 1
+        for m in mats:
+            if m.texture is None:
+                offsets.append(0)
+                sizes.append((1, 1))
+                continue
+            offsets.append(offset)
+            sizes.append(m.texture.shape[:2])
+            blocks.append(m.texture.reshape(-1, 3))
+            offset += blocks[-1].shape[0]
+        texels = np.concatenate(blocks)
+        # float32 texels (the values texel / 255 the shading uses) when small: one gather, no convert
+        self.texels = texels.astype(np.float32) / np.float32(255.0) if len(texels) <= FLOAT_TEXELS else texels
+        tex_offset = np.asarray(offsets, np.int64)
+        tex_h, tex_w = (np.asarray(v, np.int64) for v in zip(*sizes, strict=True))
+        wrap = np.asarray([(m.wrap_s, m.wrap_t) for m in mats], np.int32)
+        used = np.unique(self.face_material)
+        sizes = np.concatenate([tex_w[used], tex_h[used]])
+        self._pow2 = bool(np.all((sizes & (sizes - 1)) == 0))
+        # [texel offset, width, height]: scalars when one material covers every face, else per face
+        # (one row gather per pixel). Wrap modes likewise per face only when the materials disagree.
+        uniform = len(np.unique(wrap[used], axis=0)) == 1
+        self._wrap = tuple(int(w) for w in wrap[used[0]]) if uniform else None
+        table = np.concatenate([np.stack([tex_offset, tex_w, tex_h], axis=1), wrap], axis=1)
+        self._tex = tuple(int(x) for x in table[used[0], :3]) if len(used) == 1 else None
+        index_type = np.int32 if len(texels) < 2**31 else np.int64
+        # the numba kernel reads all five columns per face; the numpy reference the first three
+        self._face_tex = table.astype(index_type)[self.face_material]
+        uv = surface.face_uv.astype(np.float64)
+        c = uv[:, :, 0] * tex_w[self.face_material, None]
+        r = uv[:, :, 1] * tex_h[self.face_material, None]
+        planes = [x for t in (c, r) for x in (t[:, 0], t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])]
+        self._texel_planes = np.stack(planes, axis=1).astype(np.float32)
 
     def _face_shading(self) -> np.ndarray:
         """ambient + (1 - ambient) * |n . l| per face: fixed world light, view-independent."""
@@ -116,7 +141,34 @@ class RGBDSensor:
         return origins, dirs
 
     def render(self, pose: np.ndarray, K: np.ndarray, width: int, height: int):
-        """(rgb uint8 (H, W, 3), depth float32 (H, W) z-depth metres, 0 past max_depth or no hit)."""
+        """(rgb uint8 (H, W, 3), depth float32 (H, W) z-depth metres, 0 past max_depth or no hit);
+        the colour of each hit as `shade` computes it, in one compiled pass over the pixels."""
+        origins, dirs = self.world_rays(pose, K, width, height)
+        hit = self.cast(origins, dirs)
+        rgb = np.empty((width * height, 3), dtype=np.uint8)
+        depth = np.empty(width * height, dtype=np.float32)
+        shade_pixels(hit["primID"], hit["tfar"], hit["u"], hit["v"], np.float32(self.config.max_depth),
+                     self.textured, *self._kernel_arrays, self.face_shade, rgb, depth)
+        return rgb.reshape(height, width, 3), depth.reshape(height, width)
+
+    @cached_property
+    def _kernel_arrays(self) -> tuple:
+        """Texel planes, per-face texture table, texels, corner colours, base colours for
+        shade_pixels; empty arrays stand for the absent ones."""
+        def present(array, shape, dtype=np.float32):
+            return array if array is not None else np.zeros(shape, dtype)
+
+        if self.textured:
+            planes, table, texels = self._texel_planes, self._face_tex, self.texels
+        else:
+            planes, table = np.zeros((0, 6), np.float32), np.zeros((0, 5), np.int32)
+            texels = np.zeros((0, 3), np.float32)
+        divisor = np.float32(255.0 if texels.dtype == np.uint8 else 1.0)
+        return (planes, table, texels, divisor, present(self.face_rgb, (0, 3, 3)),
+                present(self.face_base, (0, 3)))
+
+    def render_reference(self, pose: np.ndarray, K: np.ndarray, width: int, height: int):
+        """`render` in plain numpy (`shade` on the hits): the slow, readable reference of the kernel."""
         origins, dirs = self.world_rays(pose, K, width, height)
         hit = self.cast(origins, dirs)
         prim = hit["primID"]
@@ -129,16 +181,49 @@ class RGBDSensor:
         return rgb_u8.reshape(height, width, 3), depth.astype(np.float32).reshape(height, width)
 
     def shade(self, face: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """Colour of surface points given by face index and Embree barycentrics (u, v): albedo from
-        the nearest texel and/or interpolated corner colours, times the face shading."""
+        """Colour of surface points given by face index and Embree barycentrics (u, v): the nearest
+        texel of the face's material texture (after its sampler's wrap modes) times its base colour
+        and the interpolated vertex colours, times the face shading."""
         colour = np.ones((len(face), 3), dtype=np.float32)
-        if self.texture is not None:
-            th, tw = self.texture.shape[:2]
-            (c0, cu, cv), (r0, ru, rv) = (p[face].T for p in self._texel_planes)
-            col = np.clip((c0 + u * cu + v * cv).astype(np.int64), 0, tw - 1)
-            row = np.clip((r0 + u * ru + v * rv).astype(np.int64), 0, th - 1)
-            colour = self.texture.reshape(-1, 3)[row * tw + col]
+        if self.textured:
+            c0, cu, cv, r0, ru, rv = self._texel_planes[face].T
+            if self._tex is not None:
+                offset, width, height = self._tex
+                wrap_s, wrap_t = self._wrap
+            else:
+                offset, width, height, wrap_s, wrap_t = self._face_tex[face].T
+                if self._wrap is not None:
+                    wrap_s, wrap_t = self._wrap
+            col = _wrap(np.floor(c0 + u * cu + v * cv).astype(np.int64), width, wrap_s, self._pow2)
+            row = _wrap(np.floor(r0 + u * ru + v * rv).astype(np.int64), height, wrap_t, self._pow2)
+            colour = self.texels[offset + row * width + col]
+            if colour.dtype == np.uint8:
+                colour = colour.astype(np.float32) / np.float32(255.0)
         if self.face_rgb is not None:
             w = np.stack([1.0 - u - v, u, v], axis=1).astype(np.float32)
             colour = colour * np.einsum("nk,nkd->nd", w, self.face_rgb[face])
+        elif self.face_base is not None:
+            colour = colour * self.face_base[face]
         return colour * self.face_shade[face, None]
+
+
+def _wrap(index: np.ndarray, size: np.ndarray, mode, pow2: bool) -> np.ndarray:
+    """Texel index along one axis after the glTF wrap mode (one for all points, or one per point):
+    REPEAT, MIRRORED_REPEAT, CLAMP_TO_EDGE, with OpenGL semantics on whole texels. `pow2`: every
+    size is a power of two, so the modulo is a bitwise and (also right for negative indices)."""
+    if np.isscalar(mode):
+        if mode == CLAMP_TO_EDGE:
+            return np.clip(index, 0, size - 1)
+        if mode == MIRRORED_REPEAT:
+            m = index & (2 * size - 1) if pow2 else np.mod(index, 2 * size)
+            return np.where(m >= size, 2 * size - 1 - m, m)
+        return index & (size - 1) if pow2 else np.mod(index, size)
+    out = index & (size - 1) if pow2 else np.mod(index, size)
+    mirrored = mode == MIRRORED_REPEAT
+    if mirrored.any():
+        m = index & (2 * size - 1) if pow2 else np.mod(index, 2 * size)
+        out = np.where(mirrored, np.where(m >= size, 2 * size - 1 - m, m), out)
+    clamped = mode == CLAMP_TO_EDGE
+    if clamped.any():
+        out = np.where(clamped, np.clip(index, 0, size - 1), out)
+    return out

@@ -125,6 +125,13 @@ class Atlas:
         py = row0 + 0.5 + np.round(np.asarray(t) * (TILE_PX - 1) * 2) / 2
         return np.stack([px / size, 1.0 - py / size], axis=-1)
 
+    def flat_colour(self, material: str) -> np.ndarray:
+        """uint8 RGB of a material without its pattern: the mean of its tile (plain-material houses)."""
+        k = self.tile_of[material]
+        r, c = (k // ATLAS_TILES) * TILE_PX, (k % ATLAS_TILES) * TILE_PX
+        tile = self.image[r : r + TILE_PX, c : c + TILE_PX].reshape(-1, 3).astype(np.float64)
+        return np.round(tile.mean(axis=0)).astype(np.uint8)
+
 
 def build_atlas(seed: int) -> Atlas:
     """Render every material of MATERIALS into one seeded atlas (deterministic per seed)."""

@@ -489,7 +489,7 @@ class EpisodeViewer:
         from activesplat.sim import SimConfig, Simulator, load_scene
 
         try:
-            scene = load_scene(meta["scene"], z_up=bool(meta.get("z_up", False)))
+            scene = load_scene(meta["scene"], z_up=bool(meta.get("z_up", False)), floor=meta.get("floor"))
             cfg = _dataclass_from(SimConfig, meta.get("config", {}).get("sim"))
             return Simulator(scene, start=self.episode.start_pose, config=cfg)
         except (ActiveSplatError, KeyError) as exc:
