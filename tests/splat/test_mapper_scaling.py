@@ -40,6 +40,38 @@ def test_frustum_rows_render_exactly_the_whole_map():
             torch.testing.assert_close(part[name], whole[name], rtol=0, atol=1e-6)
 
 
+def test_occlusion_culling_drops_only_what_the_observed_surface_hides():
+    """A wall of small Gaussians at 2 m and a second layer at 3.5 m behind it: with the observed depth of
+    the wall, the hidden layer is culled and the render is unchanged; where the depth is invalid (unknown)
+    or the wall has a window (observed depth 3.5 m), the layer behind stays."""
+    cam = pose()
+    K = intrinsics(S)
+    xs = torch.linspace(-2.5, 2.5, 60)
+    grid = torch.stack(torch.meshgrid(xs, xs, indexing="xy"), dim=-1).reshape(-1, 2)
+    n = len(grid)
+    means = torch.cat([torch.cat([grid, torch.full((n, 1), z)], 1) for z in (2.0, 3.5)])
+    gmap = GaussianMap({"means": means, "quats": torch.tensor([[1.0, 0, 0, 0]]).repeat(2 * n, 1),
+                        "log_scales": torch.full((2 * n, 3), float(np.log(0.04))),
+                        "opacity_logits": torch.full((2 * n,), 6.0), "f_dc": torch.randn(2 * n, 3)})
+    depth = torch.full((S, S), 2.0)
+    p = gmap.params
+    frustum = frustum_rows(p["means"], p["log_scales"], cam, K, S, S)
+    culled = frustum_rows(p["means"], p["log_scales"], cam, K, S, S, depth, 0.1, 8)
+    behind = culled >= n
+    assert behind.sum() < 0.2 * (frustum >= n).sum()  # most of the hidden layer is gone
+    viewmat = torch.eye(4)
+    Kt = torch.from_numpy(K.astype(np.float32))
+    full = rasterize(*activate(gmap.rows(frustum)), viewmat, Kt, S, S, backend="torch")
+    part = rasterize(*activate(gmap.rows(culled)), viewmat, Kt, S, S, backend="torch")
+    torch.testing.assert_close(part.rgb, full.rgb, rtol=0, atol=1e-3)
+    depth[:, : S // 2] = 0.0  # unknown on the left: nothing is hidden there
+    depth[:8, S // 2:] = 3.5  # a window in the wall at the top right
+    kept = frustum_rows(p["means"], p["log_scales"], cam, K, S, S, depth, 0.1, 8)
+    kept_behind = means[kept[kept >= n]]
+    assert (kept_behind[:, 0] < 0).sum() > 0.9 * (means[frustum[frustum >= n]][:, 0] < 0).sum()
+    assert ((kept_behind[:, 0] > 0.5) & (kept_behind[:, 1] < -1.5)).any()  # seen through the window
+
+
 def test_row_adam_is_adam_on_trained_rows_and_leaves_the_others_alone():
     gmap, ref = _cloud(50, seed=1), _cloud(50, seed=1)
     lr = LearningRates()

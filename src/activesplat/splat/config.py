@@ -141,6 +141,13 @@ class MapperConfig:
     # (splat/optim.py); False = the release's one torch Adam over the whole map, whose stale momentum
     # keeps moving Gaussians out of view
     sparse_adam: bool = True
+    # project: an Adam iteration renders only the Gaussians in its view frustum that its observed depth does
+    # not hide (centre behind every observed depth within cull_window_px by more than this margin, footprint
+    # within the window; see gaussians.frustum_rows). None = frustum only. Where the map agrees with the
+    # observation the render is unchanged; where a new object hides mapped surfaces, those are left as they
+    # are instead of being pushed to explain the object. The eq. 8 / eq. 10 render is never depth-culled.
+    cull_occluded_margin_m: float | None = 0.1
+    cull_window_px: int = 8
 
     seed: int = 0  # ours: numpy generator for overlap sampling and window picks
 

@@ -190,13 +190,21 @@ def activate(raw: dict[str, torch.Tensor]) -> tuple[torch.Tensor, ...]:
             torch.sigmoid(raw["opacity_logits"]), f_dc_to_rgb(raw["f_dc"]))
 
 
-def frustum_rows(means: torch.Tensor, log_scales: torch.Tensor, pose, K, width: int,
-                 height: int) -> torch.Tensor:
+def frustum_rows(means: torch.Tensor, log_scales: torch.Tensor, pose, K, width: int, height: int,
+                 depth: torch.Tensor | None = None, occlusion_margin_m: float = 0.1,
+                 occlusion_window_px: int = 8) -> torch.Tensor:
     """Indices (long) of the Gaussians the rasterizer can draw into the (width x height) image of the
     camera-to-world ``pose``: in front of its near plane, with a conservative screen radius (largest
     scale, the projection Jacobian at the rasterizer's clamped image coordinates, the low-pass) that
     reaches the image. A superset of what the rasterizer draws, so a render of these rows is the render
-    of the whole map, at a cost proportional to the view instead of the map."""
+    of the whole map, at a cost proportional to the view instead of the map.
+
+    With the observed ``depth`` of that camera ((height, width), 0 = invalid), Gaussians hidden behind the
+    observed surface are dropped too: those whose whole footprint (radius <= ``occlusion_window_px``) lies
+    where every observed depth within the window around the centre is nearer than the centre's depth
+    by more than ``occlusion_margin_m`` (invalid depth never hides anything). Where the map reproduces
+    the observed surface, they are composited behind it with no visible weight; this is what keeps a
+    view of a corridor from paying for every room behind its walls."""
     from activesplat.splat.raster.constants import RASTER
 
     with torch.no_grad():
@@ -217,4 +225,21 @@ def frustum_rows(means: torch.Tensor, log_scales: torch.Tensor, pose, K, width: 
         u, v = fx * x + cx, fy * y + cy
         inside = front & (u + radius >= 0) & (u - radius <= width)
         inside &= (v + radius >= 0) & (v - radius <= height)
+        if depth is not None:
+            far = _window_max(torch.where(depth > 0, depth, torch.full_like(depth, float("inf"))),
+                              occlusion_window_px)
+            ui, vi = u.clamp(-1, width).floor().long(), v.clamp(-1, height).floor().long()
+            test = inside & (radius <= occlusion_window_px) & (ui >= 0) & (ui < width) & (vi >= 0)
+            test &= vi < height
+            idx = torch.nonzero(test, as_tuple=True)[0]
+            hidden = z[idx] > far[vi[idx], ui[idx]] + occlusion_margin_m
+            inside[idx[hidden]] = False
         return torch.nonzero(inside, as_tuple=True)[0]
+
+
+def _window_max(image: torch.Tensor, r: int) -> torch.Tensor:
+    """Maximum over the (2r+1) x (2r+1) window around each pixel (within the image), separably."""
+    x = image[None, None]
+    x = torch.nn.functional.max_pool2d(x, (1, 2 * r + 1), stride=1, padding=(0, r))
+    x = torch.nn.functional.max_pool2d(x, (2 * r + 1, 1), stride=1, padding=(r, 0))
+    return x[0, 0]

@@ -140,9 +140,15 @@ class Mapper:
         Kt = torch.from_numpy(K.astype(np.float32)).to(self.device)
         return rasterize(*activate(raw), viewmat, Kt, width, height, backend=self.backend)
 
-    def _view_rows(self, pose: np.ndarray, K: np.ndarray, width: int, height: int) -> torch.Tensor:
-        p = self.gaussians.params
-        return frustum_rows(p["means"], p["log_scales"], pose, K, width, height)
+    def _view_rows(self, pose: np.ndarray, K: np.ndarray, width: int, height: int,
+                   depth: torch.Tensor | None = None) -> torch.Tensor:
+        """The Gaussians a render of this view needs (:func:`frustum_rows`); with the view's observed
+        ``depth`` ((height, width), 0 = invalid), not those it hides (``cull_occluded_margin_m``)."""
+        p, cfg = self.gaussians.params, self.config
+        if cfg.cull_occluded_margin_m is None:
+            depth = None
+        return frustum_rows(p["means"], p["log_scales"], pose, K, width, height, depth,
+                            cfg.cull_occluded_margin_m or 0.0, cfg.cull_window_px)
 
     def _make_optimizer(self):
         if self.config.sparse_adam:
@@ -227,7 +233,7 @@ class Mapper:
         clock.lap("window")
         current = (obs_rgb, obs_depth, pose)
         views = [self._pick_view(i, window, current) for i in range(schedule.iterations)]
-        trained = [self._view_rows(pose, self.K, self.width, self.height)]
+        trained = [self._view_rows(pose, self.K, self.width, self.height, obs_depth)]
         losses = []
         for view in views:
             loss, rows = self._optimize_view(view)
@@ -235,7 +241,10 @@ class Mapper:
             trained.append(rows)
         stats.loss = float(np.mean(losses)) if losses else None
         clock.lap("optimize")
-        stats.pruned = self._prune(torch.unique(torch.cat(trained)), pose, obs_depth)
+        touched = torch.zeros(len(self.gaussians), dtype=torch.bool, device=self.device)
+        for rows in trained:
+            touched[rows] = True
+        stats.pruned = self._prune(torch.nonzero(touched, as_tuple=True)[0], pose, obs_depth)
         clock.lap("prune")
 
     def _append(self, raw: dict[str, torch.Tensor]) -> int:
@@ -311,7 +320,7 @@ class Mapper:
         K = self.K.copy()
         K[:2] /= d
         width, height = obs_depth.shape[1], obs_depth.shape[0]
-        rows = self._view_rows(pose, K, width, height)
+        rows = self._view_rows(pose, K, width, height, obs_depth)
         raw = {name: t.requires_grad_(True) for name, t in self.gaussians.rows(rows).items()}
         out = self._render(pose, K, width, height, rows, raw)
         terms = mapping_loss(out.rgb, out.depth, obs_rgb, obs_depth, self.config)
