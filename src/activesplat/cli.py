@@ -243,6 +243,13 @@ def _cmd_refine(argv: Sequence[str]) -> int:
     return refine_from_command(cmd)
 
 
+# --------------------------------------------------------------------------- map (recordings)
+def _cmd_map(args: argparse.Namespace) -> int:
+    from activesplat.robot.mapping import map_from_args
+
+    return map_from_args(args)
+
+
 # --------------------------------------------------------------------------- view / benchmark
 def _cmd_view(args: argparse.Namespace) -> int:
     from activesplat.viz.viewer import view_from_args
@@ -313,6 +320,42 @@ def build_parser() -> argparse.ArgumentParser:
     # refine: parsed by tyro (TYRO_COMMANDS)
     sub.add_parser("refine", add_help=False, help="offline refinement of an episode's map from its keyframes "
                                                   "(settings: --refine.FIELD VALUE)")
+
+    # map: recorded data
+    p_map = sub.add_parser("map", help="map a recording (ROS 1 / ROS 2 bag, MCAP, TUM RGB-D folder) into a "
+                                       "map folder in the episode layout")
+    p_map.add_argument("recording", help=".bag, .mcap, .db3, a ROS 2 bag folder, or a TUM RGB-D folder")
+    p_map.add_argument("--rgb-topic", help="sensor_msgs/Image (rgb8/bgr8/rgba8/bgra8) or CompressedImage")
+    p_map.add_argument("--depth-topic", help="sensor_msgs/Image, 16UC1/mono16 (mm) or 32FC1 (m), registered "
+                                             "to colour")
+    p_map.add_argument("--camera-info-topic", help="sensor_msgs/CameraInfo of the colour camera")
+    p_map.add_argument("--pose-source", help="tf:WORLD_FRAME[:CAMERA_FRAME], or a nav_msgs/Odometry / "
+                                             "geometry_msgs/PoseStamped topic; TUM: the ground-truth file "
+                                             "(default groundtruth.txt)")
+    p_map.add_argument("--camera-in-body", type=float, nargs=7,
+                       metavar=("X", "Y", "Z", "QX", "QY", "QZ", "QW"),
+                       help="camera optical frame in the odometry / pose body frame (default: /tf_static, "
+                            "else identity)")
+    p_map.add_argument("--intrinsics", type=float, nargs=4, metavar=("FX", "FY", "CX", "CY"),
+                       help="TUM folders: the colour camera's intrinsics")
+    p_map.add_argument("--depth-scale", type=float, default=5000.0, help="TUM folders: depth PNG units per "
+                                                                        "metre (5000)")
+    p_map.add_argument("--world-up", default="z", choices=("z", "y"),
+                       help="up axis of the pose source's world (ROS: z); the map is turned to y-up")
+    p_map.add_argument("--holdout-every", type=int, default=8,
+                       help="every N-th frame is kept out of the map as render-eval ground truth (0: none)")
+    p_map.add_argument("--stride", type=int, default=1, help="map every N-th frame")
+    p_map.add_argument("--max-dt", type=float, default=0.02, help="colour/depth stamp tolerance (s)")
+    p_map.add_argument("--max-pose-gap", type=float, default=0.5,
+                       help="longest gap between pose samples to interpolate over (s)")
+    p_map.add_argument("--skip-unposed", action="store_true", help="drop frames without a pose instead of "
+                                                                   "failing")
+    p_map.add_argument("--out", help="output map folder (default runs/<recording>-map)")
+    p_map.add_argument("--overwrite", action="store_true", help="replace an existing map folder")
+    p_map.add_argument("--backend", default=None, choices=("numba", "torch", "gsplat"),
+                       help="rasterizer backend")
+    p_map.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p_map.set_defaults(func=_cmd_map)
 
     # view
     p_view = sub.add_parser("view", help="serve a viser web viewer of a finished episode")
