@@ -250,6 +250,12 @@ def _cmd_map(args: argparse.Namespace) -> int:
     return map_from_args(args)
 
 
+def _cmd_export(args: argparse.Namespace) -> int:
+    from activesplat.robot.export import export_from_args
+
+    return export_from_args(args)
+
+
 # --------------------------------------------------------------------------- view / benchmark
 def _cmd_view(args: argparse.Namespace) -> int:
     from activesplat.viz.viewer import view_from_args
@@ -356,6 +362,16 @@ def build_parser() -> argparse.ArgumentParser:
                        help="rasterizer backend")
     p_map.add_argument("--no-progress", action="store_true", help="no progress bar")
     p_map.set_defaults(func=_cmd_map)
+
+    # export
+    p_export_mcap = sub.add_parser("export", help="an episode or map folder as an MCAP file for Foxglove "
+                                                  "(camera poses, trajectory, keyframe images, map points)")
+    p_export_mcap.add_argument("dir", help="episode folder or recorded-map folder")
+    p_export_mcap.add_argument("--mcap", required=True, help="output file (.mcap)")
+    p_export_mcap.add_argument("--max-points", type=int, default=None,
+                               help="at most this many map points (the most opaque Gaussians)")
+    p_export_mcap.add_argument("--overwrite", action="store_true", help="replace an existing file")
+    p_export_mcap.set_defaults(func=_cmd_export)
 
     # view
     p_view = sub.add_parser("view", help="serve a viser web viewer of a finished episode")
