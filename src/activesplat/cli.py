@@ -256,6 +256,12 @@ def _cmd_export(args: argparse.Namespace) -> int:
     return export_from_args(args)
 
 
+def _cmd_robot(args: argparse.Namespace) -> int:
+    from activesplat.robot.bridge import robot_from_args
+
+    return robot_from_args(args)
+
+
 # --------------------------------------------------------------------------- view / benchmark
 def _cmd_view(args: argparse.Namespace) -> int:
     from activesplat.viz.viewer import view_from_args
@@ -372,6 +378,28 @@ def build_parser() -> argparse.ArgumentParser:
                                help="at most this many map points (the most opaque Gaussians)")
     p_export_mcap.add_argument("--overwrite", action="store_true", help="replace an existing file")
     p_export_mcap.set_defaults(func=_cmd_export)
+
+    # robot: a live robot over rosbridge
+    p_robot = sub.add_parser("robot", help="explore a live robot through rosbridge (ws://ROBOT:9090) and "
+                                           "write an episode folder")
+    p_robot.add_argument("url", help="rosbridge websocket, e.g. ws://robot.local:9090")
+    p_robot.add_argument("--rgb-topic", default="/camera/color/image_raw")
+    p_robot.add_argument("--depth-topic", default="/camera/depth/image_raw",
+                         help="depth registered to colour (16UC1 mm or 32FC1 m)")
+    p_robot.add_argument("--camera-info-topic", default="/camera/color/camera_info")
+    p_robot.add_argument("--pose-topic", default="/camera_pose",
+                         help="camera optical frame pose in the world (PoseStamped or Odometry)")
+    p_robot.add_argument("--pose-type", default="geometry_msgs/PoseStamped",
+                         choices=("geometry_msgs/PoseStamped", "nav_msgs/Odometry"))
+    p_robot.add_argument("--world-up", default="z", choices=("z", "y"))
+    p_robot.add_argument("--steps", type=int, required=True, help="action budget")
+    p_robot.add_argument("--policy", default="activesplat")
+    p_robot.add_argument("--seed", type=int, default=0)
+    p_robot.add_argument("--timeout", type=float, default=30.0, help="seconds to wait for each observation")
+    p_robot.add_argument("--out", required=True, help="episode folder")
+    p_robot.add_argument("--overwrite", action="store_true")
+    p_robot.add_argument("--no-progress", action="store_true")
+    p_robot.set_defaults(func=_cmd_robot)
 
     # view
     p_view = sub.add_parser("view", help="serve a viser web viewer of a finished episode")
