@@ -90,6 +90,26 @@ def pose_stamped_msg(store, stamp, frame, T):
     )
 
 
+BODY_T_CAMERA = np.array([[0.0, 0, 1, 0.2], [-1, 0, 0, 0.0], [0, -1, 0, 1.1], [0, 0, 0, 1]])
+"""An optical frame looking along the base's x axis, 1.1 m up, 0.2 m forward (REP 103 base, z up)."""
+
+
+def odometry_msg(store, stamp, T):
+    Odom = store.types["nav_msgs/msg/Odometry"]
+    PWC = store.types["geometry_msgs/msg/PoseWithCovariance"]
+    TWC = store.types["geometry_msgs/msg/TwistWithCovariance"]
+    Twist = store.types["geometry_msgs/msg/Twist"]
+    V = store.types["geometry_msgs/msg/Vector3"]
+    zero = V(x=0.0, y=0.0, z=0.0)
+    pose = pose_stamped_msg(store, stamp, "map", T).pose
+    return Odom(
+        header=_header(store, stamp, "map"),
+        child_frame_id="base_link",
+        pose=PWC(pose=pose, covariance=np.zeros(36)),
+        twist=TWC(twist=Twist(linear=zero, angular=zero), covariance=np.zeros(36)),
+    )
+
+
 def tf_msg(store, stamp, parent, child, T):
     TFM = store.types["tf2_msgs/msg/TFMessage"]
     TS = store.types["geometry_msgs/msg/TransformStamped"]
@@ -146,9 +166,11 @@ def write_bag(
         "/camera/color/camera_info": "sensor_msgs/msg/CameraInfo",
     }
     topics.update(
-        {"/camera_pose": "geometry_msgs/msg/PoseStamped"}
-        if pose == "pose"
-        else {"/tf": "tf2_msgs/msg/TFMessage"}
+        {
+            "pose": {"/camera_pose": "geometry_msgs/msg/PoseStamped"},
+            "tf": {"/tf": "tf2_msgs/msg/TFMessage"},
+            "odom": {"/odom": "nav_msgs/msg/Odometry", "/tf_static": "tf2_msgs/msg/TFMessage"},
+        }[pose]
     )
     with writer:
         conns = {}
@@ -165,6 +187,11 @@ def write_bag(
             if drop_pose_after is None or i < drop_pose_after:
                 if pose == "pose":
                     put("/camera_pose", stamp, pose_stamped_msg(store, stamp, "map", to_zup(T)))
+                elif pose == "odom":  # the base's pose; the camera sits at BODY_T_CAMERA on it
+                    if i == 0:
+                        put("/tf_static", stamp, tf_msg(store, stamp, "base_link", frame, BODY_T_CAMERA))
+                    base = to_zup(T) @ np.linalg.inv(BODY_T_CAMERA)
+                    put("/odom", stamp, odometry_msg(store, stamp, base))
                 else:
                     put("/tf", stamp, tf_msg(store, stamp, "map", frame, to_zup(T)))
             put("/camera/color/camera_info", stamp, camera_info_msg(store, stamp, frame, K, w, h))

@@ -109,6 +109,14 @@ def test_tum_folder_and_tf_poses_and_16bit_depth(frames, direct_map, tmp_path):
         assert np.abs(depth - fr[k][1]).max() <= 5.01e-4
 
 
+def test_odometry_of_the_base_and_the_static_camera_mount(frames, tmp_path):
+    K, fr = frames
+    bag = write_bag(tmp_path / "odom", K, fr[:4], fmt="mcap", pose="odom")
+    rec = open_recording(bag, *ARGS[1::2], pose_source="/odom")
+    want = [p for _, _, p in fr[:4]]
+    np.testing.assert_allclose(np.einsum("ij,njk->nik", WORLD_UP["z"], rec.poses), want, atol=1e-9)
+
+
 def test_render_eval_and_refine_accept_a_recorded_map(frames, tmp_path, capsys):
     K, fr = frames
     bag = write_bag(tmp_path / "rec", K, fr, fmt="mcap")
