@@ -23,7 +23,8 @@ Conventions (README, "Recorded data"):
   to the camera by ``camera_in_body`` (x y z qx qy qz qw) or, when not given, by the ``/tf_static``
   chain from the odometry's child frame to the camera frame when the bag has one, else used as the
   camera's pose. Poses are interpolated (linear position, slerp rotation) at the colour stamp; a frame
-  farther than ``max_pose_gap`` from a pose sample on either side has no pose.
+  farther than ``max_pose_gap`` from a pose sample on either side has no pose (before the first or after
+  the last sample: one within a tenth of ``max_pose_gap`` is used as it is).
 - **TUM RGB-D folders** (``rgb.txt``, ``depth.txt``, ``groundtruth.txt``; 16-bit PNG depth divided by
   ``depth_scale``, 5000 in TUM): intrinsics from ``intrinsics`` (fx fy cx cy), poses from the ground
   truth (``timestamp tx ty tz qx qy qz qw``, the colour camera's optical frame in the world).
@@ -87,8 +88,8 @@ class PoseTrack:
         self.poses = np.stack(poses) if poses else np.zeros((0, 4, 4))
 
     def at(self, stamp: int, max_gap_ns: int) -> np.ndarray | None:
-        """The transform at ``stamp``, None when no sample lies within ``max_gap_ns`` on both sides (or one
-        sample within it exactly, at the ends)."""
+        """The transform at ``stamp``, None when no sample lies within ``max_gap_ns`` on both sides (before
+        the first or after the last sample: that sample if within a tenth of ``max_gap_ns``)."""
         from scipy.spatial.transform import Rotation, Slerp
 
         s = self.stamps
