@@ -16,6 +16,10 @@ metres), ``step`` (actions so far) and ``collided``. The action sizes the planne
 configuration's ``sim`` group (``--sim.turn-deg``, ``--sim.forward-step``, ``--sim.look-deg``,
 ``--sim.sensor-height``, ...): an environment should honour them, or the run should be configured with the
 environment's own sizes.
+
+Optionally, an environment may have ``waypoint(xz)``: the loop calls it before every ``step`` with the
+world (x, z) point the planner's path follower heads for (None while it follows no path: look-around,
+rotations), for a base with its own controller.
 """
 
 from __future__ import annotations

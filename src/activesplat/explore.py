@@ -129,6 +129,8 @@ def explore_environment(env, run, out: str | Path, overwrite: bool = False, prog
             if evaluator is not None:
                 timers.time("evaluation", evaluator.observe, obs.pose)
             action = explorer.act(obs)
+            if hasattr(env, "waypoint"):  # a base with its own controller: the planner's next waypoint
+                env.waypoint(_next_waypoint(explorer))
             obs = env.step(action)
             forward += action == "move_forward"
             writer.record(step, action, obs.pose)
@@ -174,6 +176,14 @@ def explore_environment(env, run, out: str | Path, overwrite: bool = False, prog
         draw_completion(out_dir / "completion.png", {policy: curve}, title=f"{name} / {policy}")
     writer.finish(metrics)
     return metrics
+
+
+def _next_waypoint(explorer) -> np.ndarray | None:
+    """The (x, z) world waypoint the explorer's path follower heads for, None when it follows no path."""
+    follower = getattr(explorer, "follower", None)
+    if follower is None or follower.done:
+        return None
+    return np.asarray(follower.waypoints[0], dtype=np.float64)
 
 
 class _Completion:

@@ -36,6 +36,22 @@ def test_explore_a_fake_robot_over_rosbridge(tmp_path):
     )
 
 
+def test_waypoints_go_to_the_robot_in_its_z_up_world():
+    server, url = serve_simulator(Simulator(box_room(), seed=0, config=SIM))
+    try:
+        env = RosbridgeEnvironment(url, *TOPICS, timeout_s=20)
+        obs = env.reset()
+        env.waypoint(None)
+        env.waypoint(np.array([1.5, -2.0]))
+        env.waypoint(np.array([1.5, -2.0]))  # unchanged: not sent again
+        env.step("turn_left")
+        env.close()
+    finally:
+        server.shutdown()
+    points = [op["msg"]["point"] for op in server.received if op["topic"] == "/activesplat/waypoint"]
+    assert points == [{"x": 1.5, "y": 2.0, "z": pytest.approx(obs.pose[1, 3])}]
+
+
 def test_no_robot_is_one_line():
     with pytest.raises(InvalidInputError, match="rosbridge ws://127.0.0.1:9: cannot connect"):
         RosbridgeEnvironment("ws://127.0.0.1:9", *TOPICS, timeout_s=2)

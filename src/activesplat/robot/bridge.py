@@ -35,6 +35,7 @@ from activesplat.robot.mapping import WORLD_UP
 from activesplat.robot.recording import decode_color, decode_depth, matrix_tq, pose_matrix
 
 ACTION_TOPIC = "/activesplat/action"
+WAYPOINT_TOPIC = "/activesplat/waypoint"
 DONE_TOPIC = "/activesplat/action_done"
 
 
@@ -96,6 +97,8 @@ class RosbridgeEnvironment:
             self._send({"op": "subscribe", "topic": topic, "type": types[key]})
         self._send({"op": "subscribe", "topic": DONE_TOPIC, "type": "std_msgs/String"})
         self._send({"op": "advertise", "topic": ACTION_TOPIC, "type": "std_msgs/String"})
+        self._send({"op": "advertise", "topic": WAYPOINT_TOPIC, "type": "geometry_msgs/PointStamped"})
+        self._waypoint = None
         self.steps = 0
         self._first = self._act("stop")  # a no-op that makes the robot report where it is
         self.K, self.width, self.height = self._K, self._width, self._height
@@ -157,6 +160,16 @@ class RosbridgeEnvironment:
         self._pose = obs.pose
         return obs
 
+    def waypoint(self, xz) -> None:
+        """Publish the planner's next waypoint (map x, z; at the camera's height) on ``WAYPOINT_TOPIC`` as a
+        ``geometry_msgs/PointStamped`` in the robot's world, when it changes."""
+        if xz is None or (self._waypoint is not None and np.allclose(xz, self._waypoint)):
+            return
+        self._waypoint = np.asarray(xz, dtype=np.float64)
+        p = np.linalg.inv(self.W) @ np.array([xz[0], self._pose[1, 3], xz[1], 1.0])
+        msg = {"header": {"frame_id": "map"}, "point": dict(zip("xyz", p[:3].tolist(), strict=True))}
+        self._send({"op": "publish", "topic": WAYPOINT_TOPIC, "msg": msg})
+
     def step(self, action: str) -> Observation:
         if action not in ACTIONS:
             raise InvalidInputError(f"unknown action {action!r}: expected one of {', '.join(ACTIONS)}")
@@ -193,7 +206,8 @@ def serve_simulator(sim, host: str = "127.0.0.1", port: int = 0, topics: dict | 
     """A scripted fake robot on ``ws://host:port`` speaking rosbridge v2, served by ``sim`` (a Simulator):
     it executes every action published on ``/activesplat/action`` in the simulator, publishes
     ``action_done``, then the camera info, the camera pose (PoseStamped, z-up world) and the RGB-D images on
-    the topics its client subscribed to. Returns ``(server, url)``; ``server.shutdown()`` stops it."""
+    the topics its client subscribed to; it ignores waypoints (kept in ``server.received``). Returns
+    ``(server, url)``; ``server.shutdown()`` stops it."""
     from websockets.sync.server import serve
 
     topics = topics or {
@@ -203,9 +217,13 @@ def serve_simulator(sim, host: str = "127.0.0.1", port: int = 0, topics: dict | 
         "pose": "/camera_pose",
     }
 
+    received = []
+
     def handler(ws):
         for text in ws:
             op = json.loads(text)
+            if op.get("op") == "publish":
+                received.append(op)
             if op.get("op") != "publish" or op.get("topic") != ACTION_TOPIC:
                 continue  # subscribe / advertise: everything is published anyway
             obs = sim.step(op["msg"]["data"])
@@ -240,6 +258,7 @@ def serve_simulator(sim, host: str = "127.0.0.1", port: int = 0, topics: dict | 
             publish(topics["depth"], _image_json(obs.depth.astype(np.float32), "32FC1", step))
 
     server = serve(handler, host, port, max_size=None)
+    server.received = received  # every published message, for tests
     threading.Thread(target=server.serve_forever, daemon=True).start()
     return server, f"ws://{host}:{server.socket.getsockname()[1]}"
 
