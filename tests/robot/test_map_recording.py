@@ -200,3 +200,10 @@ def test_an_existing_map_needs_overwrite(frames, tmp_path, capsys):
     assert "pass --overwrite" in _err(capsys, argv)
     assert main([*argv, "--overwrite"]) == 0
     shutil.rmtree(out)
+
+
+def test_commands_that_need_a_simulated_episode_say_so(frames, tmp_path, capsys):
+    K, fr = frames
+    bag = write_bag(tmp_path / "rec", K, fr[:3])
+    assert _map(bag, tmp_path / "map", "--holdout-every", "0") == 0
+    assert "is a map of a recording" in _err(capsys, ["evaluate", str(tmp_path / "map")])
