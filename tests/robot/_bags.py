@@ -161,7 +161,9 @@ def write_bag(
     stamps = stamps if stamps is not None else [T0 + i * DT for i in range(len(frames))]
     h, w = frames[0][1].shape
     topics = {
-        "/camera/color/image_raw": "sensor_msgs/msg/Image",
+        "/camera/color/image_raw": "sensor_msgs/msg/CompressedImage"
+        if rgb_encoding == "png"
+        else "sensor_msgs/msg/Image",
         "/camera/depth/image_raw": "sensor_msgs/msg/Image",
         "/camera/color/camera_info": "sensor_msgs/msg/CameraInfo",
     }
@@ -196,7 +198,14 @@ def write_bag(
                     put("/tf", stamp, tf_msg(store, stamp, "map", frame, to_zup(T)))
             put("/camera/color/camera_info", stamp, camera_info_msg(store, stamp, frame, K, w, h))
             color = rgb[..., ::-1] if rgb_encoding == "bgr8" else rgb
-            put("/camera/color/image_raw", stamp, image_msg(store, stamp, frame, color, rgb_encoding))
+            if rgb_encoding == "png":  # sensor_msgs/CompressedImage, lossless
+                png = np.frombuffer(cv2.imencode(".png", rgb[..., ::-1])[1].tobytes(), np.uint8)
+                msg = store.types["sensor_msgs/msg/CompressedImage"](
+                    header=_header(store, stamp, frame), format="rgb8; png compressed bgr8", data=png
+                )
+                put("/camera/color/image_raw", stamp, msg)
+            else:
+                put("/camera/color/image_raw", stamp, image_msg(store, stamp, frame, color, rgb_encoding))
             d = (
                 depth.astype(np.float32)
                 if depth_encoding == "32FC1"

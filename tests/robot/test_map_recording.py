@@ -107,6 +107,9 @@ def test_tum_folder_and_tf_poses_and_16bit_depth(frames, direct_map, tmp_path):
     for k, rgb, depth in rec.frames():  # mm depth: within half a millimetre; bgr8 back to rgb
         assert np.array_equal(rgb, fr[k][0])
         assert np.abs(depth - fr[k][1]).max() <= 5.01e-4
+    bag = write_bag(tmp_path / "png", K, fr[:3], fmt="mcap", rgb_encoding="png")
+    rec = open_recording(bag, *ARGS[1::2], pose_source="/camera_pose")
+    assert all(np.array_equal(rgb, fr[k][0]) for k, rgb, _ in rec.frames())
 
 
 def test_odometry_of_the_base_and_the_static_camera_mount(frames, tmp_path):
