@@ -8,10 +8,10 @@ from pathlib import Path
 import activesplat
 
 ROOT = Path(activesplat.__file__).parent
-BASE = ("errors", "geometry", "timing", "episode")
+BASE = ("errors", "geometry", "timing", "episode", "env")
 """Top-level helpers every layer may use."""
 LAYERS = [BASE, ("sim",), ("splat",), ("workspace",), ("planning",), ("eval", "refine"), ("viz",),
-          ("config", "explore", "bench", "cli", "__main__")]
+          ("config", "explore", "bench", "cli", "__main__", "robot")]
 
 
 def _layer(name: str) -> int:

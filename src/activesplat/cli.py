@@ -243,6 +243,25 @@ def _cmd_refine(argv: Sequence[str]) -> int:
     return refine_from_command(cmd)
 
 
+# --------------------------------------------------------------------------- map (recordings)
+def _cmd_map(args: argparse.Namespace) -> int:
+    from activesplat.robot.mapping import map_from_args
+
+    return map_from_args(args)
+
+
+def _cmd_export(args: argparse.Namespace) -> int:
+    from activesplat.robot.export import export_from_args
+
+    return export_from_args(args)
+
+
+def _cmd_robot(args: argparse.Namespace) -> int:
+    from activesplat.robot.bridge import robot_from_args
+
+    return robot_from_args(args)
+
+
 # --------------------------------------------------------------------------- view / benchmark
 def _cmd_view(args: argparse.Namespace) -> int:
     from activesplat.viz.viewer import view_from_args
@@ -313,6 +332,74 @@ def build_parser() -> argparse.ArgumentParser:
     # refine: parsed by tyro (TYRO_COMMANDS)
     sub.add_parser("refine", add_help=False, help="offline refinement of an episode's map from its keyframes "
                                                   "(settings: --refine.FIELD VALUE)")
+
+    # map: recorded data
+    p_map = sub.add_parser("map", help="map a recording (ROS 1 / ROS 2 bag, MCAP, TUM RGB-D folder) into a "
+                                       "map folder in the episode layout")
+    p_map.add_argument("recording", help=".bag, .mcap, .db3, a ROS 2 bag folder, or a TUM RGB-D folder")
+    p_map.add_argument("--rgb-topic", help="sensor_msgs/Image (rgb8/bgr8/rgba8/bgra8) or CompressedImage")
+    p_map.add_argument("--depth-topic", help="sensor_msgs/Image, 16UC1/mono16 (mm) or 32FC1 (m), registered "
+                                             "to colour")
+    p_map.add_argument("--camera-info-topic", help="sensor_msgs/CameraInfo of the colour camera")
+    p_map.add_argument("--pose-source", help="tf:WORLD_FRAME[:CAMERA_FRAME], or a nav_msgs/Odometry / "
+                                             "geometry_msgs/PoseStamped topic; TUM: the ground-truth file "
+                                             "(default groundtruth.txt)")
+    p_map.add_argument("--camera-in-body", type=float, nargs=7,
+                       metavar=("X", "Y", "Z", "QX", "QY", "QZ", "QW"),
+                       help="camera optical frame in the odometry / pose body frame (default: /tf_static, "
+                            "else identity)")
+    p_map.add_argument("--intrinsics", type=float, nargs=4, metavar=("FX", "FY", "CX", "CY"),
+                       help="TUM folders: the colour camera's intrinsics")
+    p_map.add_argument("--depth-scale", type=float, default=5000.0, help="TUM folders: depth PNG units per "
+                                                                        "metre (5000)")
+    p_map.add_argument("--world-up", default="z", choices=("z", "y"),
+                       help="up axis of the pose source's world (ROS: z); the map is turned to y-up")
+    p_map.add_argument("--holdout-every", type=int, default=8,
+                       help="every N-th frame is kept out of the map as render-eval ground truth (0: none)")
+    p_map.add_argument("--stride", type=int, default=1, help="map every N-th frame")
+    p_map.add_argument("--max-dt", type=float, default=0.02, help="colour/depth stamp tolerance (s)")
+    p_map.add_argument("--max-pose-gap", type=float, default=0.5,
+                       help="longest gap between pose samples to interpolate over (s)")
+    p_map.add_argument("--skip-unposed", action="store_true", help="drop frames without a pose instead of "
+                                                                   "failing")
+    p_map.add_argument("--out", help="output map folder (default runs/<recording>-map)")
+    p_map.add_argument("--overwrite", action="store_true", help="replace an existing map folder")
+    p_map.add_argument("--backend", default=None, choices=("numba", "torch", "gsplat"),
+                       help="rasterizer backend")
+    p_map.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p_map.set_defaults(func=_cmd_map)
+
+    # export
+    p_export_mcap = sub.add_parser("export", help="an episode or map folder as an MCAP file for Foxglove "
+                                                  "(camera poses, trajectory, keyframe images, map points)")
+    p_export_mcap.add_argument("dir", help="episode folder or recorded-map folder")
+    p_export_mcap.add_argument("--mcap", required=True, help="output file (.mcap)")
+    p_export_mcap.add_argument("--max-points", type=int, default=None,
+                               help="at most this many map points (the most opaque Gaussians)")
+    p_export_mcap.add_argument("--overwrite", action="store_true", help="replace an existing file")
+    p_export_mcap.set_defaults(func=_cmd_export)
+
+    # robot: a live robot over rosbridge
+    p_robot = sub.add_parser("robot", help="explore a live robot through rosbridge (ws://ROBOT:9090) and "
+                                           "write an episode folder")
+    p_robot.add_argument("url", help="rosbridge websocket, e.g. ws://robot.local:9090")
+    p_robot.add_argument("--rgb-topic", default="/camera/color/image_raw")
+    p_robot.add_argument("--depth-topic", default="/camera/depth/image_raw",
+                         help="depth registered to colour (16UC1 mm or 32FC1 m)")
+    p_robot.add_argument("--camera-info-topic", default="/camera/color/camera_info")
+    p_robot.add_argument("--pose-topic", default="/camera_pose",
+                         help="camera optical frame pose in the world (PoseStamped or Odometry)")
+    p_robot.add_argument("--pose-type", default="geometry_msgs/PoseStamped",
+                         choices=("geometry_msgs/PoseStamped", "nav_msgs/Odometry"))
+    p_robot.add_argument("--world-up", default="z", choices=("z", "y"))
+    p_robot.add_argument("--steps", type=int, required=True, help="action budget")
+    p_robot.add_argument("--policy", default="activesplat")
+    p_robot.add_argument("--seed", type=int, default=0)
+    p_robot.add_argument("--timeout", type=float, default=30.0, help="seconds to wait for each observation")
+    p_robot.add_argument("--out", required=True, help="episode folder")
+    p_robot.add_argument("--overwrite", action="store_true")
+    p_robot.add_argument("--no-progress", action="store_true")
+    p_robot.set_defaults(func=_cmd_robot)
 
     # view
     p_view = sub.add_parser("view", help="serve a viser web viewer of a finished episode")

@@ -96,6 +96,10 @@ def read_episode(path: str | Path) -> Episode:
     if not d.is_dir():
         raise EpisodeError(f"{d} is not a folder")
     meta_path = d / "episode.json"
+    recorded = meta_path.exists() and '"source": "recording"' in meta_path.read_text()
+    if recorded and not (d / "actions.txt").exists():
+        raise EpisodeError(f"{d} is a map of a recording (activesplat map): it has no actions to replay "
+                           f"(render-eval, refine and export take it)")
     if not meta_path.exists() or not (d / "actions.txt").exists():
         raise EpisodeError(f"{d} is not an episode folder (no episode.json / actions.txt)")
     try:

@@ -60,68 +60,92 @@ def explore_episode(run, out: str | Path | None = None, overwrite: bool = False,
                     viewer=None, scene=None) -> dict:
     """The episode of a `RunConfig` into `out` (default runs/SCENE-POLICY-sSEED); returns its metrics.
     episode.json records `run` (its step budget resolved), which `load_run_config` reads back. `scene`: the
-    already loaded `Scene` of `run.scene`, if any."""
-    import torch
-
+    already loaded `Scene` of `run.scene`, if any. The simulator is the environment, and completion is
+    measured on the fly from its ground truth."""
     from activesplat.eval.coverage import CoverageAccumulator
-    from activesplat.geometry import intrinsics
-    from activesplat.planning.policies import make_policy
     from activesplat.sim import Simulator, load_scene
-    from activesplat.splat import Mapper
-    from activesplat.timing import Timers
 
     scene_obj = scene if scene is not None else load_scene(run.scene, z_up=run.z_up, floor=run.floor)
     steps = int(run.steps or scene_obj.default_steps)
     run = run.replace(steps=steps)
-    sim_config, seed, policy = run.sim, run.seed, run.policy
-    sim = Simulator(scene_obj, seed=seed, config=sim_config)
-    out_dir = Path(out) if out is not None else _default_out(run.scene, policy, seed)
-    writer = EpisodeWriter(out_dir, overwrite=overwrite)
-
-    torch.manual_seed(seed)
-    obs = sim.reset()
-    mapper = Mapper(sim.K, sim.width, sim.height, config=run.mapper, backend=run.backend)
-    timers = Timers()
-    # the floor height comes from the agent's own start pose (its sensor height is known), not the mesh
-    floor_height = float(obs.pose[1, 3] - sim_config.sensor_height)
-    explorer = make_policy(policy, mapper, floor_height, cfg=run.explorer, timers=timers,
-                           frontier=run.frontier)
+    sim = Simulator(scene_obj, seed=run.seed, config=run.sim)
+    out_dir = Path(out) if out is not None else _default_out(run.scene, run.policy, run.seed)
     cov_cfg = run.coverage
     coverage = CoverageAccumulator(scene_obj.sample_surface(cov_cfg.n_gt_points, seed=cov_cfg.seed), cov_cfg)
-    K_eval = intrinsics(cov_cfg.resolution, cov_cfg.resolution, sim_config.hfov_deg)
+    meta = {"scene": run.scene, "scene_name": scene_obj.name, "z_up": run.z_up,
+            "start_pose": sim.start_pose.tolist(),
+            "floor": run.floor}  # storey choice of a multi-storey mesh (None: its only storey)
+    return explore_environment(sim, run, out_dir, overwrite=overwrite, progress=progress, viewer=viewer,
+                               evaluator=_Completion(sim, coverage, run), meta=meta, name=scene_obj.name)
+
+
+def explore_environment(env, run, out: str | Path, overwrite: bool = False, progress: bool = True,
+                        viewer=None, evaluator=None, meta: dict | None = None,
+                        name: str = "environment") -> dict:
+    """The exploration loop against any `activesplat.env.Environment` (the simulator, a robot bridge, a
+    user's own), for `run.steps` actions with `run`'s policy and settings; writes the episode folder `out`
+    (episode.json with `meta` added, actions, poses, map, topdown.png, metrics.json) and returns the metrics.
+    `evaluator` (the simulator's completion measurement, or None where there is no ground truth) sees every
+    observation's pose and adds its metrics."""
+    import torch
+
+    from activesplat.env import check_observation
+    from activesplat.errors import InvalidInputError
+    from activesplat.planning.policies import make_policy
+    from activesplat.splat import Mapper
+    from activesplat.timing import Timers
+
+    if not isinstance(run.steps, int) or run.steps <= 0:
+        raise InvalidInputError(f"an environment needs a step budget > 0 (run.steps), got {run.steps}")
+    steps, seed, policy = run.steps, run.seed, run.policy
+    out_dir = Path(out)
+    writer = EpisodeWriter(out_dir, overwrite=overwrite)
+    torch.manual_seed(seed)
+    obs = env.reset()
+    check_observation(obs, env.width, env.height, "reset()")
+    mapper = Mapper(env.K, env.width, env.height, config=run.mapper, backend=run.backend)
+    timers = Timers()
+    # the floor height comes from the agent's own start pose (its sensor height is known), not the mesh
+    floor_height = float(obs.pose[1, 3] - run.sim.sensor_height)
+    explorer = make_policy(policy, mapper, floor_height, cfg=run.explorer, timers=timers,
+                           frontier=run.frontier)
     meta = {
-        "scene": run.scene, "scene_name": scene_obj.name, "z_up": run.z_up, "seed": seed, "policy": policy,
-        "steps": steps, "start_pose": sim.start_pose.tolist(), "floor_height": floor_height,
-        "backend": mapper.backend,
-        "floor": run.floor,  # storey choice of a multi-storey mesh (None: its only storey)
-        "config": run.to_dict(),
+        "scene": name, "scene_name": name, "seed": seed, "policy": policy, "steps": steps,
+        "start_pose": np.asarray(obs.pose).tolist(), **(meta or {}), "floor_height": floor_height,
+        "backend": mapper.backend, "config": run.to_dict(),
     }
     writer.start(meta, obs.pose)
 
     curve: list[dict] = []
     forward = 0
     t_start = time.perf_counter()
-    bar = _progress(steps, scene_obj.name, policy, progress)
+    bar = _progress(steps, name, policy, progress)
     step = 0
     try:
         for step in range(1, steps + 1):
-            _observe(obs, mapper, explorer, coverage, sim, K_eval, cov_cfg, timers)
+            timers.time("mapper", mapper.add_frame, obs.rgb, obs.depth, obs.pose,
+                        dense=explorer.dense_mapping)
+            explorer.observe_mapping(obs, env.K)
+            if evaluator is not None:
+                timers.time("evaluation", evaluator.observe, obs.pose)
             action = explorer.act(obs)
-            obs = sim.step(action)
+            if hasattr(env, "waypoint"):  # a base with its own controller: the planner's next waypoint
+                env.waypoint(_next_waypoint(explorer))
+            obs = env.step(action)
             forward += action == "move_forward"
             writer.record(step, action, obs.pose)
             if viewer is not None:
                 viewer.update(step, obs, mapper, explorer, final=step == steps)
-            if coverage.frames % cov_cfg.batch_frames == 0 or step == steps:
-                curve.append(timers.time("evaluation", _curve_point, step, coverage, forward, sim_config))
+            if evaluator is not None and evaluator.curve_due(step, steps):
+                curve.append(timers.time("evaluation", evaluator.curve_point, step, forward))
             if bar is not None:
                 bar.update(1)
                 elapsed = time.perf_counter() - t_start
-                done = curve[-1]["completion_ratio_pct"] if curve else 0.0
-                bar.set_postfix_str(f"completion {done:.1f}% | {1000 * elapsed / step:.0f} ms/step | "
+                done = f"completion {curve[-1]['completion_ratio_pct']:.1f}% | " if curve else ""
+                bar.set_postfix_str(f"{done}{1000 * elapsed / step:.0f} ms/step | "
                                     f"{len(mapper.gaussians)} gaussians")
-        # the last observation counts too (poses.txt holds steps + 1 frames)
-        timers.time("evaluation", _count_coverage, coverage, sim, obs.pose, K_eval, cov_cfg)
+        if evaluator is not None:  # the last observation counts too (poses.txt holds steps + 1 frames)
+            timers.time("evaluation", evaluator.observe, obs.pose)
     except KeyboardInterrupt:
         writer.close()
         if bar is not None:
@@ -133,36 +157,57 @@ def explore_episode(run, out: str | Path | None = None, overwrite: bool = False,
     if bar is not None:
         bar.close()
     wall = time.perf_counter() - t_start
-    metrics = coverage.metrics()
+    metrics = evaluator.metrics() if evaluator is not None else {}
     metrics.update({
-        "path_length_m": forward * sim_config.forward_step,
+        "path_length_m": forward * run.sim.forward_step,
         "steps": steps,
         "wall_time_s": wall,
         "ms_per_step": 1000.0 * wall / steps,
         "evaluation_ms_per_step": timers.per_step(steps).get("evaluation", 0.0),
         "timing_ms": {k: timers.per_step(steps).get(k, 0.0) for k in TIMING_KEYS},
         "n_gaussians": len(mapper.gaussians),
-        "scene": scene_obj.name, "policy": policy, "seed": seed,
+        "scene": name, "policy": policy, "seed": seed,
         "curve": curve,
     })
     _save_map(mapper, explorer, out_dir, floor_height)
-    from activesplat.viz.plots import draw_completion
+    if curve:
+        from activesplat.viz.plots import draw_completion
 
-    draw_completion(out_dir / "completion.png", {policy: curve}, title=f"{scene_obj.name} / {policy}")
+        draw_completion(out_dir / "completion.png", {policy: curve}, title=f"{name} / {policy}")
     writer.finish(metrics)
     return metrics
 
 
-def _observe(obs, mapper, explorer, coverage, sim, K_eval, cov_cfg, timers) -> None:
-    """Map the observation, let the policy see the mapping result, and count it for coverage."""
-    timers.time("mapper", mapper.add_frame, obs.rgb, obs.depth, obs.pose, dense=explorer.dense_mapping)
-    explorer.observe_mapping(obs, sim.K)
-    timers.time("evaluation", _count_coverage, coverage, sim, obs.pose, K_eval, cov_cfg)
+def _next_waypoint(explorer) -> np.ndarray | None:
+    """The (x, z) world waypoint the explorer's path follower heads for, None when it follows no path."""
+    follower = getattr(explorer, "follower", None)
+    if follower is None or follower.done:
+        return None
+    return np.asarray(follower.waypoints[0], dtype=np.float64)
 
 
-def _count_coverage(coverage, sim, pose, K_eval, cov_cfg) -> None:
-    """Evaluation, not the robot's work: ground-truth depth at 128 x 128 into the completion metric."""
-    coverage.add_frame(sim.render(pose, cov_cfg.resolution, cov_cfg.resolution)[1], pose, K_eval)
+class _Completion:
+    """Completion measured on the fly (docs/protocol.md §6): evaluation, not the robot's work; ground-truth
+    depth at 128 x 128 rendered by the simulator at every observed pose."""
+
+    def __init__(self, sim, coverage, run):
+        from activesplat.geometry import intrinsics
+
+        self.sim, self.coverage, self.cfg, self.sim_config = sim, coverage, run.coverage, run.sim
+        self.K = intrinsics(self.cfg.resolution, self.cfg.resolution, run.sim.hfov_deg)
+
+    def observe(self, pose) -> None:
+        depth = self.sim.render(pose, self.cfg.resolution, self.cfg.resolution)[1]
+        self.coverage.add_frame(depth, pose, self.K)
+
+    def curve_due(self, step: int, steps: int) -> bool:
+        return self.coverage.frames % self.cfg.batch_frames == 0 or step == steps
+
+    def curve_point(self, step: int, forward: int) -> dict:
+        return _curve_point(step, self.coverage, forward, self.sim_config)
+
+    def metrics(self) -> dict:
+        return self.coverage.metrics()
 
 
 def _curve_point(step: int, coverage, forward: int, sim_config) -> dict:

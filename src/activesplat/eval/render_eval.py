@@ -173,10 +173,7 @@ def render_eval(episode_dir: str | Path, gaussians_path: str | Path | None = Non
     returns the metrics. ``episode_dir`` may also be a ``refined_<method>`` folder inside an episode.
     ``renderer(gmap, pose, K, width, height, backend) -> (rgb, depth, alpha)`` replaces the 3DGS
     rasterizer (:func:`render_gaussians_view`) for maps of another kind (e.g. 2DGS surfels)."""
-    from activesplat.eval.evaluate import _sim_config
     from activesplat.eval.lpips import LPIPS
-    from activesplat.geometry import intrinsics
-    from activesplat.sim import Simulator, load_scene
     from activesplat.splat.ply import load_ply
     from activesplat.splat.rasterize import gsplat_available
 
@@ -188,23 +185,16 @@ def render_eval(episode_dir: str | Path, gaussians_path: str | Path | None = Non
                               "n_test": int(n_test), "seed": int(seed)})
     episode_dir, gaussians_path, out = locate(episode_dir, gaussians_path, out_dir)
     lpips_model = LPIPS()  # fails early, with the pip command, when the weights are not installed
-    episode = read_episode(episode_dir)
-    meta = episode.meta
-    if "scene" not in meta:
-        raise EpisodeError(f"{episode_dir}/episode.json names no scene")
+    meta = _read_meta(episode_dir)
     use_cuda = backend == "gsplat" or (backend == "auto" and gsplat_available())
     gmap = load_ply(gaussians_path, device="cuda" if use_cuda else "cpu")
     if len(gmap) == 0:
         raise EpisodeError(f"{gaussians_path} holds no Gaussians: nothing to render")
-    sim_config = _sim_config(meta)
-    scene = load_scene(meta["scene"], z_up=bool(meta.get("z_up", False)), floor=meta.get("floor"))
-    sim = Simulator(scene, start=episode.start_pose, config=sim_config)
-    width, height = sim.width, sim.height
-    K = intrinsics(width, height, sim_config.hfov_deg)
-
-    steps = train_indices(len(episode.poses), cfg.n_train)
-    poses = {"train": episode.poses[steps],
-             "test": sample_test_poses(sim, cfg.n_test, cfg.seed, cfg.test_pitch_deg)}
+    if meta.get("source") == "recording":
+        setup = _recorded_setup(episode_dir, meta, cfg)
+    else:
+        setup = _simulated_setup(episode_dir, cfg)
+    width, height, K, poses, steps = setup.width, setup.height, setup.K, setup.poses, setup.steps
     grid_rows = {s: set(train_indices(len(poses[s]), cfg.grid_views).tolist()) for s in SPLITS}
     views: dict[str, list[dict]] = {s: [] for s in SPLITS}
     grid: list[dict] = []
@@ -214,7 +204,7 @@ def render_eval(episode_dir: str | Path, gaussians_path: str | Path | None = Non
     for split in SPLITS:
         for i, pose in enumerate(poses[split]):
             t1 = time.perf_counter()
-            gt_rgb, gt_depth = sim.render(pose, width, height)
+            gt_rgb, gt_depth = setup.ground_truth(split, i, pose)
             t2 = time.perf_counter()
             rgb, depth, alpha = renderer(gmap, pose, K, width, height, backend)
             t3 = time.perf_counter()
@@ -236,13 +226,12 @@ def render_eval(episode_dir: str | Path, gaussians_path: str | Path | None = Non
     result = {s: {**summarise(views[s]), "views": views[s]} for s in SPLITS}
     result.update({
         "episode": str(episode_dir), "gaussians": str(gaussians_path), "n_gaussians": len(gmap),
-        "scene": meta.get("scene_name", meta["scene"]), "width": width, "height": height,
-        "hfov_deg": sim_config.hfov_deg, "seed": cfg.seed, "backend": backend,
+        "scene": setup.name, "width": width, "height": height,
+        "hfov_deg": setup.hfov_deg, "seed": cfg.seed, "backend": backend,
         "renderer": _name_of(renderer),
         "protocol": {
-            "train": f"{len(steps)} observations uniformly spread over poses.txt (reset included)",
-            "test": f"{cfg.n_test} seeded random navigable positions, sensor height "
-                    f"{sim_config.sensor_height} m, random yaw, pitch {cfg.test_pitch_deg} deg",
+            "train": setup.train_text,
+            "test": setup.test_text,
             "psnr": f"data range 1, whole image, mean over views, capped at {cfg.psnr_max_db} dB",
             "ssim": "pytorch-msssim single-scale SSIM, 11 px Gaussian window, data range 1",
             "ms_ssim": "pytorch-msssim MS-SSIM, 5 scales, 11 px window, data range 1 (None below 161 px)",
@@ -261,6 +250,90 @@ def render_eval(episode_dir: str | Path, gaussians_path: str | Path | None = Non
     draw_render_grid(out / "render_grid.png", grid, cfg.grid_depth_max_cm,
                      title=f"{result['scene']}: {gaussians_path.parent.name}/{gaussians_path.name}")
     return result
+
+
+@dataclass
+class _Setup:
+    """Where the views and their ground truth come from: the simulator (an exploration episode) or the
+    held-out frames of a recording."""
+
+    name: str
+    width: int
+    height: int
+    K: np.ndarray
+    hfov_deg: float
+    poses: dict
+    steps: np.ndarray
+    ground_truth: Callable
+    train_text: str
+    test_text: str
+
+
+def _read_meta(episode_dir: Path) -> dict:
+    import json
+
+    try:
+        meta = json.loads((episode_dir / "episode.json").read_text())
+    except (OSError, ValueError) as exc:
+        raise EpisodeError(f"{episode_dir / 'episode.json'} is unreadable: {exc}") from None
+    if not isinstance(meta, dict):
+        raise EpisodeError(f"{episode_dir / 'episode.json'} is not an episode description")
+    return meta
+
+
+def _simulated_setup(episode_dir: Path, cfg: RenderEvalConfig) -> _Setup:
+    """Train views on the trajectory, test views at random free-space poses, both rendered by the
+    simulator."""
+    from activesplat.eval.evaluate import _sim_config
+    from activesplat.geometry import intrinsics
+    from activesplat.sim import Simulator, load_scene
+
+    episode = read_episode(episode_dir)
+    meta = episode.meta
+    if "scene" not in meta:
+        raise EpisodeError(f"{episode_dir}/episode.json names no scene")
+    sim_config = _sim_config(meta)
+    scene = load_scene(meta["scene"], z_up=bool(meta.get("z_up", False)), floor=meta.get("floor"))
+    sim = Simulator(scene, start=episode.start_pose, config=sim_config)
+    width, height = sim.width, sim.height
+    steps = train_indices(len(episode.poses), cfg.n_train)
+    poses = {"train": episode.poses[steps],
+             "test": sample_test_poses(sim, cfg.n_test, cfg.seed, cfg.test_pitch_deg)}
+    return _Setup(
+        meta.get("scene_name", meta["scene"]), width, height, intrinsics(width, height, sim_config.hfov_deg),
+        sim_config.hfov_deg, poses, steps, lambda split, i, pose: sim.render(pose, width, height),
+        f"{len(steps)} observations uniformly spread over poses.txt (reset included)",
+        f"{cfg.n_test} seeded random navigable positions, sensor height {sim_config.sensor_height} m, random "
+        f"yaw, pitch {cfg.test_pitch_deg} deg")
+
+
+HELDOUT_FILE = "heldout.npz"
+"""Frames of a recording kept out of its map (`activesplat map`): the ground truth of its train split."""
+
+
+def _recorded_setup(episode_dir: Path, meta: dict, cfg: RenderEvalConfig) -> _Setup:
+    """A map of a recording (`activesplat map`): the train split is up to ``n_train`` of the held-out
+    recorded frames (spread uniformly), their recorded RGB-D the ground truth. There is no scene mesh, so no
+    test split (0 views)."""
+    path = episode_dir / HELDOUT_FILE
+    if not path.is_file():
+        raise EpisodeError(f"{episode_dir}: a recorded map without {HELDOUT_FILE} (map it again with "
+                           f"--holdout-every N)")
+    with np.load(path) as data:
+        rgb, depth, pose, index = data["rgb"], data["depth"], data["pose"], data["index"]
+    if len(index) == 0:
+        raise EpisodeError(f"{path}: no held-out frames to evaluate on (map with --holdout-every N > 0)")
+    K = np.asarray(meta["K"], dtype=np.float64)
+    width, height = int(meta["width"]), int(meta["height"])
+    pick = train_indices(len(index), cfg.n_train)
+    return _Setup(
+        Path(str(meta.get("recording", episode_dir))).name, width, height, K,
+        math.degrees(2.0 * math.atan(width / (2.0 * K[0, 0]))),
+        {"train": pose[pick], "test": np.zeros((0, 4, 4))}, index[pick],
+        lambda split, i, p: (rgb[pick[i]], depth[pick[i]]),
+        f"{len(pick)} recorded frames held out of the map (every {meta.get('holdout_every')}-th frame), "
+        f"spread uniformly",
+        "none: a recording has no scene mesh to render random free-space views from")
 
 
 def _name_of(fn) -> str:

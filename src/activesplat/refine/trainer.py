@@ -456,7 +456,7 @@ def format_metrics(metrics: dict) -> str:
     lines = []
     for split in ("train", "test"):
         m = metrics.get(split)
-        if not m:
+        if not m or m.get("psnr") is None:  # no views (a recorded map has no test split)
             continue
         parts = [f"PSNR {m['psnr']:.2f} dB", f"SSIM {m['ssim']:.3f}"]
         if m.get("lpips") is not None:

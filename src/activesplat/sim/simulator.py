@@ -12,12 +12,11 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from activesplat.env import ACTIONS, Observation
 from activesplat.errors import InvalidActionError, InvalidInputError
 from activesplat.geometry import camera_pose, intrinsics
 from activesplat.sim.config import SimConfig
 from activesplat.sim.scene import Scene
-
-ACTIONS = ("move_forward", "turn_left", "turn_right", "look_up", "look_down", "stop")
 
 
 @dataclass(frozen=True)
@@ -27,17 +26,6 @@ class AgentState:
     position: np.ndarray
     yaw: float
     pitch: float
-
-
-@dataclass
-class Observation:
-    """One posed RGB-D frame. depth: z-depth in metres, 0 where nothing within max_depth."""
-
-    rgb: np.ndarray
-    depth: np.ndarray
-    pose: np.ndarray
-    step: int
-    collided: bool = False
 
 
 def state_from_pose(pose: np.ndarray, floor_height: float) -> AgentState:
@@ -53,9 +41,10 @@ def state_from_pose(pose: np.ndarray, floor_height: float) -> AgentState:
 
 
 class Simulator:
-    """Habitat-protocol agent in a Scene. `reset()` returns to the start (seeded random navigable
-    point of the largest free component with random yaw, unless `start` is given as a 4x4 camera
-    pose); every `step(action)` costs one step, blocked moves and pitch-limit no-ops included."""
+    """Habitat-protocol agent in a Scene, an `activesplat.env.Environment`. `reset()` returns to the start
+    (seeded random navigable point of the largest free component with random yaw, unless `start` is given
+    as a 4x4 camera pose); every `step(action)` costs one step, blocked moves and pitch-limit no-ops
+    included."""
 
     def __init__(self, scene: Scene, seed: int = 0, start: np.ndarray | None = None,
                  config: SimConfig | None = None):

@@ -1,0 +1,256 @@
+"""`activesplat map RECORDING`: a recorded walk-through (ROS bag, MCAP, TUM RGB-D folder) into a map folder
+in the episode layout, readable by ``render-eval``, ``refine`` and ``view``-like tools.
+
+Every frame goes through the same online mapper the explorer uses (``Mapper.add_frame``, the regular
+schedule), in time order, except every ``holdout_every``-th frame, which is kept out of the map and
+saved as ground truth (``heldout.npz``): ``render-eval`` scores the map on those held-out recorded views
+(its *train* split, views near the trajectory). Without a scene mesh there are no random free-space views,
+so a recorded map has no test split.
+
+World frame: the map's world is the pose source's world turned by one fixed rotation so that its up axis
+becomes +y (the project's convention, docs/protocol.md §8; the top-down workspace slices along y). ROS
+worlds are z-up (REP 103): ``world_up="z"`` maps (x, y, z) to (x, z, -y). ``world_up="y"`` keeps the
+frame as it is. The rotation is recorded in ``episode.json`` (``world_from_source``); ``poses.txt`` and
+the map are in the rotated frame, ``trajectory_tum.txt`` in the source frame.
+
+Folder (written to ``OUT.partial`` and renamed to ``OUT`` only when complete, so a failure never leaves a
+folder that looks finished): ``episode.json`` (``"source": "recording"``, topics, intrinsics, frame counts),
+``poses.txt`` (every frame's camera-to-world in the map frame, the first column the frame index),
+``trajectory_tum.txt`` (stamp tx ty tz qx qy qz qw, source frame), ``gaussians.ply``, ``keyframes.npz``,
+``mapper.json``, ``heldout.npz`` (rgb, depth, pose, index), ``topdown.png``, ``metrics.json`` (timing).
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import sys
+import time
+import warnings
+from dataclasses import asdict
+from pathlib import Path
+
+import numpy as np
+
+from activesplat.episode import write_json_atomic
+from activesplat.errors import EpisodeError, InvalidInputError
+from activesplat.eval.render_eval import HELDOUT_FILE
+from activesplat.robot.recording import Recording, matrix_tq
+
+WORLD_UP = {"y": np.eye(4), "z": np.array([[1.0, 0, 0, 0], [0, 0, 1, 0], [0, -1, 0, 0], [0, 0, 0, 1]])}
+"""map_T_source per up axis of the source world: z-up (x, y, z) -> (x, z, -y), a proper rotation."""
+
+
+def _prepare_out(out: Path, overwrite: bool) -> Path:
+    if out.exists():
+        if not out.is_dir():
+            raise EpisodeError(f"output path {out} exists and is not a folder")
+        if any(out.iterdir()):
+            if not overwrite:
+                raise EpisodeError(f"{out} exists and is not empty; pass --overwrite to replace it")
+            if not (out / "episode.json").is_file():
+                raise EpisodeError(f"{out} is not a map or episode folder; refusing to replace it")
+    tmp = out.with_name(out.name + ".partial")
+    if tmp.exists():
+        shutil.rmtree(tmp)
+    tmp.mkdir(parents=True)
+    return tmp
+
+
+def map_recording(
+    rec: Recording,
+    out: str | Path,
+    holdout_every: int = 8,
+    world_up: str = "z",
+    mapper_config=None,
+    workspace_config=None,
+    backend: str | None = None,
+    stride: int = 1,
+    overwrite: bool = False,
+    progress: bool = True,
+    floor_height: float | None = None,
+) -> dict:
+    """Map a scanned recording into the folder ``out`` (module docstring); returns metrics.json's content."""
+    import torch
+
+    from activesplat.splat import Mapper
+
+    if world_up not in WORLD_UP:
+        raise InvalidInputError(f"--world-up must be one of {', '.join(WORLD_UP)}, got {world_up!r}")
+    if holdout_every < 0 or holdout_every == 1 or stride < 1:
+        raise InvalidInputError(
+            f"--holdout-every must be 0 (none) or >= 2 and --stride >= 1, got {holdout_every} and {stride}"
+        )
+    out = Path(out)
+    tmp = _prepare_out(out, overwrite)
+    try:
+        W = WORLD_UP[world_up]
+        poses = np.einsum("ij,njk->nik", W, rec.poses)
+        torch.manual_seed(0)
+        mapper = Mapper(rec.K, rec.width, rec.height, config=mapper_config, backend=backend)
+        held = {"rgb": [], "depth": [], "pose": [], "index": []}
+        used, mapper_ms = [], 0.0
+        bar = _progress(len(rec), progress)
+        t0 = time.perf_counter()
+        for k, rgb, depth in rec.frames():
+            if bar is not None:
+                bar.update(1)
+            if k % stride:
+                continue
+            if holdout_every and k % holdout_every == holdout_every - 1:
+                for name, v in (("rgb", rgb), ("depth", depth), ("pose", poses[k]), ("index", k)):
+                    held[name].append(v)
+                continue
+            t1 = time.perf_counter()
+            mapper.add_frame(rgb, depth, poses[k])
+            mapper_ms += 1000.0 * (time.perf_counter() - t1)
+            used.append(k)
+        wall = time.perf_counter() - t0
+        if bar is not None:
+            bar.close()
+        if not used:
+            raise InvalidInputError(
+                f"{rec.path}: no frame left to map (stride {stride}, holdout {holdout_every})"
+            )
+        mapper.save(tmp)
+        h, w = rec.height, rec.width
+        np.savez_compressed(
+            tmp / HELDOUT_FILE,
+            rgb=np.stack(held["rgb"]) if held["rgb"] else np.zeros((0, h, w, 3), np.uint8),
+            depth=np.stack(held["depth"]) if held["depth"] else np.zeros((0, h, w), np.float32),
+            pose=np.stack(held["pose"]) if held["pose"] else np.zeros((0, 4, 4)),
+            index=np.asarray(held["index"], dtype=np.int64),
+        )
+        _write_trajectory(tmp, rec, poses)
+        floor = _floor_height(mapper, poses) if floor_height is None else float(floor_height)
+        topdown = _draw_topdown(tmp, mapper, poses[used], floor, workspace_config)
+        meta = {
+            "source": "recording",
+            "recording": str(rec.path),
+            "kind": rec.kind,
+            **rec.info,
+            "K": rec.K.tolist(),
+            "width": rec.width,
+            "height": rec.height,
+            "world_up": world_up,
+            "world_from_source": W.tolist(),
+            "start_pose": poses[used[0]].tolist(),
+            "floor_height": floor,
+            "frames": len(rec),
+            "mapped_frames": len(used),
+            "heldout_frames": len(held["index"]),
+            "holdout_every": holdout_every,
+            "stride": stride,
+            "backend": mapper.backend,
+            "config": {"mapper": asdict(mapper.config)},
+        }
+        write_json_atomic(tmp / "episode.json", meta)
+        metrics = {
+            "frames": len(rec),
+            "mapped_frames": len(used),
+            "heldout_frames": len(held["index"]),
+            "n_gaussians": len(mapper.gaussians),
+            "wall_time_s": wall,
+            "ms_per_frame": 1000.0 * wall / max(len(used), 1),
+            "mapper_ms_per_frame": mapper_ms / max(len(used), 1),
+            "topdown": topdown,
+        }
+        write_json_atomic(tmp / "metrics.json", metrics)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    if out.exists():
+        shutil.rmtree(out)
+    tmp.rename(out)
+    return metrics
+
+
+def _write_trajectory(folder: Path, rec: Recording, poses: np.ndarray) -> None:
+    lines = [f"{i} " + " ".join(f"{v:.9g}" for v in p.reshape(16)) for i, p in enumerate(poses)]
+    (folder / "poses.txt").write_text("\n".join(lines) + "\n")
+    tum = ["# timestamp tx ty tz qx qy qz qw (camera optical frame in the pose source's world)"]
+    for stamp, T in zip(rec.stamps, rec.poses, strict=True):
+        t, q = matrix_tq(T)
+        tum.append(f"{stamp / 1e9:.9f} " + " ".join(f"{v:.9g}" for v in (*t, *q)))
+    (folder / "trajectory_tum.txt").write_text("\n".join(tum) + "\n")
+
+
+def _floor_height(mapper, poses: np.ndarray) -> float:
+    """The floor: the 2nd percentile of the map's heights (y), never above the lowest camera."""
+    means = mapper.gaussians.means.detach().cpu().numpy()
+    low = float(poses[:, 1, 3].min())
+    if len(means) == 0:
+        return low - 1.25
+    return min(float(np.percentile(means[:, 1], 2.0)), low - 0.1)
+
+
+def _draw_topdown(folder: Path, mapper, poses: np.ndarray, floor: float, wcfg) -> str | None:
+    """topdown.png of the map with the trajectory; the reason as a string when it cannot be drawn."""
+    from activesplat.planning.controller import floor_xz
+    from activesplat.workspace.config import WorkspaceConfig
+    from activesplat.workspace.draw import draw_topdown
+    from activesplat.workspace.plan import build_plan
+
+    if len(mapper.gaussians) == 0:
+        return "empty map"
+    traj = np.array([floor_xz(p) for p in poses])
+    try:
+        plan = build_plan(mapper.gaussians, floor, traj[-1], wcfg or WorkspaceConfig())
+        draw_topdown(
+            folder / "topdown.png",
+            plan.grids,
+            plan.workspace,
+            plan.graph,
+            trajectory=traj,
+            title="recorded map: workspace, Voronoi graph, trajectory",
+        )
+    except Exception as exc:  # a map the workspace cannot polish (e.g. too small): keep the map, say why
+        warnings.warn(f"topdown.png not drawn: {exc}", stacklevel=2)
+        return f"not drawn: {exc}"
+    return "topdown.png"
+
+
+def _progress(total: int, enabled: bool):
+    if not enabled:
+        return None
+    from tqdm import tqdm
+
+    return tqdm(total=total, desc="map", unit="frame", dynamic_ncols=True, file=sys.stderr, mininterval=0.5)
+
+
+def map_from_args(args) -> int:
+    """The ``map`` command."""
+    from activesplat.robot.recording import open_recording
+
+    rec = open_recording(
+        args.recording,
+        args.rgb_topic,
+        args.depth_topic,
+        args.camera_info_topic,
+        args.pose_source,
+        camera_in_body=args.camera_in_body,
+        intrinsics=args.intrinsics,
+        depth_scale=args.depth_scale,
+        max_dt=args.max_dt,
+        max_pose_gap=args.max_pose_gap,
+        skip_unposed=args.skip_unposed,
+    )
+    out = Path(args.out) if args.out else Path("runs") / (Path(args.recording).stem + "-map")
+    m = map_recording(
+        rec,
+        out,
+        holdout_every=args.holdout_every,
+        world_up=args.world_up,
+        backend=args.backend,
+        stride=args.stride,
+        overwrite=args.overwrite,
+        progress=not args.no_progress,
+    )
+    print(
+        f"mapped {m['mapped_frames']} of {m['frames']} frames "
+        f"({m['heldout_frames']} held out for render-eval), "
+        f"{rec.width}x{rec.height}, {m['n_gaussians']} Gaussians, {m['ms_per_frame']:.0f} ms/frame "
+        f"(mapper {m['mapper_ms_per_frame']:.0f}) -> {out}"
+    )
+    print(json.dumps({k: rec.info[k] for k in ("pose_source", "unpaired_colour", "unposed_dropped")}))
+    return 0

@@ -1,0 +1,212 @@
+"""`activesplat map`: recordings written from our simulator's frames (ROS 1 / ROS 2 / MCAP bags, a TUM
+folder) map to the same map as the same frames given to the mapper directly; bad input is one line."""
+
+import json
+import shutil
+
+import numpy as np
+import pytest
+import torch
+
+pytest.importorskip("rosbags")
+
+from _bags import ARGS, sim_frames, write_bag, write_tum  # noqa: E402
+
+from activesplat.cli import main  # noqa: E402
+from activesplat.robot.mapping import WORLD_UP  # noqa: E402
+from activesplat.robot.recording import open_recording  # noqa: E402
+from activesplat.splat import Mapper  # noqa: E402
+from activesplat.splat.ply import load_ply  # noqa: E402
+
+N = 10
+HOLDOUT = 4
+
+
+@pytest.fixture(scope="module")
+def frames():
+    return sim_frames(N, 32)
+
+
+@pytest.fixture(scope="module")
+def direct_map(frames, tmp_path_factory):
+    """The online mapper fed the same (non-held-out) frames directly, as the explorer feeds it."""
+    K, fr = frames
+    torch.manual_seed(0)
+    mapper = Mapper(K, 32, 32, backend="numba")
+    for k, (rgb, depth, pose) in enumerate(fr):
+        if k % HOLDOUT != HOLDOUT - 1:
+            mapper.add_frame(rgb, depth, pose)
+    return mapper
+
+
+def _render(gmap, pose, K):
+    from activesplat.eval.render_eval import render_gaussians_view
+
+    return render_gaussians_view(gmap, pose, K, 32, 32, "numba")
+
+
+def _same_map(folder, direct, K, fr, rgb_tol=1e-4):
+    gmap = load_ply(folder / "gaussians.ply")
+    assert abs(len(gmap) - len(direct.gaussians)) <= max(2, len(direct.gaussians) // 100)
+    for _, _, pose in fr[::3]:
+        a = _render(gmap, pose, K)
+        b = _render(direct.gaussians, pose, K)
+        assert np.abs(a[0] - b[0]).mean() < rgb_tol
+        assert np.abs(a[1] - b[1]).mean() < 10 * rgb_tol
+
+
+def _map(bag, out, *options):
+    argv = ["map", str(bag), *ARGS, "--pose-source", "/camera_pose", "--out", str(out), "--backend", "numba"]
+    return main([*argv, "--no-progress", *options])
+
+
+@pytest.mark.parametrize("fmt", ["mcap", "ros1"])
+def test_bag_maps_like_the_online_mapper(fmt, frames, direct_map, tmp_path, capsys):
+    K, fr = frames
+    bag = write_bag(tmp_path / ("rec.bag" if fmt == "ros1" else "rec"), K, fr, fmt=fmt)
+    if fmt == "mcap":  # a bare .mcap file, as ROS 2 records it
+        bag = next(bag.glob("*.mcap"))
+    out = tmp_path / "map"
+    assert _map(bag, out, "--holdout-every", str(HOLDOUT)) == 0
+    assert "mapped 8 of 10 frames (2 held out" in capsys.readouterr().out
+    for name in (
+        "gaussians.ply",
+        "keyframes.npz",
+        "mapper.json",
+        "topdown.png",
+        "poses.txt",
+        "trajectory_tum.txt",
+        "heldout.npz",
+        "episode.json",
+        "metrics.json",
+    ):
+        assert (out / name).is_file(), name
+    assert not (tmp_path / "map.partial").exists()
+    meta = json.loads((out / "episode.json").read_text())
+    assert meta["source"] == "recording" and meta["mapped_frames"] == 8
+    poses = np.loadtxt(out / "poses.txt")[:, 1:].reshape(-1, 4, 4)
+    np.testing.assert_allclose(poses, np.stack([p for _, _, p in fr]), atol=1e-9)
+    _same_map(out, direct_map, K, fr)
+
+
+def test_tum_folder_and_tf_poses_and_16bit_depth(frames, direct_map, tmp_path):
+    K, fr = frames
+    tum = write_tum(tmp_path / "tum", K, fr)
+    rec = open_recording(tum, intrinsics=[K[0, 0], K[1, 1], K[0, 2], K[1, 2]])
+    assert len(rec) == N
+    np.testing.assert_allclose(
+        np.einsum("ij,njk->nik", WORLD_UP["z"], rec.poses), [p for _, _, p in fr], atol=1e-9
+    )
+    bag = write_bag(
+        tmp_path / "tf", K, fr, fmt="ros2", pose="tf", depth_encoding="16UC1", rgb_encoding="bgr8"
+    )
+    rec = open_recording(bag, *ARGS[1::2], pose_source="tf:map")
+    np.testing.assert_allclose(
+        np.einsum("ij,njk->nik", WORLD_UP["z"], rec.poses), [p for _, _, p in fr], atol=1e-9
+    )
+    for k, rgb, depth in rec.frames():  # mm depth: within half a millimetre; bgr8 back to rgb
+        assert np.array_equal(rgb, fr[k][0])
+        assert np.abs(depth - fr[k][1]).max() <= 5.01e-4
+    bag = write_bag(tmp_path / "png", K, fr[:3], fmt="mcap", rgb_encoding="png")
+    rec = open_recording(bag, *ARGS[1::2], pose_source="/camera_pose")
+    assert all(np.array_equal(rgb, fr[k][0]) for k, rgb, _ in rec.frames())
+
+
+def test_odometry_of_the_base_and_the_static_camera_mount(frames, tmp_path):
+    K, fr = frames
+    bag = write_bag(tmp_path / "odom", K, fr[:4], fmt="mcap", pose="odom")
+    rec = open_recording(bag, *ARGS[1::2], pose_source="/odom")
+    want = [p for _, _, p in fr[:4]]
+    np.testing.assert_allclose(np.einsum("ij,njk->nik", WORLD_UP["z"], rec.poses), want, atol=1e-9)
+
+
+def test_render_eval_and_refine_accept_a_recorded_map(frames, tmp_path, capsys):
+    K, fr = frames
+    bag = write_bag(tmp_path / "rec", K, fr, fmt="mcap")
+    out = tmp_path / "map"
+    assert _map(bag, out, "--holdout-every", "3") == 0
+    assert main(["render-eval", str(out), "--backend", "numba", "--no-progress"]) == 0
+    m = json.loads((out / "render_metrics.json").read_text())
+    assert m["train"]["n_views"] == 3 and m["test"]["n_views"] == 0
+    assert m["train"]["psnr"] > 10 and [v["step"] for v in m["train"]["views"]] == [2, 5, 8]
+    assert main(["refine", str(out), "--iters", "3", "--backend", "numba", "--no-progress"]) == 0
+    assert (out / "refined_3dgs" / "render_metrics.json").is_file()
+    capsys.readouterr()
+
+
+def _err(capsys, argv):
+    code = main(argv)
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and err.startswith("activesplat: error: ") and "\n" not in err, err
+    return err
+
+
+def test_bad_recordings_fail_in_one_line_and_write_nothing(frames, tmp_path, capsys):
+    K, fr = frames
+    fr = fr[:4]
+    out = tmp_path / "out"
+    base = ["--pose-source", "/camera_pose", "--out", str(out), "--no-progress", "--backend", "numba"]
+
+    bag = write_bag(tmp_path / "nodepth", K, fr, skip_topic="/camera/depth/image_raw")
+    assert "--depth-topic /camera/depth/image_raw: no such topic" in _err(
+        capsys, ["map", str(bag), *ARGS, *base]
+    )
+
+    bag = write_bag(tmp_path / "enc", K, fr, fmt="ros2", rgb_encoding="rgb8", depth_encoding="16UC1")
+    bad = ["--rgb-topic", "/camera/depth/image_raw", *ARGS[2:]]  # a 16UC1 image as colour
+    assert "/camera/depth/image_raw: message 0: unsupported colour encoding '16UC1'" in _err(
+        capsys, ["map", str(bag), *bad, *base]
+    )
+
+    bag = write_bag(tmp_path / "nopose", K, fr, drop_pose_after=2)
+    err = _err(capsys, ["map", str(bag), *ARGS, *base])
+    assert "/camera/color/image_raw: message 2" in err and "no pose from /camera_pose" in err
+
+    stamps = [0, 1, 3, 2]
+    bag = write_bag(tmp_path / "back", K, fr, stamps=[10**18 + s * 10**8 for s in stamps])
+    err = _err(capsys, ["map", str(bag), *ARGS, *base])
+    assert "message 3" in err and "non-monotonic" in err
+
+    bag = write_bag(tmp_path / "trunc.bag", K, fr, fmt="ros1")
+    data = bag.read_bytes()
+    bag.write_bytes(data[: len(data) * 2 // 3])
+    assert "truncated or corrupt" in _err(capsys, ["map", str(bag), *ARGS, *base])
+    mcap = next(write_bag(tmp_path / "trunc", K, fr).glob("*.mcap"))
+    mcap.write_bytes(mcap.read_bytes()[: mcap.stat().st_size * 2 // 3])
+    assert "truncated or corrupt" in _err(capsys, ["map", str(mcap), *ARGS, *base])
+
+    assert "--pose-source /odom: no such topic" in _err(
+        capsys, ["map", str(bag.parent / "nopose"), *ARGS, *base[2:], "--pose-source", "/odom"]
+    )
+    assert not out.exists() and not (tmp_path / "out.partial").exists()
+
+
+def test_an_existing_map_needs_overwrite(frames, tmp_path, capsys):
+    K, fr = frames
+    bag = write_bag(tmp_path / "rec", K, fr[:3])
+    out = tmp_path / "map"
+    argv = [
+        "map",
+        str(bag),
+        *ARGS,
+        "--pose-source",
+        "/camera_pose",
+        "--holdout-every",
+        "0",
+        "--out",
+        str(out),
+        "--no-progress",
+        "--backend",
+        "numba",
+    ]
+    assert main(argv) == 0
+    assert "pass --overwrite" in _err(capsys, argv)
+    assert main([*argv, "--overwrite"]) == 0
+    shutil.rmtree(out)
+
+
+def test_commands_that_need_a_simulated_episode_say_so(frames, tmp_path, capsys):
+    K, fr = frames
+    bag = write_bag(tmp_path / "rec", K, fr[:3])
+    assert _map(bag, tmp_path / "map", "--holdout-every", "0") == 0
+    assert "is a map of a recording" in _err(capsys, ["evaluate", str(tmp_path / "map")])
