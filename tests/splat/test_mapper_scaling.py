@@ -7,7 +7,7 @@ from _synthetic import intrinsics, observe, pose
 
 from activesplat.splat import GaussianMap, Mapper, MapperConfig
 from activesplat.splat.config import LearningRates, Schedule
-from activesplat.splat.gaussians import PARAM_NAMES, activate, frustum_rows
+from activesplat.splat.gaussians import PARAM_NAMES, _frustum_rows_torch, activate, frustum_rows
 from activesplat.splat.optim import RowAdam
 from activesplat.splat.rasterize import rasterize
 
@@ -29,6 +29,8 @@ def test_frustum_rows_render_exactly_the_whole_map():
     K = intrinsics(S)
     for cam in (pose(), pose(yaw_deg=70.0), pose(tx=1.0, ty=-0.5, yaw_deg=-120.0)):
         rows = frustum_rows(gmap.params["means"], gmap.params["log_scales"], cam, K, S, S)
+        assert torch.equal(rows, _frustum_rows_torch(gmap.params["means"], gmap.params["log_scales"], cam,
+                                                     K, S, S, None, 0.1, 8))  # numba kernel = torch
         assert 0 < len(rows) < len(gmap)  # culls something, keeps something
         viewmat = torch.from_numpy(np.linalg.inv(cam).astype(np.float32))
         Kt = torch.from_numpy(K.astype(np.float32))
@@ -67,6 +69,7 @@ def test_occlusion_culling_drops_only_what_the_observed_surface_hides():
     depth[:, : S // 2] = 0.0  # unknown on the left: nothing is hidden there
     depth[:8, S // 2:] = 3.5  # a window in the wall at the top right
     kept = frustum_rows(p["means"], p["log_scales"], cam, K, S, S, depth, 0.1, 8)
+    assert torch.equal(kept, _frustum_rows_torch(p["means"], p["log_scales"], cam, K, S, S, depth, 0.1, 8))
     kept_behind = means[kept[kept >= n]]
     assert (kept_behind[:, 0] < 0).sum() > 0.9 * (means[frustum[frustum >= n]][:, 0] < 0).sum()
     assert ((kept_behind[:, 0] > 0.5) & (kept_behind[:, 1] < -1.5)).any()  # seen through the window

@@ -207,6 +207,30 @@ def frustum_rows(means: torch.Tensor, log_scales: torch.Tensor, pose, K, width: 
     view of a corridor from paying for every room behind its walls."""
     from activesplat.splat.raster.constants import RASTER
 
+    if means.device.type == "cpu":
+        from activesplat.splat._mapper_numba import cull_rows
+
+        pose = np.asarray(pose, dtype=np.float64)
+        far = np.zeros((1, 1), np.float32)
+        if depth is not None:
+            far = _window_max(torch.where(depth > 0, depth, torch.full_like(depth, float("inf"))),
+                              occlusion_window_px).numpy()
+        fx, fy, cx, cy = float(K[0, 0]), float(K[1, 1]), float(K[0, 2]), float(K[1, 2])
+        keep = cull_rows(means.detach().numpy(), log_scales.detach().numpy(), pose[:3, :3].copy(),
+                         pose[:3, 3].copy(), fx, fy, cx, cy, width, height, RASTER.near,
+                         (1.0 + RASTER.fov_clamp) * max(cx, width - cx) / fx,
+                         (1.0 + RASTER.fov_clamp) * max(cy, height - cy) / fy, RASTER.extent_sigmas,
+                         RASTER.low_pass, far, occlusion_window_px, occlusion_margin_m, depth is not None)
+        return torch.from_numpy(np.flatnonzero(keep))
+    return _frustum_rows_torch(means, log_scales, pose, K, width, height, depth, occlusion_margin_m,
+                               occlusion_window_px)
+
+
+def _frustum_rows_torch(means, log_scales, pose, K, width, height, depth, occlusion_margin_m,
+                        occlusion_window_px) -> torch.Tensor:
+    """:func:`frustum_rows` in torch (any device; the CPU uses the numba kernel)."""
+    from activesplat.splat.raster.constants import RASTER
+
     with torch.no_grad():
         pose = np.asarray(pose, dtype=np.float64)
         rot = torch.from_numpy(pose[:3, :3].astype(np.float32)).to(means.device)

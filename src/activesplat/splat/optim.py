@@ -14,6 +14,7 @@ the release, which keeps one torch Adam over the whole map (see ``MapperConfig.s
 
 from __future__ import annotations
 
+import numpy as np
 import torch
 
 from activesplat.splat.config import LearningRates
@@ -67,6 +68,9 @@ class RowAdam:
             return
         steps = self.steps[rows] + 1
         self.steps[rows] = steps
+        if rows.device.type == "cpu":
+            self._step_numba(rows, grads, steps)
+            return
         t = steps.to(torch.float32)
         bias1 = 1.0 - torch.pow(torch.tensor(self.beta1, device=t.device), t)
         bias2_sqrt = torch.sqrt(1.0 - torch.pow(torch.tensor(self.beta2, device=t.device), t))
@@ -81,3 +85,21 @@ class RowAdam:
             update = (m / bias1.view(shape)).div_(denom).mul_(self.rates[name])
             param = self.gmap.params[name]
             param.data[rows] = param.data[rows] - update
+
+    def _step_numba(self, rows: torch.Tensor, grads: dict[str, torch.Tensor], steps: torch.Tensor) -> None:
+        """The same update in one parallel pass per parameter, in place (CPU)."""
+        from activesplat.splat._mapper_numba import adam_rows
+
+        t = steps.numpy().astype(np.float64)
+        bias1 = 1.0 - np.power(self.beta1, t)
+        bias2_sqrt = np.sqrt(1.0 - np.power(self.beta2, t))
+        idx = rows.numpy().astype(np.int64)
+        for name in PARAM_NAMES:
+            def flat(x: torch.Tensor) -> np.ndarray:
+                a = x.detach().numpy()
+                return a.reshape(a.shape[0], -1)
+
+            param = self.gmap.params[name]
+            adam_rows(flat(param), flat(self.exp_avg[name]), flat(self.exp_avg_sq[name]),
+                      np.ascontiguousarray(flat(grads[name]), dtype=np.float32), idx,
+                      self.rates[name] / bias1, bias2_sqrt, self.beta1, self.beta2, self.eps)
