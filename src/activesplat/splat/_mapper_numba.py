@@ -58,3 +58,28 @@ def adam_rows(param, exp_avg, exp_avg_sq, grad, rows, step_size, bias2_sqrt, bet
             exp_avg[i, d] = m
             exp_avg_sq[i, d] = v
             param[i, d] -= step_size[k] * m / (math.sqrt(v) / bias2_sqrt[k] + eps)
+
+
+@njit(parallel=True, cache=True)
+def overlap_shares(points, rot, offset, fx, fy, cx, cy, width, height, border):
+    """(M,): for camera m (world -> camera p R_m - offset_m), the share of ``points`` (P,3) in front of
+    it and more than ``border`` px inside its image."""
+    m_count, p_count = rot.shape[0], points.shape[0]
+    share = np.zeros(m_count)
+    for m in prange(m_count):
+        inside = 0
+        for p in range(p_count):
+            x = points[p, 0] * rot[m, 0, 0] + points[p, 1] * rot[m, 1, 0] + points[p, 2] * rot[m, 2, 0]
+            y = points[p, 0] * rot[m, 0, 1] + points[p, 1] * rot[m, 1, 1] + points[p, 2] * rot[m, 2, 1]
+            z = points[p, 0] * rot[m, 0, 2] + points[p, 1] * rot[m, 1, 2] + points[p, 2] * rot[m, 2, 2]
+            x -= offset[m, 0]
+            y -= offset[m, 1]
+            z -= offset[m, 2]
+            if z <= 1e-6:
+                continue
+            u = fx * x / z + cx
+            v = fy * y / z + cy
+            if border < u < width - border and border < v < height - border:
+                inside += 1
+        share[m] = inside / p_count
+    return share

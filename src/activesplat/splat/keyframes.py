@@ -34,16 +34,12 @@ def overlap_fractions(points: np.ndarray, poses: np.ndarray, K: np.ndarray, widt
     poses = np.asarray(poses, dtype=np.float64).reshape(-1, 4, 4)
     if len(points) == 0 or len(poses) == 0:
         return np.zeros(len(poses))
-    rot = poses[:, :3, :3]  # world -> camera: R^T (p - t) = p R - t R, one BLAS call for all cameras
+    from activesplat.splat._mapper_numba import overlap_shares
+
+    rot = np.ascontiguousarray(poses[:, :3, :3])  # world -> camera: R^T (p - t) = p R - t R
     offset = np.einsum("mi,mij->mj", poses[:, :3, 3], rot)  # (M,3)
-    cam = (points @ rot.transpose(1, 0, 2).reshape(3, -1)).reshape(len(points), -1, 3).transpose(1, 0, 2)
-    cam = cam - offset[:, None, :]  # (M,P,3)
-    z = cam[..., 2]
-    safe_z = np.where(z > 1e-6, z, 1.0)
-    u = K[0, 0] * cam[..., 0] / safe_z + K[0, 2]
-    v = K[1, 1] * cam[..., 1] / safe_z + K[1, 2]
-    inside = (z > 1e-6) & (u > border) & (u < width - border) & (v > border) & (v < height - border)
-    return inside.mean(axis=1)
+    return overlap_shares(np.ascontiguousarray(points, dtype=np.float64), rot, offset, float(K[0, 0]),
+                          float(K[1, 1]), float(K[0, 2]), float(K[1, 2]), width, height, border)
 
 
 def overlap_fraction(points: np.ndarray, pose: np.ndarray, K: np.ndarray, width: int, height: int,
