@@ -95,11 +95,15 @@ class RowAdam:
         bias2_sqrt = np.sqrt(1.0 - np.power(self.beta2, t))
         idx = rows.numpy().astype(np.int64)
         for name in PARAM_NAMES:
-            def flat(x: torch.Tensor) -> np.ndarray:
-                a = x.detach().numpy()
-                return a.reshape(a.shape[0], -1)
-
             param = self.gmap.params[name]
-            adam_rows(flat(param), flat(self.exp_avg[name]), flat(self.exp_avg_sq[name]),
-                      np.ascontiguousarray(flat(grads[name]), dtype=np.float32), idx,
+            grad = np.ascontiguousarray(grads[name].detach().numpy().reshape(len(idx), -1), dtype=np.float32)
+            adam_rows(_flat(param), _flat(self.exp_avg[name]), _flat(self.exp_avg_sq[name]), grad, idx,
                       self.rates[name] / bias1, bias2_sqrt, self.beta1, self.beta2, self.eps)
+
+
+def _flat(x: torch.Tensor) -> np.ndarray:
+    """(N, D) numpy view of a CPU tensor's memory (an in-place update through it reaches the tensor)."""
+    a = x.detach().numpy()
+    if not a.flags.c_contiguous:  # a reshape would copy, and the in-place update would be lost
+        raise RuntimeError("RowAdam: a parameter or its Adam state is not contiguous")
+    return a.reshape(a.shape[0], -1)
