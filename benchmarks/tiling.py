@@ -1,4 +1,4 @@
-"""Tiling textures against the same textures baked at UVs in [0, 1] (issue 18): two glbs of one
+"""Tiling textures against the same textures baked at UVs in [0, 1]: two glbs of one
 furnished room, identical in geometry and (up to texel-edge rounding) in every sensor image, one
 sampling 64 px tiles with UVs from -2 to 10 under REPEAT / MIRRORED_REPEAT samplers, one with each
 surface's tiling baked into its own large texture (CLAMP_TO_EDGE, UVs in [0, 1]). Explores both with

@@ -1,4 +1,4 @@
-"""Materials as glTF defines them (issue 18): per-material textures and samplers (repeat, mirrored
+"""Materials as glTF defines them: per-material textures and samplers (repeat, mirrored
 repeat, clamp), two materials on one mesh, vertex colours times texture, node transforms, texture
 transforms; bad textures warn and fall back to the base colour; KTX2 gives a clear error.
 

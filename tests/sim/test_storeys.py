@@ -1,4 +1,4 @@
-"""Multi-storey meshes (issue 18): storeys found bottom to top, roofs recognised as open above,
+"""Multi-storey meshes: storeys found bottom to top, roofs recognised as open above,
 --floor by index or height, the navigability map, start and ground-truth surface of that storey only,
 and an error listing the storeys when the choice is ambiguous."""
 
