@@ -86,8 +86,9 @@ def episode_poses(episode_dir: Path, steps: int | None) -> tuple[Simulator, list
     return sim, list(episode.poses[: n + 1]), dense
 
 
-def psnr(mapper: Mapper, rgb: np.ndarray, pose: np.ndarray) -> float:
-    out = mapper.render(pose)
+def psnr(mapper: Mapper, rgb: np.ndarray, pose: np.ndarray, out=None) -> float:
+    """PSNR of the map's render at ``pose`` (or of the given render ``out``) against ``rgb``."""
+    out = mapper.render(pose) if out is None else out
     mse = float(np.mean((out.rgb.clamp(0, 1).numpy() - rgb.astype(np.float32) / 255.0) ** 2))
     return -10.0 * np.log10(max(mse, 1e-10))
 
@@ -99,7 +100,7 @@ def evaluate_keyframes(mapper: Mapper) -> dict[str, float]:
     rows: dict[str, list[float]] = defaultdict(list)
     for kf in mapper.keyframes:
         out = mapper.render(kf.pose)
-        rows["psnr"].append(psnr(mapper, kf.rgb, kf.pose))
+        rows["psnr"].append(psnr(mapper, kf.rgb, kf.pose, out))
         valid = kf.depth > 0
         error = out.depth.numpy()[valid] - kf.depth[valid]
         rows["depth_l1"].append(100.0 * float(np.abs(error).mean()))

@@ -213,13 +213,11 @@ def frustum_rows(means: torch.Tensor, log_scales: torch.Tensor, pose, K, width: 
         pose = np.asarray(pose, dtype=np.float64)
         far = np.zeros((1, 1), np.float32)
         if depth is not None:
-            far = _window_max(torch.where(depth > 0, depth, torch.full_like(depth, float("inf"))),
-                              occlusion_window_px).numpy()
+            far = _far_depth(depth, occlusion_window_px).numpy()
         fx, fy, cx, cy = float(K[0, 0]), float(K[1, 1]), float(K[0, 2]), float(K[1, 2])
         keep = cull_rows(means.detach().numpy(), log_scales.detach().numpy(), pose[:3, :3].copy(),
                          pose[:3, 3].copy(), fx, fy, cx, cy, width, height, RASTER.near,
-                         (1.0 + RASTER.fov_clamp) * max(cx, width - cx) / fx,
-                         (1.0 + RASTER.fov_clamp) * max(cy, height - cy) / fy, RASTER.extent_sigmas,
+                         *_jacobian_limits(K, width, height), RASTER.extent_sigmas,
                          RASTER.low_pass, far, occlusion_window_px, occlusion_margin_m, depth is not None)
         return torch.from_numpy(np.flatnonzero(keep))
     return _frustum_rows_torch(means, log_scales, pose, K, width, height, depth, occlusion_margin_m,
@@ -241,8 +239,7 @@ def _frustum_rows_torch(means, log_scales, pose, K, width, height, depth, occlus
         safe_z = torch.where(front, z, torch.ones_like(z))
         fx, fy, cx, cy = float(K[0, 0]), float(K[1, 1]), float(K[0, 2]), float(K[1, 2])
         x, y = cam[:, 0] / safe_z, cam[:, 1] / safe_z  # normalised image coordinates
-        lim_x = (1.0 + RASTER.fov_clamp) * max(cx, width - cx) / fx
-        lim_y = (1.0 + RASTER.fov_clamp) * max(cy, height - cy) / fy
+        lim_x, lim_y = _jacobian_limits(K, width, height)
         stretch = 1.0 + x.clamp(-lim_x, lim_x).square() + y.clamp(-lim_y, lim_y).square()
         s = torch.exp(log_scales.detach().max(dim=1).values) * max(fx, fy) / safe_z
         radius = RASTER.extent_sigmas * torch.sqrt(s.square() * stretch + RASTER.low_pass) + 1.0  # pixels
@@ -250,8 +247,7 @@ def _frustum_rows_torch(means, log_scales, pose, K, width, height, depth, occlus
         inside = front & (u + radius >= 0) & (u - radius <= width)
         inside &= (v + radius >= 0) & (v - radius <= height)
         if depth is not None:
-            far = _window_max(torch.where(depth > 0, depth, torch.full_like(depth, float("inf"))),
-                              occlusion_window_px)
+            far = _far_depth(depth, occlusion_window_px)
             ui, vi = u.clamp(-1, width).floor().long(), v.clamp(-1, height).floor().long()
             test = inside & (radius <= occlusion_window_px) & (ui >= 0) & (ui < width) & (vi >= 0)
             test &= vi < height
@@ -261,9 +257,19 @@ def _frustum_rows_torch(means, log_scales, pose, K, width, height, depth, occlus
         return torch.nonzero(inside, as_tuple=True)[0]
 
 
-def _window_max(image: torch.Tensor, r: int) -> torch.Tensor:
-    """Maximum over the (2r+1) x (2r+1) window around each pixel (within the image), separably."""
-    x = image[None, None]
+def _jacobian_limits(K, width: int, height: int) -> tuple[float, float]:
+    """The normalised image coordinates at which the rasterizer clamps its projection Jacobian."""
+    from activesplat.splat.raster.constants import RASTER
+
+    fx, fy, cx, cy = float(K[0, 0]), float(K[1, 1]), float(K[0, 2]), float(K[1, 2])
+    return ((1.0 + RASTER.fov_clamp) * max(cx, width - cx) / fx,
+            (1.0 + RASTER.fov_clamp) * max(cy, height - cy) / fy)
+
+
+def _far_depth(depth: torch.Tensor, r: int) -> torch.Tensor:
+    """The farthest observed depth within the (2r+1)^2 window around each pixel; inf where any pixel of
+    the window is invalid (unknown space hides nothing)."""
+    x = torch.where(depth > 0, depth, torch.full_like(depth, float("inf")))[None, None]
     x = torch.nn.functional.max_pool2d(x, (1, 2 * r + 1), stride=1, padding=(0, r))
     x = torch.nn.functional.max_pool2d(x, (2 * r + 1, 1), stride=1, padding=(r, 0))
     return x[0, 0]

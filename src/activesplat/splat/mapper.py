@@ -233,10 +233,12 @@ class Mapper:
         clock.lap("window")
         current = (obs_rgb, obs_depth, pose)
         views = [self._pick_view(i, window, current) for i in range(schedule.iterations)]
-        trained = [self._view_rows(pose, self.K, self.width, self.height, obs_depth)]
+        current_rows = self._view_rows(pose, self.K, self.width, self.height, obs_depth)
+        trained = [current_rows]  # the current view is pruned whether or not an iteration trains it
         losses = []
-        for view in views:
-            loss, rows = self._optimize_view(view)
+        for i, view in enumerate(views):  # before the first step, the current view's rows are those above
+            same = i == 0 and view is current and self.config.train_downscale == 1
+            loss, rows = self._optimize_view(view, current_rows if same else None)
             losses.append(loss)
             trained.append(rows)
         stats.loss = float(np.mean(losses)) if losses else None
@@ -310,17 +312,19 @@ class Mapper:
         rgb = torch.from_numpy(kf.rgb).to(self.device, torch.float32) / 255.0
         return rgb, torch.from_numpy(kf.depth).to(self.device), kf.pose
 
-    def _optimize_view(self, view) -> tuple[float, torch.Tensor]:
+    def _optimize_view(self, view, rows: torch.Tensor | None = None) -> tuple[float, torch.Tensor]:
         """One Adam iteration on one view (at 1/``train_downscale`` resolution), over the Gaussians in its
-        frustum only. Returns the loss and the rows that received a gradient (the ones the step moved).
-        A non-finite loss is skipped (the map stays as it was)."""
+        frustum only (``rows``, when the caller already has them for this map). Returns the loss and the
+        rows that received a gradient (the ones the step moved). A non-finite loss is skipped (the map
+        stays as it was)."""
         obs_rgb, obs_depth, pose = view
         d = self.config.train_downscale
         obs_rgb, obs_depth = downsample_observation(obs_rgb, obs_depth, d)
         K = self.K.copy()
         K[:2] /= d
         width, height = obs_depth.shape[1], obs_depth.shape[0]
-        rows = self._view_rows(pose, K, width, height, obs_depth)
+        if rows is None:
+            rows = self._view_rows(pose, K, width, height, obs_depth)
         raw = {name: t.requires_grad_(True) for name, t in self.gaussians.rows(rows).items()}
         out = self._render(pose, K, width, height, rows, raw)
         terms = mapping_loss(out.rgb, out.depth, obs_rgb, obs_depth, self.config)
