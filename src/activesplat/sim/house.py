@@ -56,6 +56,9 @@ class Room:
     kind: str = "room"
     wall: str = "wall_a"
     floor: str = "floor_wood"
+    name: str = ""
+    """The room this rectangle belongs to (set by make_layout): rectangles of one room share a name, so a
+    room need not be a rectangle. Per-room coverage and "rooms entered" are counted by name."""
 
     @property
     def area(self) -> float:
@@ -92,6 +95,28 @@ class House:
             if room.contains(x, z):
                 return room
         return None
+
+    @property
+    def room_names(self) -> list[str]:
+        """Distinct room names in layout order, corridors included."""
+        return list(dict.fromkeys(r.name for r in self.rooms))
+
+    @property
+    def corridor_names(self) -> list[str]:
+        return list(dict.fromkeys(r.name for r in self.rooms if r.kind == "corridor"))
+
+    def label_points(self, xz: np.ndarray, inset: float = 0.0) -> np.ndarray:
+        """Index into `room_names` of the room holding each (x, z) point, -1 outside every room (in a wall
+        or outside the house). `inset` shrinks every rectangle first (a point counts as inside a room only
+        `inset` metres past its walls)."""
+        xz = np.asarray(xz, np.float64).reshape(-1, 2)
+        names = self.room_names
+        out = np.full(len(xz), -1, np.int64)
+        for r in self.rooms:
+            inside = ((xz[:, 0] >= r.x0 + inset) & (xz[:, 0] <= r.x1 - inset)
+                      & (xz[:, 1] >= r.z0 + inset) & (xz[:, 1] <= r.z1 - inset) & (out < 0))
+            out[inside] = names.index(r.name)
+        return out
 
 
 # --------------------------------------------------------------------------- layout
@@ -405,7 +430,13 @@ def make_layout(name: str, seed: int, cfg: HouseConfig, furniture_seed: int = 0)
     rng = np.random.default_rng([seed, 0 if name.startswith("small") else 1])
     rooms = _small_layout(rng, cfg) if name.startswith("small") else _medium_layout(rng, cfg)
     rooms.sort(key=lambda r: (r.z0, r.x0))
+    n = 0
     for r in rooms:
+        if r.kind == "corridor":
+            r.name = "corridor"
+        else:
+            n += 1
+            r.name = f"room {n}"
         r.wall = str(rng.choice(WALL_MATERIALS))
         r.floor = "floor_tiles" if r.kind == "corridor" else str(rng.choice(FLOOR_MATERIALS))
     doors = _place_doors(rng, rooms, cfg)

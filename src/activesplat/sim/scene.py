@@ -42,16 +42,18 @@ _MAX_SECONDARY_AREA = 0.05
 
 class Scene:
     """A triangle mesh in the world frame (y up, metres) with its floor height, navigability map
-    and Embree sensor. `rooms` is the room count of built-in houses (None for user meshes)."""
+    and Embree sensor. `rooms` is the room count of built-in houses (None for user meshes); `house` their
+    plan (rooms by name, doors), None for user meshes."""
 
     def __init__(self, name: str, mesh: trimesh.Trimesh, floor_height: float, default_steps: int,
-                 rooms: int | None = None, surface: Surface | None = None):
+                 rooms: int | None = None, surface: Surface | None = None, house=None):
         self.name = name
         self.mesh = mesh
         self.surface = surface if surface is not None else surface_from_trimesh(mesh)
         self.floor_height = float(floor_height)
         self.default_steps = int(default_steps)
         self.rooms = rooms
+        self.house = house
         self.storeys: list[Storey] = [Storey(self.floor_height, 0.0)]
         self.surface_band: tuple[float, float] | None = None
         """(low, high) y of the faces that belong to this storey (None: all faces)."""
@@ -130,7 +132,7 @@ def build_house(name: str, config: HouseConfig | None = None) -> Scene:
     for attempt in range(_MAX_FURNITURE_TRIES):
         house = make_layout(f"{kind}-{seed}", seed, config, furniture_seed=attempt)
         mesh = house_mesh(house, seed, config, plain=plain)
-        scene = Scene(name, mesh, 0.0, DEFAULT_STEPS[kind], rooms=house.n_rooms)
+        scene = Scene(name, mesh, 0.0, DEFAULT_STEPS[kind], rooms=house.n_rooms, house=house)
         navmap = scene.navmap
         secondary = (navmap.grid & ~navmap.largest).sum() * navmap.resolution**2
         if secondary <= _MAX_SECONDARY_AREA:
