@@ -203,7 +203,8 @@ def test_benchmark_refuses_a_root_run_with_other_settings(capsys, tmp_path, monk
     config = RunConfig(scene="small-0", policy="fbe", steps=5, mapper=MapperConfig(pixel_stride=3))
     (out / "episode.json").write_text(json.dumps({"config": config.to_dict()}))
     (out / "metrics.json").write_text(json.dumps({"steps": 5}))
-    argv = ["benchmark", "--scenes", "small-0", "--policies", "fbe", "--steps", "5", "--root", str(tmp_path)]
+    argv = ["benchmark", "--scenes", "small-0", "--policies", "fbe", "--steps", "5", "--root", str(tmp_path),
+            "--no-ceiling"]
     code, _, err = _run(capsys, *argv, "--mapper.pixel-stride", "2")
     assert code == 2 and "was run with mapper.pixel_stride = 3 but this benchmark asks for 2" in err, err
     assert len(err.strip().splitlines()) == 1

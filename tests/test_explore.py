@@ -40,6 +40,18 @@ def test_episode_folder_is_complete(episode):
     assert set(TIMING_KEYS) <= set(saved["timing_ms"])
     assert saved["path_length_m"] == pytest.approx(0.065 * ep.actions.count("move_forward"))
     assert 0 < saved["completion_ratio_pct"] < 100
+    # multi-room measures: action shares, rooms of the built-in house, per-point coverage, trajectory figure
+    assert sum(saved["action_counts"].values()) == 90
+    turns = sum(a != "move_forward" for a in ep.actions)
+    assert saved["rotation_pct"] == pytest.approx(100 * turns / 90)
+    assert saved["rotation_causes"]["bootstrap"] == 72 and sum(saved["rotation_causes"].values()) == turns
+    assert saved["rooms_total"] == len(saved["rooms"]["completion"]) and saved["rooms_entered"] >= 1
+    n_points = sum(r["points"] for r in saved["rooms"]["completion"].values())
+    coverage = np.load(out / "coverage.npz")
+    completed = np.unpackbits(coverage["completed"])[: int(coverage["n"])]
+    assert int(coverage["n"]) == 4000 and n_points <= 4000
+    assert 100 * completed.mean() == pytest.approx(saved["completion_ratio_pct"])
+    assert (out / "trajectory.png").stat().st_size > 5000
     # poses are rigid transforms, camera 1.25 m above the floor
     R = ep.poses[:, :3, :3]
     assert np.allclose(R @ R.transpose(0, 2, 1), np.eye(3), atol=1e-6)

@@ -205,6 +205,9 @@ class BenchmarkCommand:
     """Local process pool or a Ray cluster (pip install activesplat[ray])."""
     ray_address: str | None = None
     """Ray cluster address (default: auto / local)."""
+    ceiling: bool = True
+    """Measure each scene's exhaustive-sweep ceiling (cached in ROOT/<scene>/sweep.json; minutes per house)
+    for the multi-room table: share of the ceiling, worst room, steps to 90 / 95 % of it."""
     run: Annotated[RunConfig, tyro.conf.arg(name="")] = field(default_factory=RunConfig)
     """Settings of every run (scene, policy, seed and steps come from the options above)."""
 

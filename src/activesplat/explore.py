@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from activesplat.episode import EpisodeWriter
+from activesplat.eval.behaviour import action_counts, rotation_causes, rotation_pct
 
 TIMING_KEYS = ("mapper", "workspace", "voronoi", "subregions", "rotation_selection", "position_selection",
                "planner")
@@ -75,8 +76,12 @@ def explore_episode(run, out: str | Path | None = None, overwrite: bool = False,
     meta = {"scene": run.scene, "scene_name": scene_obj.name, "z_up": run.z_up,
             "start_pose": sim.start_pose.tolist(),
             "floor": run.floor}  # storey choice of a multi-storey mesh (None: its only storey)
-    return explore_environment(sim, run, out_dir, overwrite=overwrite, progress=progress, viewer=viewer,
-                               evaluator=_Completion(sim, coverage, run), meta=meta, name=scene_obj.name)
+    evaluator = _Completion(sim, coverage, run)
+    metrics = explore_environment(sim, run, out_dir, overwrite=overwrite, progress=progress, viewer=viewer,
+                                  evaluator=evaluator, meta=meta, name=scene_obj.name)
+    evaluator.draw_trajectory(out_dir / "trajectory.png", metrics, title=f"{scene_obj.name} / {run.policy} "
+                              f"seed {run.seed}: trajectory over the floor plan")
+    return metrics
 
 
 def explore_environment(env, run, out: str | Path, overwrite: bool = False, progress: bool = True,
@@ -117,6 +122,8 @@ def explore_environment(env, run, out: str | Path, overwrite: bool = False, prog
     writer.start(meta, obs.pose)
 
     curve: list[dict] = []
+    actions: list[str] = []
+    causes: list[str] = []
     forward = 0
     t_start = time.perf_counter()
     bar = _progress(steps, name, policy, progress)
@@ -133,6 +140,8 @@ def explore_environment(env, run, out: str | Path, overwrite: bool = False, prog
                 env.waypoint(_next_waypoint(explorer))
             obs = env.step(action)
             forward += action == "move_forward"
+            actions.append(action)
+            causes.append(getattr(explorer, "last_cause", "") or "policy")
             writer.record(step, action, obs.pose)
             if viewer is not None:
                 viewer.update(step, obs, mapper, explorer, final=step == steps)
@@ -157,8 +166,11 @@ def explore_environment(env, run, out: str | Path, overwrite: bool = False, prog
     if bar is not None:
         bar.close()
     wall = time.perf_counter() - t_start
-    metrics = evaluator.metrics() if evaluator is not None else {}
+    metrics = evaluator.metrics(actions) if evaluator is not None else {}
     metrics.update({
+        "action_counts": action_counts(actions),
+        "rotation_pct": rotation_pct(actions),
+        "rotation_causes": rotation_causes(actions, causes),
         "path_length_m": forward * run.sim.forward_step,
         "steps": steps,
         "wall_time_s": wall,
@@ -174,6 +186,8 @@ def explore_environment(env, run, out: str | Path, overwrite: bool = False, prog
         from activesplat.viz.plots import draw_completion
 
         draw_completion(out_dir / "completion.png", {policy: curve}, title=f"{name} / {policy}")
+    if evaluator is not None:
+        evaluator.save(out_dir)
     writer.finish(metrics)
     return metrics
 
@@ -195,10 +209,13 @@ class _Completion:
 
         self.sim, self.coverage, self.cfg, self.sim_config = sim, coverage, run.coverage, run.sim
         self.K = intrinsics(self.cfg.resolution, self.cfg.resolution, run.sim.hfov_deg)
+        self.positions: list[tuple[float, float]] = []
+        self.rooms: dict | None = None
 
     def observe(self, pose) -> None:
         depth = self.sim.render(pose, self.cfg.resolution, self.cfg.resolution)[1]
         self.coverage.add_frame(depth, pose, self.K)
+        self.positions.append((float(pose[0, 3]), float(pose[2, 3])))
 
     def curve_due(self, step: int, steps: int) -> bool:
         return self.coverage.frames % self.cfg.batch_frames == 0 or step == steps
@@ -206,8 +223,39 @@ class _Completion:
     def curve_point(self, step: int, forward: int) -> dict:
         return _curve_point(step, self.coverage, forward, self.sim_config)
 
-    def metrics(self) -> dict:
-        return self.coverage.metrics()
+    def metrics(self, actions: list[str]) -> dict:
+        """Completion, and for a built-in house the rooms entered and per-room completion."""
+        from activesplat.eval.behaviour import episode_behaviour
+
+        out = self.coverage.metrics()
+        house = self.sim.scene.house
+        if house is not None:
+            found = episode_behaviour(actions, np.array(self.positions), house, self.coverage.gt,
+                                      self.coverage.completed())
+            self.rooms = found["rooms"]
+            out.update({k: found[k] for k in ("rooms_total", "rooms_entered", "rooms")})
+        return out
+
+    def save(self, out_dir: Path) -> None:
+        """coverage.npz: which ground-truth points were completed (packed bits, in sample order), so the
+        per-room and ceiling measures can be recomputed later (eval/behaviour.py)."""
+        completed = self.coverage.completed()
+        np.savez_compressed(out_dir / "coverage.npz", completed=np.packbits(completed), n=len(completed),
+                            threshold_m=self.cfg.threshold_m, seed=self.cfg.seed)
+
+    def draw_trajectory(self, out_png: Path, metrics: dict, title: str) -> None:
+        from activesplat.viz.trajectory import draw_trajectory
+
+        scene = self.sim.scene
+        labels = {}
+        if self.rooms is not None:
+            visited = set(self.rooms["entered"]) | set(scene.house.corridor_names)
+            for name, room in self.rooms.get("completion", {}).items():
+                pct = room["completion_ratio_pct"]
+                text = f"{pct:.0f} %" if pct is not None else ""
+                labels[name] = text if name in visited else f"{text} (not entered)"
+        draw_trajectory(out_png, scene.navmap_for(self.sim_config), np.array(self.positions),
+                        house=scene.house, room_labels=labels, title=title)
 
 
 def _curve_point(step: int, coverage, forward: int, sim_config) -> dict:

@@ -108,6 +108,26 @@ def test_tables_mean_std_and_averages_from_handwritten_metrics(tmp_path):
     assert "| small-1 | fbe | 1 | failed | RuntimeError: boom |" in md
 
 
+def test_tab3_and_multi_room_tables(tmp_path):
+    from activesplat.bench.tables import add_derived, markdown_report
+
+    specs = plan_runs(["small-0"], ["activesplat", "no-hp"], [0], None, tmp_path)
+    for spec, ratio in zip(specs, (90.0, 80.0), strict=True):
+        metrics = _metrics(ratio)
+        metrics.update({"rotation_pct": 30.0, "rooms_entered": 2, "rooms_total": 3})
+        _write(spec, metrics)
+    records = collect(specs)
+    for r in records:  # as write_report does with the scene's sweep ceiling
+        add_derived(r.metrics, {"completion_ratio_pct": 95.0})
+    md = markdown_report(records)
+    tab3 = md.split("## Tab. III")[1].split("##")[0]
+    # the curve reaches half the path at step 500 (45 % / 40 %) and all of it at step 1000
+    assert "| **50 %** | 45.00 | 2.00 | 40.00 | 2.00 |" in tab3
+    assert "| **100 %** | 90.00 | 2.00 | 80.00 | 2.00 |" in tab3 and "| **25 %** | 0.00 | n/a |" in tab3
+    multi = md.split("## Multi-room behaviour")[1].split("##")[0]
+    assert "| small-0 | activesplat | 90.00 | 95.00 | 94.7 | 2.0 | 3 | 30.0 | 1000 | n/a |" in multi
+
+
 def test_csv_one_row_per_run_with_every_scalar(tmp_path):
     specs = plan_runs(["small-0"], ["activesplat", "fbe"], [0], None, tmp_path)
     _write(specs[0], _metrics(91.5))

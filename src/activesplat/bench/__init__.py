@@ -34,7 +34,7 @@ from activesplat.bench.runner import (
     run_ray,
     run_serial,
 )
-from activesplat.bench.tables import RunRecord, TableConfig, collect, markdown_report, write_csv
+from activesplat.bench.tables import RunRecord, TableConfig, add_derived, collect, markdown_report, write_csv
 from activesplat.errors import InvalidInputError
 
 __all__ = ["BenchmarkConfig", "BenchmarkReport", "RunSpec", "TableConfig", "benchmark_from_command",
@@ -78,14 +78,14 @@ def run_benchmark(scenes: Sequence[str], policies: Sequence[str], trials: int = 
                   root: str | Path = "runs/benchmark", workers: int = 1, executor: str = "local",
                   ray_address: str | None = None, seeds: Sequence[int] | None = None,
                   run_options: dict | None = None, config: BenchmarkConfig | None = None,
-                  log: Callable[[str], None] = _print) -> BenchmarkReport:
+                  log: Callable[[str], None] = _print, ceiling: bool = False) -> BenchmarkReport:
     """Run every (scene, policy, seed) not yet complete under ROOT, then write the tables and curves.
 
     seeds default to 0..trials-1. `run_options` are extra keyword arguments of
     `activesplat.explore.run_exploration` (configs, backend); with a `config` (a RunConfig: the settings of
     every run), runs already complete in ROOT must have been made with it. A failed run is reported and
     shown as n/a; it does not stop the others. Ctrl-C stops the runs, writes the tables of what is complete
-    and re-raises."""
+    and re-raises. `ceiling`: add the sweep ceiling of every scene to the multi-room table (write_report)."""
     config = config or BenchmarkConfig()
     if trials <= 0:
         raise InvalidInputError(f"--trials must be a positive number of trials, got {trials}")
@@ -128,7 +128,10 @@ def run_benchmark(scenes: Sequence[str], policies: Sequence[str], trials: int = 
             run_local(todo, options, on_result, workers)
     except KeyboardInterrupt:
         interrupted = True
-    report = write_report(root, specs, steps, config.tables)
+    if ceiling and not interrupted:
+        log("benchmark: measuring the sweep ceiling of each scene (cached in ROOT/<scene>/sweep.json)")
+    report = write_report(root, specs, steps, config.tables, ceiling=ceiling and not interrupted,
+                          run_config=(run_options or {}).get("config"))
     log(f"benchmark: {report.count('complete')} complete, {report.count('failed')} failed, "
         f"{report.count('missing')} not run ({time.perf_counter() - t0:.0f} s) -> {report.markdown_path}")
     for r in report.failed:
@@ -148,12 +151,27 @@ def _result_line(result: RunResult) -> str:
 
 
 def write_report(root: str | Path, specs: Sequence[RunSpec], steps: int | None = None,
-                 cfg: TableConfig | None = None) -> BenchmarkReport:
-    """results.csv, curves_<scene>.png (+ curves_average.png) and results.md from the folders on disk."""
+                 cfg: TableConfig | None = None, ceiling: bool = False, run_config=None) -> BenchmarkReport:
+    """results.csv, curves_<scene>.png (+ curves_average.png) and results.md from the folders on disk.
+
+    `ceiling`: measure each scene's exhaustive-sweep ceiling (cached in ROOT/<scene>/sweep.json; minutes
+    per house) for the multi-room table; `run_config`: the RunConfig of the runs (its sim and coverage
+    settings make the sweep comparable)."""
+    from activesplat.eval.sweep import sweep_ceiling
     from activesplat.viz.plots import draw_completion
 
     root = Path(root)
     records = collect(specs)
+    tops = {}
+    if ceiling:
+        sim_config = run_config.sim if run_config is not None else None
+        coverage_config = run_config.coverage if run_config is not None else None
+        for label, scene in {r.spec.label: r.spec.scene for r in records if r.status == "complete"}.items():
+            tops[label] = sweep_ceiling(scene, root / label / "sweep.json", sim_config,
+                                        coverage_config=coverage_config)
+    for r in records:
+        if r.status == "complete":
+            add_derived(r.metrics, tops.get(r.spec.label))
     csv_path = write_csv(root / "results.csv", records)
     scenes = list(dict.fromkeys(r.spec.label for r in records))
     policies = list(dict.fromkeys(r.spec.policy for r in records))
@@ -181,6 +199,6 @@ def benchmark_from_command(cmd) -> int:
     complete, 1 when some failed. Its RunConfig's settings (the --GROUP.FIELD options) reach every run."""
     report = run_benchmark(scenes=list(cmd.scenes), policies=list(cmd.policies), trials=cmd.trials,
                            steps=cmd.steps, root=cmd.root, workers=cmd.workers, executor=cmd.executor,
-                           ray_address=cmd.ray_address, run_options={"config": cmd.run})
+                           ray_address=cmd.ray_address, run_options={"config": cmd.run}, ceiling=cmd.ceiling)
     print("\n" + report.markdown)
     return 1 if report.failed else 0

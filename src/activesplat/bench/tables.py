@@ -248,6 +248,55 @@ def timing_table(res: Results) -> list[str]:
     return _table(header, rows)
 
 
+PATH_FRACTIONS = (25, 50, 75, 100)
+"""Path ratios (%) of the paper's Tab. III."""
+
+
+def add_derived(metrics: dict, ceiling: dict | None = None) -> dict:
+    """Add to a run's metrics what the tables derive from it: Tab. III's completion at 25 / 50 / 75 / 100 %
+    of the path length (``path_<p>_completion_ratio_pct``, ``path_<p>_completion_cm``), and with the
+    scene's sweep `ceiling` the measures of eval/behaviour.relative_to_ceiling."""
+    from activesplat.eval.behaviour import at_path_fractions, relative_to_ceiling
+
+    for row, pct in zip(at_path_fractions(metrics.get("curve") or [], [p / 100 for p in PATH_FRACTIONS]),
+                        PATH_FRACTIONS, strict=False):
+        metrics[f"path_{pct}_completion_ratio_pct"] = row["completion_ratio_pct"]
+        metrics[f"path_{pct}_completion_cm"] = row["completion_cm"]
+    if ceiling is not None:
+        metrics.update(relative_to_ceiling(metrics, ceiling))
+    return metrics
+
+
+BEHAVIOUR_COLUMNS = (("completion_ratio_pct", "completion %", 2), ("ceiling_pct", "sweep ceiling %", 2),
+                     ("of_ceiling_pct", "of ceiling %", 1), ("worst_room_of_ceiling_pct", "worst room %", 1),
+                     ("rooms_entered", "rooms entered", 1), ("rooms_total", "rooms", 0),
+                     ("rotation_pct", "rotations %", 1), ("steps_to_90_pct_ceiling", "steps to 90 %", 0),
+                     ("steps_to_95_pct_ceiling", "steps to 95 %", 0))
+"""(metrics key, column, decimals) of the multi-room behaviour table."""
+
+
+def behaviour_table(res: Results) -> list[str]:
+    """Multi-room behaviour (docs/benchmark.md): per scene and policy, then the average over scenes."""
+    keys = [c for c in BEHAVIOUR_COLUMNS if any(r.metrics and c[0] in r.metrics for r in res.records)]
+    def cell(scene, p, k, d):
+        return res.cell(scene, p, k, d) if scene else res.average(p, k, d, with_std=False)
+
+    rows = [[scene or f"**average ({len(res.scenes)} scenes)**", p,
+             *(cell(scene, p, k, d) for k, _, d in keys)]
+            for scene in [*res.scenes, None] for p in res.policies]
+    return _table(["scene", "policy", *(name for _, name, _ in keys)], rows)
+
+
+def path_fraction_table(res: Results) -> list[str]:
+    """The paper's Tab. III: completion ratio / completion at 25-100 % of each run's path length, one pair
+    of columns per policy, averaged over scenes."""
+    d_ratio, d_cm = res.cfg.ratio_decimals, res.cfg.cm_decimals
+    rows = [[f"**{pct} %**", *(cell for p in res.policies for cell in (
+        res.average(p, f"path_{pct}_completion_ratio_pct", d_ratio, with_std=False),
+        res.average(p, f"path_{pct}_completion_cm", d_cm, with_std=False)))] for pct in PATH_FRACTIONS]
+    return _table(["path ratio", *(f"{p} {unit}" for p in res.policies for unit in ("% ↑", "cm ↓"))], rows)
+
+
 def markdown_report(records: Sequence[RunRecord], cfg: TableConfig | None = None, steps: int | None = None,
                     curves: Sequence[str] = ()) -> str:
     """The whole results.md: Tab. I, Tab. II (when ablation variants ran), per-scene table, Tab. VI, and
@@ -274,6 +323,16 @@ def markdown_report(records: Sequence[RunRecord], cfg: TableConfig | None = None
         ours = [FULL_METHOD] if FULL_METHOD in res.policies else []
         out += ["## Tab. II: ablation of the exploration strategy", "",
                 *exploration_table(res, ablations + ours), ""]
+    out += ["## Tab. III: completion at fractions of the path length", "", *path_fraction_table(res), "",
+            "Each run's completion with a path of at most 25 / 50 / 75 / 100 % of its own final path length "
+            "(curve points every 50 steps), averaged as above.", ""]
+    if any(r.metrics and "rotation_pct" in r.metrics for r in res.records):
+        out += ["## Multi-room behaviour", "", *behaviour_table(res), "",
+                "Sweep ceiling: what the exhaustive sweep (eval/sweep.py) observes; of ceiling: completion / "
+                "ceiling; worst room: the lowest share of a room's own ceiling; rooms entered: rooms the "
+                "agent stood 0.5 m inside (corridors not counted); rotations: share of turn / tilt actions; "
+                "steps to 90 / 95 %: first curve step at that share of the ceiling (n/a: some trial never "
+                "got there). Means over trials; average rows: means over scenes.", ""]
     out += ["## Per scene (supplementary Tab. S1 / S2 style)", "", *per_scene_table(res), "",
             "## Tab. VI: mean processing time per step (ms)", "", *timing_table(res), "",
             "Module times are means over all complete runs of a policy; `evaluation` is the live completion "

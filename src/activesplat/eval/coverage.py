@@ -118,6 +118,11 @@ class CoverageAccumulator:
             out[far] = dist
         return out
 
+    def completed(self) -> np.ndarray:
+        """Per ground-truth point: observed within the threshold (the points the completion ratio counts)."""
+        self.flush()
+        return self.min_dist < self.cfg.threshold_m
+
     def metrics(self, uncapped: bool = True) -> dict:
         """completion_ratio_pct, completion_cm (capped at 1 m), completion_cm_uncapped (None until something
         was observed) and helpers. `uncapped=False` skips the (slower) uncapped distances."""

@@ -11,12 +11,14 @@ from activesplat.eval.coverage import CoverageAccumulator, CoverageConfig
 
 
 def replay_coverage(scene, start_pose: np.ndarray, actions: Iterable[str], cfg: CoverageConfig | None = None,
-                    expected_poses: np.ndarray | None = None, sim_config=None) -> dict:
+                    expected_poses: np.ndarray | None = None, sim_config=None,
+                    with_completed: bool = False) -> dict:
     """Completion metrics and path length of an episode, from its start pose and actions alone.
 
     After the reset and after every action, the ground-truth depth at `cfg.resolution` (same field of
     view) is back-projected; `expected_poses` (N+1, 4, 4), when given, must match the replayed poses
     (a mismatch means the log does not belong to this scene / start / simulator version).
+    `with_completed`: add ``completed``, the per-ground-truth-point mask the completion ratio counts.
     """
     from activesplat.geometry import intrinsics
     from activesplat.sim import SimConfig, Simulator
@@ -45,4 +47,6 @@ def replay_coverage(scene, start_pose: np.ndarray, actions: Iterable[str], cfg: 
     metrics = acc.metrics()
     metrics["path_length_m"] = forward * sim_config.forward_step
     metrics["steps"] = len(poses) - 1
+    if with_completed:
+        metrics["completed"] = acc.completed()
     return metrics

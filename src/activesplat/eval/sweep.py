@@ -11,8 +11,10 @@ behind shelves) is visible from nowhere the agent can stand.
 
 from __future__ import annotations
 
+import json
 import math
 from dataclasses import asdict, dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -64,7 +66,8 @@ def exhaustive_sweep(scene, sim_config=None, cfg: SweepConfig | None = None, cov
                      progress: bool = False) -> dict:
     """Coverage metrics (the episode keys ``completion_ratio_pct``, ``completion_cm``,
     ``completion_cm_uncapped``) of the exhaustive sweep of ``scene`` (a built-in name or a `Scene`),
-    plus ``n_positions`` and ``n_views``."""
+    plus ``n_positions`` and ``n_views``; for a built-in house ``rooms``: per room name its ground-truth
+    point count and completion ratio (eval/behaviour.py)."""
     from activesplat.eval.coverage import CoverageAccumulator, CoverageConfig
     from activesplat.geometry import intrinsics
     from activesplat.sim import Scene, SimConfig, load_scene
@@ -85,6 +88,10 @@ def exhaustive_sweep(scene, sim_config=None, cfg: SweepConfig | None = None, cov
     for pose in it:
         coverage.add_frame(sensor.render(pose, K, cov_cfg.resolution, cov_cfg.resolution)[1], pose, K)
     out = coverage.metrics()
+    if getattr(scene, "house", None) is not None:
+        from activesplat.eval.behaviour import room_completion
+
+        out["rooms"] = room_completion(scene.house, coverage.gt, coverage.completed())
     views_per_spot = len(np.arange(0.0, 360.0, cfg.yaw_step_deg)) * len(cfg.pitches_deg)
     out.update({"scene": scene.name, "n_views": int(len(poses)),
                 "n_positions": int(len(poses) // views_per_spot),
@@ -92,4 +99,35 @@ def exhaustive_sweep(scene, sim_config=None, cfg: SweepConfig | None = None, cov
     return out
 
 
-__all__ = ["SweepConfig", "exhaustive_sweep", "sweep_poses"]
+def sweep_ceiling(scene, cache: str | Path | None = None, sim_config=None, cfg: SweepConfig | None = None,
+                  coverage_config=None, progress: bool = False) -> dict:
+    """exhaustive_sweep of `scene` (a built-in name or mesh path), read from the JSON file `cache` when it
+    holds the sweep of the same scene and settings, else computed and written there (a medium house takes
+    minutes: ~15,000 views)."""
+    from activesplat.episode import write_json_atomic
+    from activesplat.eval.coverage import CoverageConfig
+    from activesplat.sim import SimConfig, load_scene
+
+    cfg, sim_config = cfg or SweepConfig(), sim_config or SimConfig()
+    cov = coverage_config or CoverageConfig()
+    name = scene if isinstance(scene, str) else scene.name
+    key = json.loads(json.dumps({"scene": str(name), "sweep": asdict(cfg), "coverage": asdict(cov),
+                                 "sim": asdict(sim_config)}))
+    cache = Path(cache) if cache is not None else None
+    if cache is not None and cache.is_file():
+        try:
+            found = json.loads(cache.read_text())
+        except ValueError:
+            found = {}
+        if found.get("key") == key:
+            return found
+    out = exhaustive_sweep(load_scene(scene) if isinstance(scene, str) else scene, sim_config, cfg, cov,
+                           progress=progress)
+    out["key"] = key
+    if cache is not None:
+        cache.parent.mkdir(parents=True, exist_ok=True)
+        write_json_atomic(cache, out)
+    return out
+
+
+__all__ = ["SweepConfig", "exhaustive_sweep", "sweep_ceiling", "sweep_poses"]

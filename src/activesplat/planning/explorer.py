@@ -199,7 +199,14 @@ class Explorer:
         self.failed: list[np.ndarray] = []
         self.dense_mapping = True
         self.last_panorama: Panorama | None = None
-        self.queue: list[str] = bootstrap_actions(self.cfg)
+        self.queue: list[str] = []
+        self.queue_causes: list[str] = []
+        self.rotation_cause = "arrival"
+        self.last_cause = ""
+        """Why the latest action was taken: bootstrap, idle, escape, level, look_around (queued actions),
+        arrival / multi_stop (turns toward rotation targets), path (following a path) or fallback (nothing
+        to do). The benchmark counts actions by cause (where the rotations go)."""
+        self.enqueue(bootstrap_actions(self.cfg), "bootstrap")
 
     # ------------------------------------------------------------------ the loop's interface
     def observe_mapping(self, obs: Any, K: np.ndarray) -> None:
@@ -239,6 +246,11 @@ class Explorer:
         return False
 
     # ------------------------------------------------------------------ what a policy may use
+    def enqueue(self, actions: list[str], cause: str) -> None:
+        """Queue `actions` (taken before anything else), recording why (`last_cause`)."""
+        self.queue.extend(actions)
+        self.queue_causes.extend([cause] * len(actions))
+
     def go_to(self, goal: np.ndarray, path: np.ndarray) -> None:
         """Follow `path` (M, 2), which starts at the agent, to `goal`."""
         self.plan.goal, self.plan.path = goal, path
@@ -249,29 +261,33 @@ class Explorer:
         goals exist but every one failed from here (`stuck`), first escape toward the clearest heading: from
         the same spot the same goals would fail again."""
         if stuck:
-            self.queue.extend(escape_actions(pose, self.plan.workspace, self.cfg.controller,
-                                             self.cfg.escape_forward_steps))
-        self.queue.extend(["turn_left"] * turns_for(self.cfg.idle_yaw_deg, self.cfg.controller))
+            self.enqueue(escape_actions(pose, self.plan.workspace, self.cfg.controller,
+                                        self.cfg.escape_forward_steps), "escape")
+        self.enqueue(["turn_left"] * turns_for(self.cfg.idle_yaw_deg, self.cfg.controller), "idle")
 
     # ------------------------------------------------------------------ behaviour
     def _next(self, pose: np.ndarray) -> str:
         for _ in range(4):  # a few state transitions per step at most
             if self.queue:
+                self.last_cause = self.queue_causes.pop(0) if self.queue_causes else "queued"
                 return self.queue.pop(0)
             if self.rotation_targets:
                 action = self._rotation_action(pose)
                 if action:
+                    self.last_cause = self.rotation_cause
                     return action
                 continue
             if self.follower is not None:
                 action = self._follow(pose)
                 if action:
+                    self.last_cause = "path"
                     return action
                 continue
             self.replan(pose)
             if self.follower is None and not self.queue and not self.rotation_targets:
                 break
         # nothing to do: look around on the spot (the map grows, the next replan may find goals)
+        self.last_cause = "fallback"
         return "turn_left"
 
     def _follow(self, pose: np.ndarray) -> str | None:
@@ -296,7 +312,7 @@ class Explorer:
             return actions[0]
         self.rotation_targets.pop(0)
         if not self.rotation_targets:
-            self.queue.extend(level_actions(pose, ctrl))
+            self.enqueue(level_actions(pose, ctrl), "level")
         return None
 
     def _path_ahead_clear(self, pose: np.ndarray) -> bool:
@@ -315,8 +331,9 @@ class Explorer:
         """A refused forward move: mark the goal failed and escape toward the clearest heading."""
         self._fail_goal()
         self.rotation_targets = []
-        self.queue = escape_actions(pose, self.plan.workspace, self.cfg.controller,
-                                    self.cfg.escape_forward_steps)
+        self.queue, self.queue_causes = [], []
+        self.enqueue(escape_actions(pose, self.plan.workspace, self.cfg.controller,
+                                    self.cfg.escape_forward_steps), "escape")
 
 
 class ActiveSplatExplorer(Explorer):
@@ -376,6 +393,7 @@ class ActiveSplatExplorer(Explorer):
         if any(np.hypot(*(here - p)) < skip for p in self.rotated_at):
             return
         self.rotated_at.append(here)
+        self.rotation_cause = "arrival"
         self.rotation_targets = self.timers.time("rotation_selection", self._rotation_targets, pose)
 
     def stop_on_the_way(self, pose: np.ndarray) -> bool:
@@ -393,6 +411,8 @@ class ActiveSplatExplorer(Explorer):
                 continue
             self.stopped_multi.append(pos)
             self.arrive(pose)
+            if self.rotation_targets:
+                self.rotation_cause = "multi_stop"
             return bool(self.rotation_targets)
         return False
 

@@ -149,7 +149,7 @@ class FrontierExplorer(Explorer):
         """Look around once. A frontier that survives a look-around from right next to it cannot be seen
         from there (e.g. floor under furniture): remember it so that the agent does not come back forever."""
         self.reached.append(floor_xz(pose))
-        self.queue.extend(["turn_left"] * turns_for(self.fcfg.look_around_deg, self.cfg.controller))
+        self.enqueue(["turn_left"] * turns_for(self.fcfg.look_around_deg, self.cfg.controller), "look_around")
 
     def replan(self, pose: np.ndarray) -> None:
         """Rebuild the workspace (no graph) and go to the nearest frontier, else idle."""

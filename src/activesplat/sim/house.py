@@ -88,7 +88,8 @@ class House:
 
     @property
     def n_rooms(self) -> int:
-        return sum(r.kind != "corridor" for r in self.rooms)
+        """Rooms by name (a room may span several rectangles), corridors not counted."""
+        return len({r.name or id(r) for r in self.rooms if r.kind != "corridor"})
 
     def room_at(self, x: float, z: float) -> Room | None:
         for room in self.rooms:

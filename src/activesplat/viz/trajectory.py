@@ -1,0 +1,90 @@
+"""The trajectory over the floor plan, coloured by step: dwelling shows as a knot of one colour.
+
+Background: the ground-truth navigable floor (light) and the rest of the plan (dark); built-in houses add
+their room outlines with each room's name and completion. Agg only; no display needed.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from matplotlib.collections import LineCollection
+from matplotlib.figure import Figure
+
+
+def draw_trajectory(out_png: str | Path, navmap, positions_xz: np.ndarray, house=None,
+                    room_labels: dict[str, str] | None = None, title: str = "") -> Path:
+    """Save the top-down trajectory `positions_xz` (one (x, z) per step) over `navmap` (a sim NavMap).
+
+    `house`: a built-in house plan (outlines per room); `room_labels`: text under each room's name (e.g.
+    its completion)."""
+    xz = np.asarray(positions_xz, np.float64).reshape(-1, 2)
+    res = navmap.resolution
+    extent = (navmap.origin[0], navmap.origin[0] + navmap.grid.shape[0] * res,
+              navmap.origin[1], navmap.origin[1] + navmap.grid.shape[1] * res)
+    width, depth = extent[1] - extent[0], extent[3] - extent[2]
+    fig = Figure(figsize=(min(16.0, 2.0 + 0.55 * width), min(14.0, 1.2 + 0.55 * depth)), dpi=110)
+    ax = fig.add_subplot(1, 1, 1)
+    img = np.where(navmap.largest, 0.93, np.where(navmap.grid, 0.8, 0.45))
+    ax.imshow(img.T, origin="lower", extent=extent, cmap="gray", vmin=0.0, vmax=1.0, interpolation="nearest")
+    if house is not None:
+        _draw_rooms(ax, house, room_labels or {})
+    if len(xz) > 1:
+        segments = np.stack([xz[:-1], xz[1:]], axis=1)
+        moved = np.linalg.norm(segments[:, 1] - segments[:, 0], axis=1) > 1e-9
+        lines = LineCollection(segments[moved], cmap="viridis", linewidths=2.0)
+        lines.set_array(np.flatnonzero(moved).astype(float))
+        lines.set_clim(0, len(xz) - 1)
+        ax.add_collection(lines)
+        fig.colorbar(lines, ax=ax, fraction=0.03, pad=0.02, label="step")
+        # where the agent turned on the spot: dot size grows with the steps spent there
+        stay = _dwell(xz)
+        if len(stay):
+            ax.scatter(stay[:, 0], stay[:, 1], s=4 + 0.6 * stay[:, 2], c=stay[:, 3], cmap="viridis",
+                       vmin=0, vmax=len(xz) - 1, alpha=0.55, edgecolors="none", zorder=3)
+    if len(xz):
+        ax.plot(*xz[0], marker="o", ms=9, mfc="none", mec="red", mew=2, zorder=4, label="start")
+        ax.plot(*xz[-1], marker="x", ms=9, color="red", mew=2, zorder=4, label="end")
+        ax.legend(loc="upper right", fontsize=8)
+    ax.set_xlim(extent[0], extent[1])
+    ax.set_ylim(extent[2], extent[3])
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("z (m)")
+    if title:
+        ax.set_title(title, fontsize=10)
+    fig.tight_layout()
+    out_png = Path(out_png)
+    fig.savefig(out_png)
+    return out_png
+
+
+def _dwell(xz: np.ndarray) -> np.ndarray:
+    """(x, z, steps spent, first step) of every place the agent stayed for more than one step."""
+    moved = np.r_[True, np.linalg.norm(np.diff(xz, axis=0), axis=1) > 1e-9]
+    starts = np.flatnonzero(moved)
+    lengths = np.diff(np.r_[starts, len(xz)])
+    keep = lengths > 1
+    return np.column_stack([xz[starts[keep]], lengths[keep], starts[keep]]).astype(np.float64)
+
+
+def _draw_rooms(ax, house, labels: dict[str, str]) -> None:
+    for room in house.rooms:
+        ax.add_patch(_rect(room, edgecolor="#1f4e79", facecolor="none", linewidth=0.8, linestyle="--"))
+    for name in house.room_names:
+        rects = [r for r in house.rooms if r.name == name]
+        big = max(rects, key=lambda r: r.area)
+        text = name + (f"\n{labels[name]}" if name in labels else "")
+        ax.text(0.5 * (big.x0 + big.x1), 0.5 * (big.z0 + big.z1), text, ha="center", va="center",
+                fontsize=7, color="#1f4e79", zorder=5,
+                bbox={"boxstyle": "round,pad=0.2", "fc": "white", "ec": "none", "alpha": 0.7})
+
+
+def _rect(room, **kw):
+    from matplotlib.patches import Rectangle
+
+    return Rectangle((room.x0, room.z0), room.x1 - room.x0, room.z1 - room.z0, **kw)
+
+
+__all__ = ["draw_trajectory"]
