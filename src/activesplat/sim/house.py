@@ -506,7 +506,7 @@ def _open_plan_door(rng, edge, cfg: HouseConfig) -> Door:
     open_plan_min_width up to the wall less its jambs."""
     axis, coord, lo, hi = edge
     if rng.random() < cfg.open_plan_full_p:
-        return _wide(rng, axis, coord, _r2((lo + hi) / 2), _r2(hi - lo), cfg, beam=True)
+        return _wide(rng, axis, coord, (lo + hi) / 2, hi - lo, cfg, beam=True)
     room = hi - lo - cfg.wall_thickness - 2 * cfg.jamb
     width = float(np.floor(rng.uniform(cfg.open_plan_min_width, max(cfg.open_plan_min_width, min(room, 3.2)))
                            * 100) / 100)
