@@ -420,7 +420,8 @@ def _open_plan(rng, cfg: HouseConfig, n: tuple[int, int]) -> _Plan | None:
     k_s = int(spare // 3.0)
     if not n[0] <= 2 + k_n + k_s <= n[1]:
         return None
-    if k_s == 0:
+    if k_s == 0:  # no room for another south room: the living room and kitchen share the rest
+        living_w = _r2(living_w + spare / 2)
         kitchen_w = _r2(width - living_w)
     z_c, top = _r2(depth_s + c), _r2(depth_s + c + depth_n)
     rooms = [Room(0.0, 0.0, living_w, depth_s, name="living"), Room(0.0, depth_s, col, top, name="living"),
