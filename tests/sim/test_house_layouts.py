@@ -112,13 +112,14 @@ def _features(house) -> set[str]:
     corridors = set(house.corridor_names)
     if corridors and any(not graph[n] & corridors for n in house.room_names if n not in corridors):
         found.add("room reached only through rooms")
-    if corridors and sum(1 for n in graph["corridor"]) >= 8:
+    if corridors and len(graph["corridor"]) >= 8:
         found.add("corridor with many doors")
     widths = [d.width for d in house.doors]
     found |= {"narrow door"} if min(widths) < 0.8 else set()
     found |= {"wide opening"} if max(widths) >= 1.4 else set()
     found |= {"opening without lintel"} if any(not d.lintel for d in house.doors) else set()
-    found |= {"opening under a beam"} if any(d.height and d.height > CFG.door_height for d in house.doors) else set()
+    if any(d.height is not None and d.height > CFG.door_height for d in house.doors):
+        found.add("opening under a beam")
     kinds = {r.kind for r in house.rooms}
     if {"living", "kitchen"} <= kinds:
         for d in house.doors:
