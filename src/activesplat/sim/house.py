@@ -62,12 +62,12 @@ class HouseConfig:
     normal_door_width: tuple[float, float] = (0.8, 1.0)
     """Width range of ordinary doors (ours)."""
     wide_opening_width: tuple[float, float] = (1.4, 2.5)
-    """Width range of wide openings between rooms that are not bedrooms (ours)."""
+    """Width range of wide openings between two rooms that are neither bedrooms nor corridors (ours)."""
     narrow_door_p: float = 0.2
     """Probability that a door is narrow (ours)."""
     wide_opening_p: float = 0.15
-    """Probability that a door between two rooms that may have one (neither a bedroom, and a wall long
-    enough) is a wide opening (ours)."""
+    """Probability that a door between two rooms that may have one (neither a bedroom nor a corridor, and
+    a wall long enough) is a wide opening (ours)."""
     wide_no_lintel_p: float = 0.5
     """Probability that a wide opening is open to the ceiling; otherwise a beam tops it (ours)."""
     beam_height: tuple[float, float] = (2.3, 2.45)
