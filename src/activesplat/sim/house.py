@@ -51,9 +51,6 @@ class HouseConfig:
     """Interior and exterior wall thickness in metres."""
     ceiling_range: tuple[float, float] = (2.6, 2.8)
     """Ceiling height range in metres (single floor at y = 0)."""
-    door_width: float = 0.9
-    """Reference doorway width in metres (ours): the largest width a door between two rooms whose shared
-    wall is too short for a drawn width may shrink from; drawn widths use the ranges below."""
     door_height: float = 2.1
     """Doorway height; a lintel fills the wall above it."""
     narrow_door_width: tuple[float, float] = (0.75, 0.8)
@@ -248,8 +245,8 @@ def _split(rng, rooms: list[Room], n: int, min_side: float) -> list[Room]:
 
 def _strip(rng, x_total: float, z0: float, z1: float, k: int, min_side: float, x_start: float = 0.0,
            along_z: bool = False) -> list[Room]:
-    """k rooms side by side along x over [x_start, x_start + x_total] (along z over [z0-ish] when
-    along_z: then (z0, z1) is the x range and x_start the first z), each at least min_side wide."""
+    """k rooms side by side over [x_start, x_start + x_total] along x, spanning z0..z1, each at least
+    min_side wide (random split of the rest). along_z: the same along z, (z0, z1) then the x range."""
     spare = x_total - k * min_side
     if spare < 0:
         raise ValueError(f"a strip of {x_total} m cannot hold {k} rooms of {min_side} m")
