@@ -13,7 +13,7 @@ import trimesh
 from activesplat.errors import InvalidInputError, SceneError, SceneNotFoundError
 from activesplat.sim.config import SimConfig
 from activesplat.sim.gltf import read_gltf, warn_material, write_glb
-from activesplat.sim.house import HouseConfig, house_mesh, make_layout
+from activesplat.sim.house import MEDIUM_FAMILIES, SMALL_FAMILIES, HouseConfig, house_mesh, make_layout
 from activesplat.sim.materials import Surface, surface_from_trimesh
 from activesplat.sim.navmap import NavMap, build_navmap
 from activesplat.sim.sensor import RGBDSensor, hit_distance
@@ -367,17 +367,21 @@ def load_scene(name, z_up: bool = False, floor: int | float | None = None) -> Sc
 
 
 def describe_builtin_scenes(seeds=(0, 1, 2)) -> str:
-    """Text for `activesplat scenes list`: name patterns and a few examples with room count and size."""
+    """Text for `activesplat scenes list`: name patterns, layout families and a few examples with
+    family, room count and size."""
     config = HouseConfig()
     lines = ["Built-in procedural houses (deterministic per seed; any integer seed works):",
              f"  small-<seed>   {config.small_rooms[0]}-{config.small_rooms[1]} rooms, "
-             f"{DEFAULT_STEPS['small']} steps",
+             f"{DEFAULT_STEPS['small']} steps; layout family per seed: "
+             f"{' / '.join(SMALL_FAMILIES)}",
              f"  medium-<seed>  {config.medium_rooms[0]}-{config.medium_rooms[1]} rooms + corridor, "
-             f"{DEFAULT_STEPS['medium']} steps",
+             f"{DEFAULT_STEPS['medium']} steps; layout family per seed: {' / '.join(MEDIUM_FAMILIES)}",
+             "                 (rooms may be L-shaped, reached only through other rooms, joined by narrow",
+             "                 doors or wide openings; an open-plan living room and kitchen are two rooms)",
              "  <name>-plain   the same house with one flat colour per material (textureless walls),",
              "                 e.g. small-0-plain, medium-2-plain",
              "  or a mesh file: .glb .gltf .ply .obj (y up; --z-up for z-up files)", "",
-             f"{'name':<12}{'rooms':>6}{'size (m)':>14}{'floor (m^2)':>13}"]
+             f"{'name':<12}{'family':>12}{'rooms':>6}{'size (m)':>14}{'floor (m^2)':>13}"]
     for kind in ("small", "medium"):
         for seed in seeds:
             house = make_layout(f"{kind}-{seed}", seed, config)
@@ -385,5 +389,6 @@ def describe_builtin_scenes(seeds=(0, 1, 2)) -> str:
             zs = [r.z1 for r in house.rooms]
             area = sum(r.area for r in house.rooms)
             size = f"{max(xs):.1f} x {max(zs):.1f}"
-            lines.append(f"{kind + '-' + str(seed):<12}{house.n_rooms:>6}{size:>14}{area:>13.1f}")
+            lines.append(f"{kind + '-' + str(seed):<12}{house.family:>12}{house.n_rooms:>6}{size:>14}"
+                         f"{area:>13.1f}")
     return "\n".join(lines)
