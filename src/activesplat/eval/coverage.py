@@ -103,9 +103,15 @@ class CoverageAccumulator:
         """One observed point per 2 cm voxel, for the uncapped distances beyond the cap."""
         keys = _voxel_keys(pts, self.cfg.far_voxel_m)
         keys, first = np.unique(keys, return_index=True)
-        fresh = ~np.isin(keys, self._voxels, assume_unique=True)
+        # membership in the sorted voxel set by binary search; the new keys are merged by a stable sort of
+        # the two sorted runs (timsort merges them in linear time; np.union1d re-sorts from scratch)
+        known = self._voxels
+        at = np.minimum(np.searchsorted(known, keys), max(len(known) - 1, 0))
+        fresh = known[at] != keys if len(known) else np.ones(len(keys), bool)
         if fresh.any():
-            self._voxels = np.union1d(self._voxels, keys[fresh])
+            merged = np.concatenate([known, keys[fresh]])
+            merged.sort(kind="stable")
+            self._voxels = merged
             self._thinned.append(pts[first[fresh]])
 
     def _uncapped(self) -> np.ndarray:

@@ -63,6 +63,9 @@ class ExplorerConfig:
     """With no goal to go to, the agent turns left this far on the spot before it replans (ours)."""
     max_rotation_views: int = 5
     """On-the-spot rotation targets at most per arrival (release: 5; MP3D 4)."""
+    multi_stop_views: int = 5
+    """Rotation targets at most at a multi-connected node stop on the way (ours; the release uses
+    `max_rotation_views` there too)."""
     rotation_skip_radii: float = 3.0
     """No on-the-spot rotations within this many agent radii of a spot already rotated at (release)."""
     multi_node_radius_m: float = 0.3
@@ -109,7 +112,7 @@ class ExplorerConfig:
 
     def __post_init__(self) -> None:
         check_fields(self, non_negative=("bootstrap_yaw_deg", "bootstrap_pitch_deg", "idle_yaw_deg",
-                                         "max_rotation_views", "rotation_skip_radii",
+                                         "max_rotation_views", "multi_stop_views", "rotation_skip_radii",
                                          "multi_node_radius_m", "local_score_threshold",
                                          "global_distance_weight", "long_path_m", "on_the_way_m",
                                          "escape_forward_steps", "lookahead_m", "ahead_tolerance_m",
@@ -384,8 +387,9 @@ class ActiveSplatExplorer(Explorer):
         self.failed.clear()  # fallback: forget failures, the next replan gives every goal a second chance
         self.idle(pose, stuck)
 
-    def arrive(self, pose: np.ndarray) -> None:
-        """On-the-spot rotations toward the panorama and high-loss targets (sec. III-B3)."""
+    def arrive(self, pose: np.ndarray, max_views: int | None = None) -> None:
+        """On-the-spot rotations toward the panorama and high-loss targets (sec. III-B3), at most
+        `max_views` (default `max_rotation_views`)."""
         if not self.cfg.rotations:
             return
         here = floor_xz(pose)
@@ -394,7 +398,8 @@ class ActiveSplatExplorer(Explorer):
             return
         self.rotated_at.append(here)
         self.rotation_cause = "arrival"
-        self.rotation_targets = self.timers.time("rotation_selection", self._rotation_targets, pose)
+        views = self.cfg.max_rotation_views if max_views is None else max_views
+        self.rotation_targets = self.timers.time("rotation_selection", self._rotation_targets, pose, views)
 
     def stop_on_the_way(self, pose: np.ndarray) -> bool:
         """Passing a multi-connected node: a short rotation stop there (paper sec. III-D3)."""
@@ -410,18 +415,18 @@ class ActiveSplatExplorer(Explorer):
             if any(np.hypot(*(pos - p)) < self.cfg.multi_node_radius_m for p in self.stopped_multi):
                 continue
             self.stopped_multi.append(pos)
-            self.arrive(pose)
+            self.arrive(pose, self.cfg.multi_stop_views)
             if self.rotation_targets:
                 self.rotation_cause = "multi_stop"
             return bool(self.rotation_targets)
         return False
 
-    def _rotation_targets(self, pose: np.ndarray) -> list[RotationTarget]:
+    def _rotation_targets(self, pose: np.ndarray, max_views: int) -> list[RotationTarget]:
         pcfg = self.cfg.planning
         origin = pose[:3, 3]
         pano = self.last_panorama = render_panorama(self.world.render, origin, pcfg.panorama)
         targets = rotation_candidates(pano, pcfg.rotation) + self.high_loss.targets(origin, max_distance=4.0)
-        return select_rotation_targets(targets, pose_yaw_pitch(pose)[0], pcfg, self.cfg.max_rotation_views)
+        return select_rotation_targets(targets, pose_yaw_pitch(pose)[0], pcfg, max_views)
 
 
 def goal_rules(cfg: ExplorerConfig) -> GoalRules:

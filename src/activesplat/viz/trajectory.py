@@ -41,7 +41,7 @@ def draw_trajectory(out_png: str | Path, navmap, positions_xz: np.ndarray, house
         # where the agent turned on the spot: dot size grows with the steps spent there
         stay = _dwell(xz)
         if len(stay):
-            ax.scatter(stay[:, 0], stay[:, 1], s=4 + 0.6 * stay[:, 2], c=stay[:, 3], cmap="viridis",
+            ax.scatter(stay[:, 0], stay[:, 1], s=8 + 1.5 * stay[:, 2], c=stay[:, 3], cmap="viridis",
                        vmin=0, vmax=len(xz) - 1, alpha=0.55, edgecolors="none", zorder=3)
     if len(xz):
         ax.plot(*xz[0], marker="o", ms=9, mfc="none", mec="red", mew=2, zorder=4, label="start")
