@@ -104,3 +104,30 @@ def test_a_goal_the_agent_stands_on_is_skipped(monkeypatch):
     action = ex.act(obs)
     assert np.allclose(ex.plan.goal, pos[far]) and action in ("turn_left", "turn_right", "move_forward")
     assert not ex.dense_mapping  # travelling
+
+
+def test_a_multi_connected_stop_takes_its_own_view_budget_and_is_counted_as_such(monkeypatch):
+    import networkx as nx
+
+    from activesplat.planning.viewpoints import RotationTarget
+
+    graph = nx.Graph()
+    graph.add_node(0, pos=(2.0, 1.2), multi=True)
+    budgets = []
+
+    def targets(pose, max_views):
+        budgets.append(max_views)
+        return [RotationTarget(yaw=1.5, pitch=0.0, weight=1.0, source="panorama")][:max_views]
+
+    ex = ActiveSplatExplorer(WORLD, 0.0, ExplorerConfig(workspace=WCFG, multi_stop_views=1,
+                                                        max_rotation_views=4))
+    ex.plan = Plan(graph=graph)
+    monkeypatch.setattr(ex, "_rotation_targets", targets)
+    assert ex.stop_on_the_way(_obs([2.1, 1.2]).pose) and budgets == [1]
+    assert ex.rotation_cause == "multi_stop"
+    assert not ex.stop_on_the_way(_obs([2.1, 1.2]).pose)  # one stop per node
+    ex.arrive(_obs([5.0, 1.2]).pose)
+    assert budgets == [1, 4] and ex.rotation_cause == "arrival"
+    ex.queue.clear(), ex.queue_causes.clear()
+    ex.act(_obs([5.0, 1.2]))
+    assert ex.last_cause == "arrival"  # a turn toward the arrival target

@@ -84,6 +84,10 @@ def test_local_nodes_come_first_while_they_promise_something_then_score_minus_di
     assert local_then_global(scores, info, travel, open_, in_local, RULES) == [2, 0, 1]
     flat = dataclasses.replace(RULES, hierarchical=False)
     assert local_then_global(scores, info, travel, open_, in_local, flat) == [0, 2, 1]
+    # the global stage may rank by other scores (without the in-horizon flag): node 0 is far but promises
+    # more once the near node 2 loses its in-sight bonus of 10
+    assert local_then_global(scores, info, travel, open_, in_local, RULES,
+                             global_scores=scores - np.array([0.0, 0.0, 10.0])) == [0, 2, 1]
 
 
 class HalfSeen:

@@ -77,6 +77,9 @@ class ExplorerConfig:
     global_distance_weight: float = 1.0
     """Global goal score = node score - this x path length in metres (ours; the paper names a distance
     cost without a value)."""
+    global_in_horizon: bool = True
+    """Count eq. 12's in-horizon flag in the global stage too (paper: one score for every node). False:
+    the global stage ranks nodes by their score without it, minus the distance cost (ours)."""
     long_path_m: float = 13.0
     """Release: a goal path longer than 13 m (200 steps) is kept only if no closer node lies on the way."""
     on_the_way_m: float = 0.5
@@ -435,7 +438,7 @@ def goal_rules(cfg: ExplorerConfig) -> GoalRules:
                      global_distance_weight=cfg.global_distance_weight, max_panoramas=cfg.max_panoramas,
                      panorama_height_m=cfg.panorama_height_m, hierarchical=cfg.hierarchical,
                      random_goals=cfg.random_goals, long_path_m=cfg.long_path_m,
-                     on_the_way_m=cfg.on_the_way_m)
+                     on_the_way_m=cfg.on_the_way_m, global_in_horizon=cfg.global_in_horizon)
 
 
 __all__ = ["ActiveSplatExplorer", "Explorer", "ExplorerConfig", "ExplorerView", "Plan", "Timers",

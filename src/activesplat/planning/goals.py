@@ -44,6 +44,7 @@ class GoalRules:
     random_goals: bool
     long_path_m: float
     on_the_way_m: float
+    global_in_horizon: bool = True
 
 
 def node_state(node_pos: np.ndarray, visited: Sequence[np.ndarray], failed: Sequence[np.ndarray],
@@ -95,11 +96,12 @@ def travel_lengths(graph: nx.Graph, here: np.ndarray, nodes: list[int], pos: np.
 
 
 def local_then_global(scores: np.ndarray, info: np.ndarray, travel: np.ndarray, open_: np.ndarray,
-                      in_local: np.ndarray, rules: GoalRules) -> list[int]:
+                      in_local: np.ndarray, rules: GoalRules,
+                      global_scores: np.ndarray | None = None) -> list[int]:
     """Indices best first (sec. III-C). Ties go to the shorter travel. Hierarchical: while an open node of
     the agent's own subregion (`in_local`) promises something to see (information above the local
-    threshold), those nodes come first in score order; otherwise every node is ranked by its score minus
-    the distance cost. Flat (`no-hp`): score order."""
+    threshold), those nodes come first in score order; otherwise every node is ranked by its global score
+    (`global_scores`, default `scores`) minus the distance cost. Flat (`no-hp`): score order."""
     n = len(scores)
     order = sorted(range(n), key=lambda i: (-scores[i], travel[i]))
     if not rules.hierarchical:
@@ -109,7 +111,8 @@ def local_then_global(scores: np.ndarray, info: np.ndarray, travel: np.ndarray, 
     local_best = [i for i in order if in_local[i] and open_[i] and info[i] > rules.local_score_threshold]
     if local_best:
         return local_best + [i for i in order if i not in local_best]
-    global_score = scores - rules.global_distance_weight * travel
+    base = scores if global_scores is None else global_scores
+    global_score = base - rules.global_distance_weight * travel
     return sorted(range(n), key=lambda i: (-global_score[i], travel[i]))
 
 
@@ -142,6 +145,10 @@ def rank_goals(plan: Plan, here: np.ndarray, render: RenderFn, floor_height: flo
         vol[i] = hull_volume(pano, pcfg.hull)
     in_horizon = np.array([line_of_sight(ws, here, p, wcfg) for p in pos])
     scores = node_scores(inv, vol, unvisited, in_horizon, is_failed, pcfg.score)
+    # the global stage weighs what a node promises against the way there; the in-horizon flag (a node in
+    # sight of the agent) is a local preference and, counted there too, keeps the agent near (ours)
+    global_scores = None if rules.global_in_horizon else node_scores(
+        inv, vol, unvisited, np.zeros_like(in_horizon), is_failed, pcfg.score)
     plan.scores = {n: float(s) for n, s in zip(nodes, scores, strict=True)}
     travel = travel_lengths(graph, here, nodes, pos)
     # the information terms (w_o s_o + w_c s_c, shares relative to the best node anywhere): what keeps
@@ -152,7 +159,8 @@ def rank_goals(plan: Plan, here: np.ndarray, render: RenderFn, floor_height: flo
     local = agent_subregion(graph, plan.subregions, here) if hierarchical else None
     in_local = np.array([hierarchical and plan.subregions.get(n) == local for n in nodes])
     rules = dataclasses.replace(rules, hierarchical=hierarchical)
-    return [nodes[i] for i in local_then_global(scores, info, travel, open_, in_local, rules)]
+    order = local_then_global(scores, info, travel, open_, in_local, rules, global_scores)
+    return [nodes[i] for i in order]
 
 
 def distance_to_polyline(p: np.ndarray, path: np.ndarray) -> float:
