@@ -45,7 +45,13 @@ def test_episode_folder_is_complete(episode):
     turns = sum(a != "move_forward" for a in ep.actions)
     assert saved["rotation_pct"] == pytest.approx(100 * turns / 90)
     assert saved["rotation_causes"]["bootstrap"] == 72 and sum(saved["rotation_causes"].values()) == turns
-    assert saved["rooms_total"] == len(saved["rooms"]["completion"]) and saved["rooms_entered"] >= 1
+    from activesplat.eval.behaviour import BehaviourConfig, rooms_entered
+    from activesplat.sim import load_scene
+
+    house = load_scene("small-0").house
+    entered = rooms_entered(house, ep.poses[:, [0, 2], 3], BehaviourConfig().entered_inset_m)
+    assert saved["rooms_total"] == house.n_rooms == len(saved["rooms"]["completion"])
+    assert saved["rooms"]["entered"] == entered and saved["rooms_entered"] == len(entered)
     n_points = sum(r["points"] for r in saved["rooms"]["completion"].values())
     coverage = np.load(out / "coverage.npz")
     completed = np.unpackbits(coverage["completed"])[: int(coverage["n"])]

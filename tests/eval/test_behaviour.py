@@ -44,6 +44,9 @@ def test_rooms_entered_needs_the_inset_and_skips_corridors(house):
     assert rooms_entered(house, path, inset_m=0.5) == ["living"]
     assert rooms_entered(house, np.vstack([path, [[6.5, 2.5]]]), 0.5) == ["living", "bedroom"]
     assert rooms_entered(house, path, inset_m=0.0) == ["living", "bedroom"]
+    # the open boundary between the living room's two rectangles (z = 3 for 0 <= x <= 2) is no wall
+    assert rooms_entered(house, np.array([[1.0, 3.1]]), inset_m=0.5) == ["living"]
+    assert rooms_entered(house, np.array([[2.6, 2.8]]), inset_m=0.5) == []  # 0.2 m from a real wall
 
 
 def test_room_completion_labels_points_by_the_rectangles_of_a_room(house):

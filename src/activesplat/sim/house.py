@@ -180,14 +180,22 @@ class House:
 
     def label_points(self, xz: np.ndarray, inset: float = 0.0) -> np.ndarray:
         """Index into `room_names` of the room holding each (x, z) point, -1 outside every room (in a wall
-        or outside the house). `inset` shrinks every rectangle first (a point counts as inside a room only
-        `inset` metres past its walls)."""
+        or outside the house). With `inset` > 0 a point counts only when the square of half-side `inset`
+        around it (its corners and edge midpoints) lies in the same room: `inset` metres past the room's
+        walls, while the open boundary between two rectangles of one room does not count as a wall."""
         xz = np.asarray(xz, np.float64).reshape(-1, 2)
+        out = self._label(xz)
+        if inset > 0:
+            for dx, dz in ((-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1)):
+                out[self._label(xz + inset * np.array([dx, dz], np.float64)) != out] = -1
+        return out
+
+    def _label(self, xz: np.ndarray) -> np.ndarray:
         names = self.room_names
         out = np.full(len(xz), -1, np.int64)
         for r in self.rooms:
-            inside = ((xz[:, 0] >= r.x0 + inset) & (xz[:, 0] <= r.x1 - inset)
-                      & (xz[:, 1] >= r.z0 + inset) & (xz[:, 1] <= r.z1 - inset) & (out < 0))
+            inside = ((xz[:, 0] >= r.x0) & (xz[:, 0] <= r.x1) & (xz[:, 1] >= r.z0) & (xz[:, 1] <= r.z1)
+                      & (out < 0))
             out[inside] = names.index(r.name)
         return out
 
