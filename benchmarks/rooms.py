@@ -23,25 +23,21 @@ from activesplat.eval.behaviour import (
     episode_behaviour,
     relative_to_ceiling,
 )
-from activesplat.eval.coverage import CoverageAccumulator, CoverageConfig
+from activesplat.eval.coverage import CoverageConfig
+from activesplat.eval.replay import replay_coverage
 from activesplat.eval.sweep import sweep_ceiling
-from activesplat.geometry import intrinsics
-from activesplat.sim import SimConfig, Simulator, load_scene
-from activesplat.viz.trajectory import draw_trajectory
+from activesplat.sim import SimConfig, load_scene
+from activesplat.viz.trajectory import draw_trajectory, room_labels
 
 
 def completed_mask(episode, scene, cfg: CoverageConfig, sim_config: SimConfig) -> np.ndarray:
+    """The episode's coverage.npz, else the mask from replaying its actions (checked against poses.txt)."""
     path = episode.dir / "coverage.npz"
-    gt = scene.sample_surface(cfg.n_gt_points, seed=cfg.seed)
     if path.is_file():
         data = np.load(path)
         return np.unpackbits(data["completed"])[: int(data["n"])].astype(bool)
-    sim = Simulator(scene, start=episode.start_pose, config=sim_config)
-    K = intrinsics(cfg.resolution, cfg.resolution, sim_config.hfov_deg)
-    acc = CoverageAccumulator(gt, cfg)
-    for pose in episode.poses:
-        acc.add_frame(sim.render(pose, cfg.resolution, cfg.resolution)[1], pose, K)
-    return acc.completed()
+    return replay_coverage(scene, episode.start_pose, episode.actions, cfg, expected_poses=episode.poses,
+                           sim_config=sim_config, with_completed=True)["completed"]
 
 
 def main() -> None:
@@ -66,10 +62,8 @@ def main() -> None:
         tab3 = at_path_fractions(metrics.get("curve", []), bcfg.path_fractions)
         labels = {}
         if scene.house is not None:
-            for name, share in rel.get("room_of_ceiling_pct", {}).items():
-                labels[name] = f"{share:.0f} % of ceiling" + (
-                    "" if name in found["rooms"]["entered"] or name in scene.house.corridor_names
-                    else " (not entered)")
+            labels = room_labels(scene.house, found["rooms"], rel.get("room_of_ceiling_pct", {}),
+                                 unit="% of ceiling")
         draw_trajectory(folder / "trajectory.png", scene.navmap_for(sim_config), xz, scene.house, labels,
                         title=f"{folder.name}: trajectory over the floor plan")
         rows.append((folder, metrics, rel, tab3))

@@ -79,8 +79,8 @@ def explore_episode(run, out: str | Path | None = None, overwrite: bool = False,
     evaluator = _Completion(sim, coverage, run)
     metrics = explore_environment(sim, run, out_dir, overwrite=overwrite, progress=progress, viewer=viewer,
                                   evaluator=evaluator, meta=meta, name=scene_obj.name)
-    evaluator.draw_trajectory(out_dir / "trajectory.png", metrics, title=f"{scene_obj.name} / {run.policy} "
-                              f"seed {run.seed}: trajectory over the floor plan")
+    evaluator.draw_trajectory(out_dir / "trajectory.png", metrics.get("rooms"), title=f"{scene_obj.name} / "
+                              f"{run.policy} seed {run.seed}: trajectory over the floor plan")
     return metrics
 
 
@@ -166,7 +166,7 @@ def explore_environment(env, run, out: str | Path, overwrite: bool = False, prog
     if bar is not None:
         bar.close()
     wall = time.perf_counter() - t_start
-    metrics = evaluator.metrics(actions) if evaluator is not None else {}
+    metrics = evaluator.metrics() if evaluator is not None else {}
     metrics.update({
         "action_counts": action_counts(actions),
         "rotation_pct": rotation_pct(actions),
@@ -210,7 +210,6 @@ class _Completion:
         self.sim, self.coverage, self.cfg, self.sim_config = sim, coverage, run.coverage, run.sim
         self.K = intrinsics(self.cfg.resolution, self.cfg.resolution, run.sim.hfov_deg)
         self.positions: list[tuple[float, float]] = []
-        self.rooms: dict | None = None
 
     def observe(self, pose) -> None:
         depth = self.sim.render(pose, self.cfg.resolution, self.cfg.resolution)[1]
@@ -223,17 +222,15 @@ class _Completion:
     def curve_point(self, step: int, forward: int) -> dict:
         return _curve_point(step, self.coverage, forward, self.sim_config)
 
-    def metrics(self, actions: list[str]) -> dict:
+    def metrics(self) -> dict:
         """Completion, and for a built-in house the rooms entered and per-room completion."""
-        from activesplat.eval.behaviour import episode_behaviour
+        from activesplat.eval.behaviour import room_behaviour
 
         out = self.coverage.metrics()
         house = self.sim.scene.house
         if house is not None:
-            found = episode_behaviour(actions, np.array(self.positions), house, self.coverage.gt,
-                                      self.coverage.completed())
-            self.rooms = found["rooms"]
-            out.update({k: found[k] for k in ("rooms_total", "rooms_entered", "rooms")})
+            out.update(room_behaviour(house, np.array(self.positions), self.coverage.gt,
+                                      self.coverage.completed()))
         return out
 
     def save(self, out_dir: Path) -> None:
@@ -243,17 +240,15 @@ class _Completion:
         np.savez_compressed(out_dir / "coverage.npz", completed=np.packbits(completed), n=len(completed),
                             threshold_m=self.cfg.threshold_m, seed=self.cfg.seed)
 
-    def draw_trajectory(self, out_png: Path, metrics: dict, title: str) -> None:
-        from activesplat.viz.trajectory import draw_trajectory
+    def draw_trajectory(self, out_png: Path, rooms: dict | None, title: str) -> None:
+        """trajectory.png; `rooms`: the episode's ``rooms`` metrics (built-in houses), else None."""
+        from activesplat.viz.trajectory import draw_trajectory, room_labels
 
         scene = self.sim.scene
         labels = {}
-        if self.rooms is not None:
-            visited = set(self.rooms["entered"]) | set(scene.house.corridor_names)
-            for name, room in self.rooms.get("completion", {}).items():
-                pct = room["completion_ratio_pct"]
-                text = f"{pct:.0f} %" if pct is not None else ""
-                labels[name] = text if name in visited else f"{text} (not entered)"
+        if rooms is not None:
+            labels = room_labels(scene.house, rooms, {name: room["completion_ratio_pct"]
+                                                      for name, room in rooms.get("completion", {}).items()})
         draw_trajectory(out_png, scene.navmap_for(self.sim_config), np.array(self.positions),
                         house=scene.house, room_labels=labels, title=title)
 

@@ -140,22 +140,29 @@ def relative_to_ceiling(metrics: dict, ceiling: dict, cfg: BehaviourConfig | Non
     return out
 
 
+def room_behaviour(house, positions_xz: np.ndarray, gt_points=None, completed=None,
+                   cfg: BehaviourConfig | None = None) -> dict:
+    """The metrics.json entries of an episode in a built-in house: ``rooms_total``, ``rooms_entered`` and
+    ``rooms`` (names entered, and with the ground-truth points and their completed mask the per-room
+    completion)."""
+    cfg = cfg or BehaviourConfig()
+    entered = rooms_entered(house, positions_xz, cfg.entered_inset_m)
+    out: dict = {"rooms_total": int(house.n_rooms), "rooms_entered": len(entered),
+                 "rooms": {"entered": entered}}
+    if gt_points is not None and completed is not None:
+        out["rooms"]["completion"] = room_completion(house, gt_points, completed)
+    return out
+
+
 def episode_behaviour(actions: Sequence[str], positions_xz: np.ndarray, house=None, gt_points=None,
                       completed=None, cfg: BehaviourConfig | None = None) -> dict:
-    """The metrics.json entries of an episode: ``action_counts``, ``rotation_pct``, and for a built-in house
-    ``rooms_total``, ``rooms_entered`` and ``rooms`` (names entered, per-room completion)."""
-    cfg = cfg or BehaviourConfig()
+    """``action_counts``, ``rotation_pct``, and for a built-in house room_behaviour's entries."""
     out: dict = {"action_counts": action_counts(actions), "rotation_pct": rotation_pct(actions)}
     if house is not None:
-        entered = rooms_entered(house, positions_xz, cfg.entered_inset_m)
-        out["rooms_total"] = int(house.n_rooms)
-        out["rooms_entered"] = len(entered)
-        out["rooms"] = {"entered": entered}
-        if gt_points is not None and completed is not None:
-            out["rooms"]["completion"] = room_completion(house, gt_points, completed)
+        out.update(room_behaviour(house, positions_xz, gt_points, completed, cfg))
     return out
 
 
 __all__ = ["ROTATION_ACTIONS", "BehaviourConfig", "action_counts", "at_path_fractions", "episode_behaviour",
-           "relative_to_ceiling", "room_completion", "rooms_entered", "rotation_causes", "rotation_pct",
-           "steps_to_reach"]
+           "relative_to_ceiling", "room_behaviour", "room_completion", "rooms_entered", "rotation_causes",
+           "rotation_pct", "steps_to_reach"]

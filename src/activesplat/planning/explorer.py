@@ -390,9 +390,9 @@ class ActiveSplatExplorer(Explorer):
         self.failed.clear()  # fallback: forget failures, the next replan gives every goal a second chance
         self.idle(pose, stuck)
 
-    def arrive(self, pose: np.ndarray, max_views: int | None = None) -> None:
+    def arrive(self, pose: np.ndarray, max_views: int | None = None, cause: str = "arrival") -> None:
         """On-the-spot rotations toward the panorama and high-loss targets (sec. III-B3), at most
-        `max_views` (default `max_rotation_views`)."""
+        `max_views` (default `max_rotation_views`); `cause` names them in `last_cause`."""
         if not self.cfg.rotations:
             return
         here = floor_xz(pose)
@@ -400,7 +400,7 @@ class ActiveSplatExplorer(Explorer):
         if any(np.hypot(*(here - p)) < skip for p in self.rotated_at):
             return
         self.rotated_at.append(here)
-        self.rotation_cause = "arrival"
+        self.rotation_cause = cause
         views = self.cfg.max_rotation_views if max_views is None else max_views
         self.rotation_targets = self.timers.time("rotation_selection", self._rotation_targets, pose, views)
 
@@ -418,9 +418,7 @@ class ActiveSplatExplorer(Explorer):
             if any(np.hypot(*(pos - p)) < self.cfg.multi_node_radius_m for p in self.stopped_multi):
                 continue
             self.stopped_multi.append(pos)
-            self.arrive(pose, self.cfg.multi_stop_views)
-            if self.rotation_targets:
-                self.rotation_cause = "multi_stop"
+            self.arrive(pose, self.cfg.multi_stop_views, cause="multi_stop")
             return bool(self.rotation_targets)
         return False
 

@@ -60,6 +60,18 @@ def draw_trajectory(out_png: str | Path, navmap, positions_xz: np.ndarray, house
     return out_png
 
 
+def room_labels(house, rooms: dict, values: dict[str, float | None], unit: str = "%") -> dict[str, str]:
+    """Text under each room's name in the figure: its value (e.g. completion %) and "(not entered)" for a
+    room the agent never stood in (`rooms`: the episode's ``rooms`` entry; corridors always count as
+    entered)."""
+    visited = set(rooms.get("entered", ())) | set(house.corridor_names)
+    out = {}
+    for name, value in values.items():
+        text = f"{value:.0f} {unit}" if value is not None else ""
+        out[name] = text if name in visited else f"{text} (not entered)"
+    return out
+
+
 def _dwell(xz: np.ndarray) -> np.ndarray:
     """(x, z, steps spent, first step) of every place the agent stayed for more than one step."""
     moved = np.r_[True, np.linalg.norm(np.diff(xz, axis=0), axis=1) > 1e-9]
@@ -87,4 +99,4 @@ def _rect(room, **kw):
     return Rectangle((room.x0, room.z0), room.x1 - room.x0, room.z1 - room.z0, **kw)
 
 
-__all__ = ["draw_trajectory"]
+__all__ = ["draw_trajectory", "room_labels"]
