@@ -13,8 +13,10 @@ from activesplat.splat.densify import (
     gaussians_from_pixels,
     high_loss_mask,
     prune_mask,
+    surface_elongation,
 )
 from activesplat.splat.gaussians import SH_C0, GaussianMap
+from activesplat.splat.kernels import quat_to_rotmat
 
 
 def _planar_render(h=4, w=4):
@@ -80,6 +82,60 @@ def test_pixel_stride_subsamples_the_mask():
                                 np.eye(4), K, cfg)
     assert raw["means"].shape == (16, 3)
     assert torch.allclose(raw["log_scales"], torch.full((16, 3), np.log(cfg.init_radius_scale * 2 / 8.0)))
+
+
+def _floor_depth(size=64, focal=32.0, height=1.0):
+    """z-depth of a camera at ``height`` above a floor (camera y points down to it), looking level."""
+    v = np.arange(size)[:, None].repeat(size, axis=1)
+    dy = (v + 0.5 - size / 2) / focal
+    return np.where(dy > 0, height / np.maximum(dy, 1e-9), 0.0).astype(np.float32)
+
+
+def test_surface_elongation_follows_the_viewing_angle_on_a_plane():
+    K = np.array([[32.0, 0, 32], [0, 32.0, 32], [0, 0, 1]])
+    depth = _floor_depth()
+    v, u = np.array([40, 50, 60, 20, 33]), np.array([32, 10, 50, 32, 0])
+    axis, elongation = surface_elongation(depth, v, u, K, 2, 100.0, 0.02)
+    rays = np.stack([(u + 0.5 - 32) / 32, (v + 0.5 - 32) / 32, np.ones(5)], axis=1)
+    rays /= np.linalg.norm(rays, axis=1, keepdims=True)
+    assert np.allclose(elongation[:3], 1.0 / rays[:3, 1], rtol=1e-4)  # 1 / cos to the floor normal (0, 1, 0)
+    assert np.allclose(axis[:3, 1], 0.0, atol=1e-5)  # the axis lies in the floor...
+    assert np.allclose(np.cross(axis[:3], rays[:3])[:, 1], 0.0, atol=1e-5)  # ...under the viewing ray
+    assert elongation[3] == 1.0 and elongation[4] == 1.0  # no depth (ceiling side) / neighbour off the image
+    capped = surface_elongation(depth, v, u, K, 2, 2.0, 0.02)[1]
+    assert capped.max() == 2.0 and np.all(capped >= 1.0)
+    assert np.all(surface_elongation(depth, v, u, K, 2, 1.0, 0.02)[1] == 1.0)  # 1 = off
+
+
+def test_surface_elongation_leaves_depth_edges_isotropic():
+    K = np.array([[32.0, 0, 32], [0, 32.0, 32], [0, 0, 1]])
+    depth = np.full((64, 64), 3.0, np.float32)
+    depth[:, 33:] = 1.5  # a box edge: neighbours off the plane
+    _, elongation = surface_elongation(depth, np.array([20, 20]), np.array([32, 20]), K, 2, 8.0, 0.02)
+    assert elongation[0] == 1.0  # the edge
+    ray = np.array([(20.5 - 32) / 32, (20.5 - 32) / 32, 1.0])  # a wall facing the camera, seen off-axis
+    assert elongation[1] == pytest.approx(np.linalg.norm(ray), rel=1e-4)
+
+
+def test_elongated_gaussians_stretch_along_the_floor_under_the_ray():
+    cfg = MapperConfig(init_max_elongation=8.0)
+    K = np.array([[32.0, 0, 32], [0, 32.0, 32], [0, 0, 1]])
+    depth = torch.from_numpy(_floor_depth())
+    mask = torch.zeros(64, 64, dtype=torch.bool)
+    mask[47, 33] = True  # on the stride-2 grid (odd rows and columns)
+    mask[46, 33] = True  # off the grid: no Gaussian
+    raw = gaussians_from_pixels(mask, torch.zeros(64, 64, 3), depth, np.eye(4), K, cfg)
+    assert raw["means"].shape == (1, 3)
+    scales = torch.exp(raw["log_scales"][0])
+    rot = quat_to_rotmat(raw["quats"])[0]
+    z = float(depth[47, 33])
+    radius = cfg.init_radius_scale * 2 * z / 32.0
+    ray = np.array([(33.5 - 32) / 32, (47.5 - 32) / 32, 1.0])
+    ray /= np.linalg.norm(ray)
+    assert torch.allclose(scales[1:], torch.tensor([radius, radius]), rtol=1e-5)
+    assert float(scales[0]) == pytest.approx(radius / ray[1], rel=1e-3)
+    stretched = rot[:, 0].numpy()  # the rotation takes x onto the stretched axis: in the floor, under the ray
+    assert abs(stretched[1]) < 1e-4 and abs(np.cross(stretched, ray)[1]) < 1e-4
 
 
 def _map(n=6, seed=0) -> GaussianMap:

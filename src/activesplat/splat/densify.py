@@ -46,11 +46,61 @@ def stride_mask(mask: torch.Tensor, stride: int) -> torch.Tensor:
     return mask & grid
 
 
+def surface_elongation(depth: np.ndarray, v: np.ndarray, u: np.ndarray, K: np.ndarray, stride: int,
+                       max_elongation: float, plane_tol: float) -> tuple[np.ndarray, np.ndarray]:
+    """How far one pixel block's footprint on the observed surface stretches along the surface, and in
+    which direction (camera frame): the ``elongation`` 1 / cos(theta) (theta between the viewing ray and
+    the surface normal, clipped to [1, ``max_elongation``]) and the unit ``axis`` in the surface plane
+    along which it stretches (the viewing ray projected onto the plane). The normal comes from the
+    back-projected neighbours ``stride`` pixels away on either side in u and in v. Pixels whose
+    neighbours are invalid, off the image, or not on one plane with it (inverse depth, which is affine
+    in the pixel coordinates on a plane, departs from the neighbours' mean by more than ``plane_tol``
+    of its value: a depth edge or a curved surface) keep elongation 1. Returns ((M, 3), (M,))."""
+    m = len(v)
+    axis = np.zeros((m, 3))
+    elongation = np.ones(m)
+    if m == 0 or max_elongation <= 1.0:
+        return axis, elongation
+    h, w = depth.shape
+    s = stride
+    ok = (u - s >= 0) & (u + s < w) & (v - s >= 0) & (v + s < h)
+    vi, ui = np.where(ok, v, s), np.where(ok, u, s)  # in-range stand-ins for the rows that are not ok
+    fx, fy, cx, cy = K[0, 0], K[1, 1], K[0, 2], K[1, 2]
+
+    def point(rows, cols):
+        z = depth[rows, cols].astype(np.float64)
+        return np.stack([(cols + 0.5 - cx) / fx * z, (rows + 0.5 - cy) / fy * z, z], axis=1), z
+
+    p, z = point(vi, ui)
+    pr, zr = point(vi, ui + s)
+    pl, zl = point(vi, ui - s)
+    pd, zd = point(vi + s, ui)
+    pu, zu = point(vi - s, ui)
+    ok &= (z > 0) & (zr > 0) & (zl > 0) & (zd > 0) & (zu > 0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv = 1.0 / z
+        for za, zb in ((zr, zl), (zd, zu)):
+            ok &= np.abs(0.5 * (1.0 / za + 1.0 / zb) - inv) <= plane_tol * inv
+        normal = np.cross(pr - pl, pd - pu)
+        normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+        ray = p / np.linalg.norm(p, axis=1, keepdims=True)
+        cos = np.abs((ray * normal).sum(axis=1))
+        along = ray - (ray * normal).sum(axis=1, keepdims=True) * normal
+        along /= np.linalg.norm(along, axis=1, keepdims=True)
+    ok &= np.isfinite(cos) & np.isfinite(along).all(axis=1) & (cos > 0)
+    elongation[ok] = np.clip(1.0 / cos[ok], 1.0, max_elongation)
+    axis[ok] = along[ok]
+    return axis, elongation
+
+
 def gaussians_from_pixels(mask: torch.Tensor, rgb: torch.Tensor, depth: torch.Tensor, pose: np.ndarray,
                           K: np.ndarray, cfg: MapperConfig) -> dict[str, torch.Tensor]:
     """Raw parameters of one Gaussian per masked pixel on the ``pixel_stride`` grid: back-projected
-    centre, radius = init_radius_scale * stride * depth / focal (projective scale), opacity 0.5,
-    identity rotation, colour = the pixel's colour (docs/protocol.md §2, initialisation)."""
+    centre, radius = init_radius_scale * stride * depth / focal (projective scale), opacity
+    ``init_opacity``, colour = the pixel's colour (docs/protocol.md §2, initialisation). Isotropic as the
+    paper when ``init_max_elongation`` is 1; otherwise the radius along the surface's slant direction
+    is stretched by :func:`surface_elongation` so that a surface seen at a grazing angle is covered
+    between the rows of pixels that sample it (a departure, see MapperConfig)."""
     pick = stride_mask(mask, cfg.pixel_stride)
     v, u = (t.cpu().numpy() for t in torch.nonzero(pick, as_tuple=True))
     depth_np = depth.detach().cpu().numpy()
@@ -59,7 +109,11 @@ def gaussians_from_pixels(mask: torch.Tensor, rgb: torch.Tensor, depth: torch.Te
     focal = 0.5 * (float(K[0, 0]) + float(K[1, 1]))
     radii = cfg.init_radius_scale * cfg.pixel_stride * z / focal
     colors = rgb[torch.from_numpy(v), torch.from_numpy(u)]
-    raw = GaussianMap.raw_from_points(points, colors, radii, cfg.init_opacity)
+    axis, elongation = surface_elongation(depth_np, v, u, K, cfg.pixel_stride, cfg.init_max_elongation,
+                                          cfg.init_plane_tol)
+    raw = GaussianMap.raw_from_points(points, colors, radii, cfg.init_opacity,
+                                      torch.from_numpy((axis @ pose[:3, :3].T).astype(np.float32)),
+                                      torch.from_numpy(elongation.astype(np.float32)))
     return {k: t.to(rgb.device) for k, t in raw.items()}
 
 

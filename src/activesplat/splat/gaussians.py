@@ -67,18 +67,31 @@ class GaussianMap:
         return cls(raw)
 
     @staticmethod
-    def raw_from_points(points: torch.Tensor, rgb: torch.Tensor, radii: torch.Tensor,
-                        opacity: float) -> dict[str, torch.Tensor]:
-        """Isotropic Gaussians at ``points`` (M,3) with colour ``rgb`` (M,3) in [0,1] and radius ``radii``
-        (M,), identity rotation, opacity ``opacity`` (docs/protocol.md §2, initialisation)."""
+    def raw_from_points(points: torch.Tensor, rgb: torch.Tensor, radii: torch.Tensor, opacity: float,
+                        axes: torch.Tensor | None = None,
+                        elongation: torch.Tensor | None = None) -> dict[str, torch.Tensor]:
+        """Gaussians at ``points`` (M,3) with colour ``rgb`` (M,3) in [0,1] and radius ``radii`` (M,),
+        opacity ``opacity`` (docs/protocol.md §2, initialisation). Isotropic with identity rotation, unless
+        ``axes`` (M,3) unit world directions and ``elongation`` (M,) >= 1 are given: then the first scale
+        is ``radii * elongation`` along ``axes`` (the rotation takes x onto the axis), the other two stay
+        ``radii``; rows with elongation 1 stay isotropic with identity rotation."""
         m = points.shape[0]
         quats = torch.zeros((m, 4), dtype=torch.float32, device=points.device)
         quats[:, 0] = 1.0
+        log_scales = torch.log(radii.to(torch.float32)).unsqueeze(1).expand(m, 3).clone()
+        if axes is not None and elongation is not None:
+            stretched = elongation > 1.0
+            a = axes[stretched].to(torch.float32)
+            a = torch.where(a[:, :1] < 0, -a, a)  # the same ellipsoid; keeps 1 + a_x away from 0
+            # unit quaternion turning e_x onto a: (1 + e_x . a, e_x x a), normalised
+            q = torch.stack([1.0 + a[:, 0], torch.zeros_like(a[:, 0]), -a[:, 2], a[:, 1]], dim=1)
+            quats[stretched] = q / q.norm(dim=1, keepdim=True)
+            log_scales[stretched, 0] += torch.log(elongation[stretched].to(torch.float32))
         logit = float(np.log(opacity / (1.0 - opacity)))
         return {
             "means": points.to(torch.float32),
             "quats": quats,
-            "log_scales": torch.log(radii.to(torch.float32)).unsqueeze(1).expand(m, 3).clone(),
+            "log_scales": log_scales,
             "opacity_logits": torch.full((m,), logit, dtype=torch.float32, device=points.device),
             "f_dc": rgb_to_f_dc(rgb.to(torch.float32)),
         }
