@@ -1,7 +1,9 @@
-"""numba kernels of the online mapper's per-Gaussian bookkeeping (CPU): the view culling of
+"""numba kernels of the online mapper (CPU): the view culling of
 :func:`activesplat.splat.gaussians.frustum_rows` and the row-sparse Adam update of
-:class:`activesplat.splat.optim.RowAdam`. Each is one parallel pass over the rows, where the torch
-versions (kept for other devices, and compared in the tests) make a dozen passes and temporaries."""
+:class:`activesplat.splat.optim.RowAdam`, each one parallel pass over the rows, where the torch
+versions (kept for other devices, and compared in the tests) make a dozen passes and temporaries; and the
+mapping loss of eqs. 5-7 with its gradient (:func:`activesplat.splat.losses.mapping_loss`) in three
+parallel passes over the image rows instead of pytorch-msssim's ten convolutions and autograd."""
 
 from __future__ import annotations
 
@@ -83,3 +85,127 @@ def overlap_shares(points, rot, offset, fx, fy, cx, cy, width, height, border):
                 inside += 1
         share[m] = inside / p_count
     return share
+
+
+# --------------------------------------------------------------------------- the mapping loss, eqs. 5-7
+@njit(parallel=True, cache=True, error_model="numpy")
+def loss_rows(rgb, depth, obs_rgb, obs_depth, win):
+    """Pass 1 of :func:`mapping_loss_grad`, parallel over image rows: the masked images X = rgb * valid,
+    Y = obs_rgb * valid blurred along the rows (valid convolution with ``win``) into h (5, 3, H, Wo) =
+    (X, Y, XX, YY, XY); per-row sums of the colour L1 (mean over channels), depth L1 and valid pixels."""
+    height, width = depth.shape
+    nw = win.shape[0]
+    wo = width - nw + 1
+    h = np.empty((5, 3, height, wo), np.float32)
+    sums = np.zeros((height, 3))
+    for i in prange(height):
+        x = np.empty(width, np.float32)
+        y = np.empty(width, np.float32)
+        c_sum = 0.0
+        d_sum = 0.0
+        n_valid = 0
+        for j in range(width):
+            if obs_depth[i, j] > 0:
+                n_valid += 1
+                d_sum += abs(depth[i, j] - obs_depth[i, j])
+                c_sum += (abs(rgb[i, j, 0] - obs_rgb[i, j, 0]) + abs(rgb[i, j, 1] - obs_rgb[i, j, 1])
+                          + abs(rgb[i, j, 2] - obs_rgb[i, j, 2])) / 3.0
+        sums[i, 0], sums[i, 1], sums[i, 2] = c_sum, d_sum, n_valid
+        for c in range(3):
+            for j in range(width):
+                ok = obs_depth[i, j] > 0
+                x[j] = rgb[i, j, c] if ok else np.float32(0.0)
+                y[j] = obs_rgb[i, j, c] if ok else np.float32(0.0)
+            for q in range(5):
+                for j in range(wo):
+                    h[q, c, i, j] = 0.0
+            for k in range(nw):
+                g = win[k]
+                for j in range(wo):
+                    xv, yv = x[j + k], y[j + k]
+                    h[0, c, i, j] += g * xv
+                    h[1, c, i, j] += g * yv
+                    h[2, c, i, j] += g * (xv * xv)
+                    h[3, c, i, j] += g * (yv * yv)
+                    h[4, c, i, j] += g * (xv * yv)
+    return h, sums
+
+
+@njit(parallel=True, cache=True, error_model="numpy")
+def ssim_columns(h, win, c1, c2):
+    """Pass 2, parallel over output rows: the blur along the columns, the SSIM map and its derivatives
+    with respect to the blurred X, XX and XY (d (3, 3, Ho, Wo)); per-row sums of the SSIM map (3 Ho,)."""
+    nw = win.shape[0]
+    _, nc, height, wo = h.shape
+    ho = height - nw + 1
+    d = np.empty((3, nc, ho, wo), np.float32)
+    row_sum = np.zeros(nc * ho)
+    for r in prange(nc * ho):
+        c, io = r // ho, r % ho
+        acc = np.zeros((5, wo), np.float32)
+        for k in range(nw):
+            g = win[k]
+            for q in range(5):
+                for j in range(wo):
+                    acc[q, j] += g * h[q, c, io + k, j]
+        s = 0.0
+        for j in range(wo):
+            m1, m2 = acc[0, j], acc[1, j]
+            s11, s22, s12 = acc[2, j] - m1 * m1, acc[3, j] - m2 * m2, acc[4, j] - m1 * m2
+            a1, b1 = np.float32(2.0) * m1 * m2 + c1, m1 * m1 + m2 * m2 + c1
+            a2, b2 = np.float32(2.0) * s12 + c2, s11 + s22 + c2
+            inv = np.float32(1.0) / (b1 * b2)
+            ssim = a1 * a2 * inv
+            s += ssim
+            d[0, c, io, j] = (np.float32(2.0) * m2 * (a2 - a1) * inv
+                              - np.float32(2.0) * m1 * ssim * (np.float32(1.0) / b1 - np.float32(1.0) / b2))
+            d[1, c, io, j] = -ssim / b2
+            d[2, c, io, j] = np.float32(2.0) * a1 * inv
+        row_sum[r] = s
+    return d, row_sum
+
+
+@njit(parallel=True, cache=True, error_model="numpy")
+def loss_grad_rows(d, win, rgb, depth, obs_rgb, obs_depth, w_ssim, w_color, w_depth):
+    """Pass 3, parallel over image rows: the transposed blurs of the SSIM derivatives back to the image,
+    chained through X, XX = X^2 and XY, plus the L1 terms: dL/drgb (H, W, 3) and dL/ddepth (H, W) of
+    L = w_ssim * SSIM + w_color * sum |rgb - obs| / 3 + w_depth * sum |depth - obs_depth| over valid pixels
+    (the caller folds the means into the weights)."""
+    height, width = depth.shape
+    nw = win.shape[0]
+    nc, ho, wo = d.shape[1], d.shape[2], d.shape[3]
+    g_rgb = np.empty((height, width, 3), np.float32)
+    g_depth = np.empty((height, width), np.float32)
+    for i in prange(height):
+        col = np.empty((3, wo), np.float32)
+        full = np.empty((3, width), np.float32)
+        for c in range(nc):
+            for q in range(3):
+                for j in range(wo):
+                    col[q, j] = 0.0
+            for k in range(max(0, i - ho + 1), min(nw, i + 1)):  # output rows io = i - k in [0, Ho)
+                g = win[k]
+                for q in range(3):
+                    for j in range(wo):
+                        col[q, j] += g * d[q, c, i - k, j]
+            for q in range(3):
+                for j in range(width):
+                    full[q, j] = 0.0
+            for k in range(nw):
+                g = win[k]
+                for q in range(3):
+                    for j in range(wo):
+                        full[q, j + k] += g * col[q, j]
+            for j in range(width):
+                ok = obs_depth[i, j] > 0
+                xv = rgb[i, j, c] if ok else np.float32(0.0)
+                yv = obs_rgb[i, j, c] if ok else np.float32(0.0)
+                diff = rgb[i, j, c] - obs_rgb[i, j, c]
+                sign = np.float32(1.0) if diff > 0 else (np.float32(-1.0) if diff < 0 else np.float32(0.0))
+                gx = w_ssim * (full[0, j] + np.float32(2.0) * xv * full[1, j] + yv * full[2, j])
+                g_rgb[i, j, c] = gx + w_color * sign if ok else np.float32(0.0)
+        for j in range(width):
+            diff = depth[i, j] - obs_depth[i, j]
+            sign = np.float32(1.0) if diff > 0 else (np.float32(-1.0) if diff < 0 else np.float32(0.0))
+            g_depth[i, j] = w_depth * sign if obs_depth[i, j] > 0 else np.float32(0.0)
+    return g_rgb, g_depth
