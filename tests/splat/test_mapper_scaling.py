@@ -6,8 +6,16 @@ import torch
 from _synthetic import intrinsics, observe, pose
 
 from activesplat.splat import GaussianMap, Mapper, MapperConfig
+from activesplat.splat._mapper_numba import far_depth
 from activesplat.splat.config import LearningRates, Schedule
-from activesplat.splat.gaussians import PARAM_NAMES, _frustum_rows_torch, activate, frustum_rows
+from activesplat.splat.gaussians import (
+    PARAM_NAMES,
+    _far_depth,
+    _frustum_rows_torch,
+    activate,
+    frustum_rows,
+)
+from activesplat.splat.mapper import _occlusion_culled_rows_cpu
 from activesplat.splat.optim import RowAdam
 from activesplat.splat.rasterize import rasterize
 
@@ -73,6 +81,25 @@ def test_occlusion_culling_drops_only_what_the_observed_surface_hides():
     kept_behind = means[kept[kept >= n]]
     assert (kept_behind[:, 0] < 0).sum() > 0.9 * (means[frustum[frustum >= n]][:, 0] < 0).sum()
     assert ((kept_behind[:, 0] > 0.5) & (kept_behind[:, 1] < -1.5)).any()  # seen through the window
+
+
+def test_far_depth_kernel_and_cpu_culling_match_the_torch_version():
+    """``_mapper_numba.far_depth`` is ``gaussians._far_depth`` bit for bit (windows clipped at the border,
+    invalid pixels = inf), and the mapper's CPU occlusion culling keeps exactly the rows of frustum_rows."""
+    rng = np.random.default_rng(3)
+    depth = torch.from_numpy((1.0 + 3.0 * rng.random((S, S + 7))).astype(np.float32))
+    depth[torch.from_numpy(rng.random((S, S + 7)) < 0.02)] = 0.0
+    for r in (0, 1, 3, 8, 2 * S):
+        assert torch.equal(torch.from_numpy(far_depth(depth.numpy(), r)), _far_depth(depth, r))
+    gmap = _cloud(3000, seed=4)
+    p = gmap.params
+    K = intrinsics(S)
+    depth = torch.from_numpy((0.5 + 2.0 * rng.random((S, S))).astype(np.float32))
+    depth[:, :5] = 0.0
+    for cam in (pose(), pose(0.3, -0.2, 40.0)):
+        want = frustum_rows(p["means"], p["log_scales"], cam, K, S, S, depth, 0.1, 8)
+        got = _occlusion_culled_rows_cpu(p["means"], p["log_scales"], cam, K, S, S, depth, 0.1, 8)
+        assert len(want) > 100 and torch.equal(got, want)
 
 
 def test_row_adam_is_adam_on_trained_rows_and_leaves_the_others_alone():

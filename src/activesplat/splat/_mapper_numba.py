@@ -209,3 +209,34 @@ def loss_grad_rows(d, win, rgb, depth, obs_rgb, obs_depth, w_ssim, w_color, w_de
             sign = np.float32(1.0) if diff > 0 else (np.float32(-1.0) if diff < 0 else np.float32(0.0))
             g_depth[i, j] = w_depth * sign if obs_depth[i, j] > 0 else np.float32(0.0)
     return g_rgb, g_depth
+
+
+# --------------------------------------------------------------------------- occlusion culling
+@njit(parallel=True, cache=True)
+def far_depth(depth, r):
+    """The farthest observed depth within the (2r+1)^2 window (clipped to the image) around each pixel, inf
+    where any pixel of the window is invalid (<= 0): ``gaussians._far_depth`` (two max-pools) in two
+    parallel passes of shifted maxima. Max is exact, so the result is the same bit for bit."""
+    height, width = depth.shape
+    inf = np.float32(np.inf)
+    rows = np.empty((height, width), np.float32)
+    for i in prange(height):
+        for j in range(width):
+            rows[i, j] = depth[i, j] if depth[i, j] > 0 else inf
+        x = rows[i].copy()
+        for d in range(1, r + 1):
+            for j in range(width - d):  # neighbours d to the right, then d to the left
+                v = x[j + d]
+                rows[i, j] = v if v > rows[i, j] else rows[i, j]
+            for j in range(d, width):
+                v = x[j - d]
+                rows[i, j] = v if v > rows[i, j] else rows[i, j]
+    out = np.empty((height, width), np.float32)
+    for i in prange(height):
+        for j in range(width):
+            out[i, j] = rows[i, j]
+        for ii in range(max(0, i - r), min(height, i + r + 1)):
+            for j in range(width):
+                v = rows[ii, j]
+                out[i, j] = v if v > out[i, j] else out[i, j]
+    return out
