@@ -127,6 +127,43 @@ def test_row_adam_is_adam_on_trained_rows_and_leaves_the_others_alone():
     assert ours.steps.tolist().count(5) == 3 and ours.steps.tolist().count(4) == 47
 
 
+def test_row_adam_state_follows_append_and_keep():
+    """Appends (into spare capacity and with reallocation) and prunes keep each row's moments and step
+    count with its row: the same as concatenating and masking the state tensors."""
+    gmap = _cloud(10, seed=5)
+    adam = RowAdam(gmap, LearningRates(), 1e-15)
+    g = torch.Generator().manual_seed(6)
+
+    def state() -> dict[str, torch.Tensor]:  # the moments of one parameter and the step counts
+        return {"m": adam.exp_avg["means"].clone(), "v": adam.exp_avg_sq["means"].clone(),
+                "steps": adam.steps.clone()}
+
+    ref = state()
+    for m, drop in ((5, 0), (1, 3), (40, 0), (0, 7), (2, 1), (100, 20)):
+        if m:  # into spare capacity after a prune, or with a reallocation
+            gmap.append(_cloud(m, seed=m).params)
+        adam.append(m)
+        ref = {k: torch.cat([t, t.new_zeros((m, *t.shape[1:]))]) for k, t in ref.items()}
+        n = len(gmap)
+        rows = torch.randperm(n, generator=g)[: n // 2]
+        grads = {name: torch.randn((len(rows), *t.shape[1:]), generator=g) for name, t in gmap.params.items()}
+        adam.step(rows, grads)
+        after = state()
+        assert torch.equal(after["steps"][rows], ref["steps"][rows] + 1)
+        others = torch.ones(n, dtype=torch.bool)
+        others[rows] = False
+        for k in ref:
+            assert torch.equal(after[k][others], ref[k][others])
+        ref = after
+        keep = torch.ones(n, dtype=torch.bool)
+        keep[torch.randperm(n, generator=g)[:drop]] = False
+        gmap.keep(keep)
+        adam.keep(keep)
+        ref = {k: t[keep] for k, t in ref.items()}
+        assert len(adam) == len(gmap) and all(torch.equal(state()[k], ref[k]) for k in ref)
+        assert all(t.is_contiguous() for t in (*adam.exp_avg.values(), *adam.exp_avg_sq.values()))
+
+
 def _left_then_right(sparse_adam: bool) -> tuple[torch.Tensor, torch.Tensor]:
     """Map the left part of the wall, then only its right part; the raw parameters of the left
     Gaussians (x < -0.5 m) after the first right frame and after ten more."""

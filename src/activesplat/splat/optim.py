@@ -38,9 +38,26 @@ class RowAdam:
         self.gmap, self.rates, self.eps = gmap, learning_rates(lr), float(eps)
         self.beta1, self.beta2 = betas
         n, device = len(gmap), gmap.device
-        self.exp_avg = {name: torch.zeros_like(gmap.params[name].detach()) for name in PARAM_NAMES}
-        self.exp_avg_sq = {name: torch.zeros_like(gmap.params[name].detach()) for name in PARAM_NAMES}
-        self.steps = torch.zeros(n, dtype=torch.int32, device=device)
+        # the state lives in buffers of ``_capacity`` rows, grown geometrically so that appending m rows
+        # costs O(m) amortised instead of copying the whole state; the tensors below are views of their
+        # first rows (contiguous, so the numba step updates them in place)
+        self._capacity = n
+        self._buffers = {key: torch.zeros((n, *gmap.params[name].shape[1:]), device=device)
+                         for key, name in self._keys()}
+        self._buffers["steps"] = torch.zeros(n, dtype=torch.int32, device=device)
+        self._views(n)
+
+    GROWTH = 1.25  # capacity factor on reallocation (the spare rows cost at most 25 % of the state)
+
+    @staticmethod
+    def _keys():
+        return [((kind, name), name) for kind in ("exp_avg", "exp_avg_sq") for name in PARAM_NAMES]
+
+    def _views(self, n: int) -> None:
+        """Point exp_avg, exp_avg_sq and steps at the first ``n`` rows of the buffers."""
+        self.exp_avg = {name: self._buffers[("exp_avg", name)][:n] for name in PARAM_NAMES}
+        self.exp_avg_sq = {name: self._buffers[("exp_avg_sq", name)][:n] for name in PARAM_NAMES}
+        self.steps = self._buffers["steps"][:n]
 
     def __len__(self) -> int:
         return int(self.steps.shape[0])
@@ -49,17 +66,23 @@ class RowAdam:
         """State for ``m`` new rows (zero moments, step 0)."""
         if m <= 0:
             return
-        for state in (self.exp_avg, self.exp_avg_sq):
-            for name, t in state.items():
-                state[name] = torch.cat([t, t.new_zeros((m, *t.shape[1:]))])
-        self.steps = torch.cat([self.steps, self.steps.new_zeros(m)])
+        n = len(self)
+        if n + m > self._capacity:
+            self._capacity = max(n + m, int(self.GROWTH * self._capacity))
+            for key, buf in self._buffers.items():
+                grown = buf.new_empty((self._capacity, *buf.shape[1:]))
+                grown[:n] = buf[:n]
+                self._buffers[key] = grown
+        for buf in self._buffers.values():
+            buf[n:n + m] = 0
+        self._views(n + m)
 
     def keep(self, mask: torch.Tensor) -> None:
-        """Drop the state of the rows where ``mask`` is False."""
-        for state in (self.exp_avg, self.exp_avg_sq):
-            for name, t in state.items():
-                state[name] = t[mask]
-        self.steps = self.steps[mask]
+        """Drop the state of the rows where ``mask`` is False (compacted within the buffers)."""
+        n, k = len(self), int(mask.sum())
+        for buf in self._buffers.values():
+            buf[:k] = buf[:n][mask]
+        self._views(k)
 
     @torch.no_grad()
     def step(self, rows: torch.Tensor, grads: dict[str, torch.Tensor]) -> None:
