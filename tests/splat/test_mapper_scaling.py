@@ -164,6 +164,29 @@ def test_row_adam_state_follows_append_and_keep():
         assert all(t.is_contiguous() for t in (*adam.exp_avg.values(), *adam.exp_avg_sq.values()))
 
 
+def test_row_adam_step_nonzero_is_step_on_the_rows_with_a_gradient():
+    """The fused CPU step: the rows whose gradient is zero in every parameter are left alone (step count
+    too); the others get exactly :meth:`RowAdam.step` (bit for bit)."""
+    gmaps = [_cloud(300, seed=7) for _ in range(2)]
+    adams = [RowAdam(gm, LearningRates(), 1e-15) for gm in gmaps]
+    g = torch.Generator().manual_seed(8)
+    for _ in range(5):
+        rows = torch.randperm(300, generator=g)[:120]
+        grads = {n: torch.randn((120, *t.shape[1:]), generator=g) for n, t in gmaps[0].params.items()}
+        zero = torch.rand(120, generator=g) < 0.3
+        for n in grads:
+            grads[n][zero] = 0.0
+        grads["f_dc"][:3] = 1e-30  # non-zero in one parameter only: stepped
+        touched = adams[0].step_nonzero(rows, grads)
+        assert torch.equal(touched, ~zero | (torch.arange(120) < 3))
+        adams[1].step(rows[touched], {n: t[touched] for n, t in grads.items()})
+        assert torch.equal(adams[0].steps, adams[1].steps)
+        for n in PARAM_NAMES:
+            assert torch.equal(gmaps[0].params[n], gmaps[1].params[n])
+            assert torch.equal(adams[0].exp_avg[n], adams[1].exp_avg[n])
+            assert torch.equal(adams[0].exp_avg_sq[n], adams[1].exp_avg_sq[n])
+
+
 def _left_then_right(sparse_adam: bool) -> tuple[torch.Tensor, torch.Tensor]:
     """Map the left part of the wall, then only its right part; the raw parameters of the left
     Gaussians (x < -0.5 m) after the first right frame and after ten more."""

@@ -63,6 +63,40 @@ def adam_rows(param, exp_avg, exp_avg_sq, grad, rows, step_size, bias2_sqrt, bet
 
 
 @njit(parallel=True, cache=True)
+def adam_nonzero_rows(params, exp_avgs, exp_avg_sqs, grads, rows, steps, rates, beta1, beta2, eps):
+    """:func:`adam_rows` for all parameters at once, on the rows ``rows[k]`` whose gradient (``grads[p][k]``
+    over every parameter p) is not all zero: each such row's step count goes up by one and every parameter
+    takes the Adam step of :func:`adam_rows` with that row's bias corrections. Returns which k were
+    stepped. ``params`` etc. are tuples of (N, D_p) float32 arrays, ``grads`` of (len(rows), D_p)."""
+    n = rows.shape[0]
+    touched = np.zeros(n, dtype=np.bool_)
+    for k in prange(n):
+        nonzero = False
+        for p in range(len(grads)):
+            for d in range(grads[p].shape[1]):
+                nonzero |= grads[p][k, d] != 0
+        if not nonzero:
+            continue
+        touched[k] = True
+        i = rows[k]
+        steps[i] += 1
+        t = np.float64(steps[i])
+        bias1 = 1.0 - np.power(beta1, t)
+        bias2_sqrt = np.sqrt(1.0 - np.power(beta2, t))
+        for p in range(len(params)):
+            param, exp_avg, exp_avg_sq, grad = params[p], exp_avgs[p], exp_avg_sqs[p], grads[p]
+            step_size = rates[p] / bias1
+            for d in range(param.shape[1]):
+                g = grad[k, d]
+                m = beta1 * exp_avg[i, d] + (1.0 - beta1) * g
+                v = beta2 * exp_avg_sq[i, d] + (1.0 - beta2) * g * g
+                exp_avg[i, d] = m
+                exp_avg_sq[i, d] = v
+                param[i, d] -= step_size * m / (math.sqrt(v) / bias2_sqrt + eps)
+    return touched
+
+
+@njit(parallel=True, cache=True)
 def overlap_shares(points, rot, offset, fx, fy, cx, cy, width, height, border):
     """(M,): for camera m (world -> camera p R_m - offset_m), the share of ``points`` (P,3) in front of
     it and more than ``border`` px inside its image."""

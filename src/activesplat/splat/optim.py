@@ -109,6 +109,29 @@ class RowAdam:
             param = self.gmap.params[name]
             param.data[rows] = param.data[rows] - update
 
+    @torch.no_grad()
+    def step_nonzero(self, rows: torch.Tensor, grads: dict[str, torch.Tensor]) -> torch.Tensor:
+        """:meth:`step` on the rows among ``rows`` (unique) whose gradient ``grads[name]`` (shape
+        (len(rows), ...)) is non-zero in some parameter; returns that mask over ``rows``. On the CPU in one
+        parallel pass (no gathers of the rows and gradients)."""
+        if rows.device.type != "cpu" or rows.numel() == 0:
+            touched = torch.zeros(len(rows), dtype=torch.bool, device=rows.device)
+            for g in grads.values():
+                touched |= (g != 0).reshape(len(rows), -1).any(dim=1)
+            self.step(rows[touched], {name: g[touched] for name, g in grads.items()})
+            return touched
+        from activesplat.splat._mapper_numba import adam_nonzero_rows
+
+        idx = rows.numpy().astype(np.int64, copy=False)
+        grad = tuple(np.ascontiguousarray(grads[n].detach().numpy(), dtype=np.float32).reshape(len(idx), -1)
+                     for n in PARAM_NAMES)
+        touched = adam_nonzero_rows(
+            tuple(_flat(self.gmap.params[name]) for name in PARAM_NAMES),
+            tuple(_flat(self.exp_avg[name]) for name in PARAM_NAMES),
+            tuple(_flat(self.exp_avg_sq[name]) for name in PARAM_NAMES), grad, idx, self.steps.numpy(),
+            np.array([self.rates[name] for name in PARAM_NAMES]), self.beta1, self.beta2, self.eps)
+        return torch.from_numpy(touched)
+
     def _step_numba(self, rows: torch.Tensor, grads: dict[str, torch.Tensor], steps: torch.Tensor) -> None:
         """The same update in one parallel pass per parameter, in place (CPU)."""
         from activesplat.splat._mapper_numba import adam_rows
