@@ -63,11 +63,14 @@ def adam_rows(param, exp_avg, exp_avg_sq, grad, rows, step_size, bias2_sqrt, bet
 
 
 @njit(parallel=True, cache=True)
-def adam_nonzero_rows(params, exp_avgs, exp_avg_sqs, grads, rows, steps, rates, beta1, beta2, eps):
+def adam_nonzero_rows(params, exp_avgs, exp_avg_sqs, grads, rows, steps, rates, bias1_of, bias2_sqrt_of,
+                      beta1, beta2, eps):
     """:func:`adam_rows` for all parameters at once, on the rows ``rows[k]`` whose gradient (``grads[p][k]``
-    over every parameter p) is not all zero: each such row's step count goes up by one and every parameter
-    takes the Adam step of :func:`adam_rows` with that row's bias corrections. Returns which k were
-    stepped. ``params`` etc. are tuples of (N, D_p) float32 arrays, ``grads`` of (len(rows), D_p)."""
+    over every parameter p) is not all zero: each such row's step count t goes up by one and every parameter
+    takes the Adam step of :func:`adam_rows` with the bias corrections ``bias1_of[t]`` = 1 - beta1^t and
+    ``bias2_sqrt_of[t]`` = sqrt(1 - beta2^t) (tables made by numpy, whose vectorised pow can differ from
+    a scalar one in the last bit). Returns which k were stepped. ``params`` etc. are tuples of (N, D_p)
+    float32 arrays, ``grads`` of (len(rows), D_p)."""
     n = rows.shape[0]
     touched = np.zeros(n, dtype=np.bool_)
     for k in prange(n):
@@ -80,9 +83,7 @@ def adam_nonzero_rows(params, exp_avgs, exp_avg_sqs, grads, rows, steps, rates, 
         touched[k] = True
         i = rows[k]
         steps[i] += 1
-        t = np.float64(steps[i])
-        bias1 = 1.0 - np.power(beta1, t)
-        bias2_sqrt = np.sqrt(1.0 - np.power(beta2, t))
+        bias1, bias2_sqrt = bias1_of[steps[i]], bias2_sqrt_of[steps[i]]
         for p in range(len(params)):
             param, exp_avg, exp_avg_sq, grad = params[p], exp_avgs[p], exp_avg_sqs[p], grads[p]
             step_size = rates[p] / bias1

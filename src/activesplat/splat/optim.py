@@ -46,6 +46,8 @@ class RowAdam:
                          for key, name in self._keys()}
         self._buffers["steps"] = torch.zeros(n, dtype=torch.int32, device=device)
         self._views(n)
+        self._calls = 0  # step calls so far: a bound on every row's step count
+        self._bias1_of = self._bias2_sqrt_of = np.zeros(0)  # bias corrections by step count (step_nonzero)
 
     GROWTH = 1.25  # capacity factor on reallocation (the spare rows cost at most 25 % of the state)
 
@@ -89,6 +91,7 @@ class RowAdam:
         """One Adam step on ``rows`` (long indices, unique) with ``grads[name]`` of shape (len(rows), ...)."""
         if rows.numel() == 0:
             return
+        self._calls += 1
         steps = self.steps[rows] + 1
         self.steps[rows] = steps
         if rows.device.type == "cpu":
@@ -125,11 +128,17 @@ class RowAdam:
         idx = rows.numpy().astype(np.int64, copy=False)
         grad = tuple(np.ascontiguousarray(grads[n].detach().numpy(), dtype=np.float32).reshape(len(idx), -1)
                      for n in PARAM_NAMES)
+        self._calls += 1  # no row has been stepped more often than this
+        if len(self._bias1_of) <= self._calls:
+            t = np.arange(2 * self._calls + 64, dtype=np.float64)
+            self._bias1_of = 1.0 - np.power(self.beta1, t)  # as _step_numba computes them
+            self._bias2_sqrt_of = np.sqrt(1.0 - np.power(self.beta2, t))
         touched = adam_nonzero_rows(
             tuple(_flat(self.gmap.params[name]) for name in PARAM_NAMES),
             tuple(_flat(self.exp_avg[name]) for name in PARAM_NAMES),
             tuple(_flat(self.exp_avg_sq[name]) for name in PARAM_NAMES), grad, idx, self.steps.numpy(),
-            np.array([self.rates[name] for name in PARAM_NAMES]), self.beta1, self.beta2, self.eps)
+            np.array([self.rates[name] for name in PARAM_NAMES]), self._bias1_of, self._bias2_sqrt_of,
+            self.beta1, self.beta2, self.eps)
         return torch.from_numpy(touched)
 
     def _step_numba(self, rows: torch.Tensor, grads: dict[str, torch.Tensor], steps: torch.Tensor) -> None:
