@@ -183,19 +183,22 @@ def ssim_columns(h, win, c1, c2):
             for q in range(5):
                 for j in range(wo):
                     acc[q, j] += g * h[q, c, io + k, j]
-        s = 0.0
-        for j in range(wo):
+        ssim_row = np.empty(wo, np.float32)
+        for j in range(wo):  # no reduction in this loop, so that it vectorises
             m1, m2 = acc[0, j], acc[1, j]
             s11, s22, s12 = acc[2, j] - m1 * m1, acc[3, j] - m2 * m2, acc[4, j] - m1 * m2
             a1, b1 = np.float32(2.0) * m1 * m2 + c1, m1 * m1 + m2 * m2 + c1
             a2, b2 = np.float32(2.0) * s12 + c2, s11 + s22 + c2
             inv = np.float32(1.0) / (b1 * b2)
             ssim = a1 * a2 * inv
-            s += ssim
+            ssim_row[j] = ssim
             d[0, c, io, j] = (np.float32(2.0) * m2 * (a2 - a1) * inv
                               - np.float32(2.0) * m1 * ssim * (np.float32(1.0) / b1 - np.float32(1.0) / b2))
             d[1, c, io, j] = -ssim / b2
             d[2, c, io, j] = np.float32(2.0) * a1 * inv
+        s = 0.0
+        for j in range(wo):
+            s += ssim_row[j]
         row_sum[r] = s
     return d, row_sum
 
