@@ -6,8 +6,16 @@ import torch
 from _synthetic import intrinsics, observe, pose
 
 from activesplat.splat import GaussianMap, Mapper, MapperConfig
+from activesplat.splat._mapper_numba import far_depth
 from activesplat.splat.config import LearningRates, Schedule
-from activesplat.splat.gaussians import PARAM_NAMES, _frustum_rows_torch, activate, frustum_rows
+from activesplat.splat.gaussians import (
+    PARAM_NAMES,
+    _far_depth,
+    _frustum_rows_torch,
+    activate,
+    frustum_rows,
+)
+from activesplat.splat.mapper import _occlusion_culled_rows_cpu
 from activesplat.splat.optim import RowAdam
 from activesplat.splat.rasterize import rasterize
 
@@ -75,6 +83,25 @@ def test_occlusion_culling_drops_only_what_the_observed_surface_hides():
     assert ((kept_behind[:, 0] > 0.5) & (kept_behind[:, 1] < -1.5)).any()  # seen through the window
 
 
+def test_far_depth_kernel_and_cpu_culling_match_the_torch_version():
+    """``_mapper_numba.far_depth`` is ``gaussians._far_depth`` bit for bit (windows clipped at the border,
+    invalid pixels = inf), and the mapper's CPU occlusion culling keeps exactly the rows of frustum_rows."""
+    rng = np.random.default_rng(3)
+    depth = torch.from_numpy((1.0 + 3.0 * rng.random((S, S + 7))).astype(np.float32))
+    depth[torch.from_numpy(rng.random((S, S + 7)) < 0.02)] = 0.0
+    for r in (0, 1, 3, 8, 2 * S):
+        assert torch.equal(torch.from_numpy(far_depth(depth.numpy(), r)), _far_depth(depth, r))
+    gmap = _cloud(3000, seed=4)
+    p = gmap.params
+    K = intrinsics(S)
+    depth = torch.from_numpy((0.5 + 2.0 * rng.random((S, S))).astype(np.float32))
+    depth[:, :5] = 0.0
+    for cam in (pose(), pose(0.3, -0.2, 40.0)):
+        want = frustum_rows(p["means"], p["log_scales"], cam, K, S, S, depth, 0.1, 8)
+        got = _occlusion_culled_rows_cpu(p["means"], p["log_scales"], cam, K, S, S, depth, 0.1, 8)
+        assert len(want) > 100 and torch.equal(got, want)
+
+
 def test_row_adam_is_adam_on_trained_rows_and_leaves_the_others_alone():
     gmap, ref = _cloud(50, seed=1), _cloud(50, seed=1)
     lr = LearningRates()
@@ -98,6 +125,70 @@ def test_row_adam_is_adam_on_trained_rows_and_leaves_the_others_alone():
         assert torch.equal(gmap.params[n][untouched], before[n][untouched])  # bit for bit
         assert not torch.equal(gmap.params[n][trained], before[n][trained])
     assert ours.steps.tolist().count(5) == 3 and ours.steps.tolist().count(4) == 47
+
+
+def test_row_adam_state_follows_append_and_keep():
+    """Appends (into spare capacity and with reallocation) and prunes keep each row's moments and step
+    count with its row: the same as concatenating and masking the state tensors."""
+    gmap = _cloud(10, seed=5)
+    adam = RowAdam(gmap, LearningRates(), 1e-15)
+    g = torch.Generator().manual_seed(6)
+
+    def state() -> dict[str, torch.Tensor]:  # the moments of one parameter and the step counts
+        return {"m": adam.exp_avg["means"].clone(), "v": adam.exp_avg_sq["means"].clone(),
+                "steps": adam.steps.clone()}
+
+    ref = state()
+    for m, drop in ((5, 0), (1, 3), (40, 0), (0, 7), (2, 1), (100, 20)):
+        if m:  # into spare capacity after a prune, or with a reallocation
+            gmap.append(_cloud(m, seed=m).params)
+        adam.append(m)
+        ref = {k: torch.cat([t, t.new_zeros((m, *t.shape[1:]))]) for k, t in ref.items()}
+        n = len(gmap)
+        rows = torch.randperm(n, generator=g)[: n // 2]
+        grads = {name: torch.randn((len(rows), *t.shape[1:]), generator=g) for name, t in gmap.params.items()}
+        adam.step(rows, grads)
+        after = state()
+        assert torch.equal(after["steps"][rows], ref["steps"][rows] + 1)
+        others = torch.ones(n, dtype=torch.bool)
+        others[rows] = False
+        for k in ref:
+            assert torch.equal(after[k][others], ref[k][others])
+        ref = after
+        keep = torch.ones(n, dtype=torch.bool)
+        keep[torch.randperm(n, generator=g)[:drop]] = False
+        gmap.keep(keep)
+        adam.keep(keep)
+        ref = {k: t[keep] for k, t in ref.items()}
+        assert len(adam) == len(gmap) and all(torch.equal(state()[k], ref[k]) for k in ref)
+        assert all(t.is_contiguous() for t in (*adam.exp_avg.values(), *adam.exp_avg_sq.values()))
+
+
+def test_row_adam_step_nonzero_is_step_on_the_rows_with_a_gradient():
+    """The fused CPU step: the rows whose gradient is zero in every parameter are left alone (step count
+    too); the others get exactly :meth:`RowAdam.step` (bit for bit)."""
+    gmaps = [_cloud(300, seed=7) for _ in range(2)]
+    adams = [RowAdam(gm, LearningRates(), 1e-15) for gm in gmaps]
+    g = torch.Generator().manual_seed(8)
+    start = torch.randint(0, 50000, (300,), generator=g, dtype=torch.int32)  # rows with a long history
+    for adam in adams:
+        adam.steps[:] = start
+        adam._calls = 50000  # the bound on the step counts that step_nonzero's bias tables rely on
+    for _ in range(5):
+        rows = torch.randperm(300, generator=g)[:120]
+        grads = {n: torch.randn((120, *t.shape[1:]), generator=g) for n, t in gmaps[0].params.items()}
+        zero = torch.rand(120, generator=g) < 0.3
+        for n in grads:
+            grads[n][zero] = 0.0
+        grads["f_dc"][:3] = 1e-30  # non-zero in one parameter only: stepped
+        touched = adams[0].step_nonzero(rows, grads)
+        assert torch.equal(touched, ~zero | (torch.arange(120) < 3))
+        adams[1].step(rows[touched], {n: t[touched] for n, t in grads.items()})
+        assert torch.equal(adams[0].steps, adams[1].steps)
+        for n in PARAM_NAMES:
+            assert torch.equal(gmaps[0].params[n], gmaps[1].params[n])
+            assert torch.equal(adams[0].exp_avg[n], adams[1].exp_avg[n])
+            assert torch.equal(adams[0].exp_avg_sq[n], adams[1].exp_avg_sq[n])
 
 
 def _left_then_right(sparse_adam: bool) -> tuple[torch.Tensor, torch.Tensor]:

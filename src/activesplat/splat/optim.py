@@ -38,9 +38,28 @@ class RowAdam:
         self.gmap, self.rates, self.eps = gmap, learning_rates(lr), float(eps)
         self.beta1, self.beta2 = betas
         n, device = len(gmap), gmap.device
-        self.exp_avg = {name: torch.zeros_like(gmap.params[name].detach()) for name in PARAM_NAMES}
-        self.exp_avg_sq = {name: torch.zeros_like(gmap.params[name].detach()) for name in PARAM_NAMES}
-        self.steps = torch.zeros(n, dtype=torch.int32, device=device)
+        # the state lives in buffers of ``_capacity`` rows, grown geometrically so that appending m rows
+        # costs O(m) amortised instead of copying the whole state; the tensors below are views of their
+        # first rows (contiguous, so the numba step updates them in place)
+        self._capacity = n
+        self._buffers = {key: torch.zeros((n, *gmap.params[name].shape[1:]), device=device)
+                         for key, name in self._keys()}
+        self._buffers["steps"] = torch.zeros(n, dtype=torch.int32, device=device)
+        self._views(n)
+        self._calls = 0  # step calls so far: a bound on every row's step count
+        self._bias1_of = self._bias2_sqrt_of = np.zeros(0)  # bias corrections by step count (step_nonzero)
+
+    GROWTH = 1.25  # capacity factor on reallocation (the spare rows cost at most 25 % of the state)
+
+    @staticmethod
+    def _keys():
+        return [((kind, name), name) for kind in ("exp_avg", "exp_avg_sq") for name in PARAM_NAMES]
+
+    def _views(self, n: int) -> None:
+        """Point exp_avg, exp_avg_sq and steps at the first ``n`` rows of the buffers."""
+        self.exp_avg = {name: self._buffers[("exp_avg", name)][:n] for name in PARAM_NAMES}
+        self.exp_avg_sq = {name: self._buffers[("exp_avg_sq", name)][:n] for name in PARAM_NAMES}
+        self.steps = self._buffers["steps"][:n]
 
     def __len__(self) -> int:
         return int(self.steps.shape[0])
@@ -49,23 +68,30 @@ class RowAdam:
         """State for ``m`` new rows (zero moments, step 0)."""
         if m <= 0:
             return
-        for state in (self.exp_avg, self.exp_avg_sq):
-            for name, t in state.items():
-                state[name] = torch.cat([t, t.new_zeros((m, *t.shape[1:]))])
-        self.steps = torch.cat([self.steps, self.steps.new_zeros(m)])
+        n = len(self)
+        if n + m > self._capacity:
+            self._capacity = max(n + m, int(self.GROWTH * self._capacity))
+            for key, buf in self._buffers.items():
+                grown = buf.new_empty((self._capacity, *buf.shape[1:]))
+                grown[:n] = buf[:n]
+                self._buffers[key] = grown
+        for buf in self._buffers.values():
+            buf[n:n + m] = 0
+        self._views(n + m)
 
     def keep(self, mask: torch.Tensor) -> None:
-        """Drop the state of the rows where ``mask`` is False."""
-        for state in (self.exp_avg, self.exp_avg_sq):
-            for name, t in state.items():
-                state[name] = t[mask]
-        self.steps = self.steps[mask]
+        """Drop the state of the rows where ``mask`` is False (compacted within the buffers)."""
+        n, k = len(self), int(mask.sum())
+        for buf in self._buffers.values():
+            buf[:k] = buf[:n][mask]
+        self._views(k)
 
     @torch.no_grad()
     def step(self, rows: torch.Tensor, grads: dict[str, torch.Tensor]) -> None:
         """One Adam step on ``rows`` (long indices, unique) with ``grads[name]`` of shape (len(rows), ...)."""
         if rows.numel() == 0:
             return
+        self._calls += 1
         steps = self.steps[rows] + 1
         self.steps[rows] = steps
         if rows.device.type == "cpu":
@@ -85,6 +111,35 @@ class RowAdam:
             update = (m / bias1.view(shape)).div_(denom).mul_(self.rates[name])
             param = self.gmap.params[name]
             param.data[rows] = param.data[rows] - update
+
+    @torch.no_grad()
+    def step_nonzero(self, rows: torch.Tensor, grads: dict[str, torch.Tensor]) -> torch.Tensor:
+        """:meth:`step` on the rows among ``rows`` (unique) whose gradient ``grads[name]`` (shape
+        (len(rows), ...)) is non-zero in some parameter; returns that mask over ``rows``. On the CPU in one
+        parallel pass (no gathers of the rows and gradients)."""
+        if rows.device.type != "cpu" or rows.numel() == 0:
+            touched = torch.zeros(len(rows), dtype=torch.bool, device=rows.device)
+            for g in grads.values():
+                touched |= (g != 0).reshape(len(rows), -1).any(dim=1)
+            self.step(rows[touched], {name: g[touched] for name, g in grads.items()})
+            return touched
+        from activesplat.splat._mapper_numba import adam_nonzero_rows
+
+        idx = rows.numpy().astype(np.int64, copy=False)
+        grad = tuple(np.ascontiguousarray(grads[n].detach().numpy(), dtype=np.float32).reshape(len(idx), -1)
+                     for n in PARAM_NAMES)
+        self._calls += 1  # no row has been stepped more often than this
+        if len(self._bias1_of) <= self._calls:
+            t = np.arange(2 * self._calls + 64, dtype=np.float64)
+            self._bias1_of = 1.0 - np.power(self.beta1, t)  # as _step_numba computes them
+            self._bias2_sqrt_of = np.sqrt(1.0 - np.power(self.beta2, t))
+        touched = adam_nonzero_rows(
+            tuple(_flat(self.gmap.params[name]) for name in PARAM_NAMES),
+            tuple(_flat(self.exp_avg[name]) for name in PARAM_NAMES),
+            tuple(_flat(self.exp_avg_sq[name]) for name in PARAM_NAMES), grad, idx, self.steps.numpy(),
+            np.array([self.rates[name] for name in PARAM_NAMES]), self._bias1_of, self._bias2_sqrt_of,
+            self.beta1, self.beta2, self.eps)
+        return torch.from_numpy(touched)
 
     def _step_numba(self, rows: torch.Tensor, grads: dict[str, torch.Tensor], steps: torch.Tensor) -> None:
         """The same update in one parallel pass per parameter, in place (CPU)."""
