@@ -75,6 +75,14 @@ def test_large_opaque_splats_terminate_early():
     assert ref.alpha.max() > 1 - 1e-3  # some pixels reached the 1e-4 transmittance stop
 
 
+def test_tiles_that_finish_before_their_list_ends():
+    """Hundreds of large opaque splats: every pixel stops long before the end of its tile's list, so the
+    forward pass's periodic check for live pixels ends the tiles early (the result must not change)."""
+    means, quats, scales, opacities, colors = random_scene(300, 8, scale=(0.5, 1.5), opacity=(0.97, 1.0))
+    ref = assert_backends_agree((means, quats, scales, opacities, colors))
+    assert (ref.alpha > 0.999).float().mean() > 0.9  # nearly every pixel reached the transmittance stop
+
+
 def test_behind_camera_gaussians_are_culled():
     params = behind_and_off_screen(80, 4)
     ref = assert_backends_agree(params)
