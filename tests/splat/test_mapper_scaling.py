@@ -15,7 +15,6 @@ from activesplat.splat.gaussians import (
     activate,
     frustum_rows,
 )
-from activesplat.splat.mapper import _occlusion_culled_rows_cpu
 from activesplat.splat.optim import RowAdam
 from activesplat.splat.rasterize import rasterize
 
@@ -85,7 +84,7 @@ def test_occlusion_culling_drops_only_what_the_observed_surface_hides():
 
 def test_far_depth_kernel_and_cpu_culling_match_the_torch_version():
     """``_mapper_numba.far_depth`` is ``gaussians._far_depth`` bit for bit (windows clipped at the border,
-    invalid pixels = inf), and the mapper's CPU occlusion culling keeps exactly the rows of frustum_rows."""
+    invalid pixels = inf), and the CPU occlusion culling (numba) keeps exactly the rows of the torch one."""
     rng = np.random.default_rng(3)
     depth = torch.from_numpy((1.0 + 3.0 * rng.random((S, S + 7))).astype(np.float32))
     depth[torch.from_numpy(rng.random((S, S + 7)) < 0.02)] = 0.0
@@ -98,7 +97,7 @@ def test_far_depth_kernel_and_cpu_culling_match_the_torch_version():
     depth[:, :5] = 0.0
     for cam in (pose(), pose(0.3, -0.2, 40.0)):
         want = frustum_rows(p["means"], p["log_scales"], cam, K, S, S, depth, 0.1, 8)
-        got = _occlusion_culled_rows_cpu(p["means"], p["log_scales"], cam, K, S, S, depth, 0.1, 8)
+        got = _frustum_rows_torch(p["means"], p["log_scales"], cam, K, S, S, depth, 0.1, 8)
         assert len(want) > 100 and torch.equal(got, want)
 
 

@@ -221,12 +221,13 @@ def frustum_rows(means: torch.Tensor, log_scales: torch.Tensor, pose, K, width: 
     from activesplat.splat.raster.constants import RASTER
 
     if means.device.type == "cpu":
-        from activesplat.splat._mapper_numba import cull_rows
+        from activesplat.splat._mapper_numba import cull_rows, far_depth
 
         pose = np.asarray(pose, dtype=np.float64)
         far = np.zeros((1, 1), np.float32)
-        if depth is not None:
-            far = _far_depth(depth, occlusion_window_px).numpy()
+        if depth is not None:  # the numba twin of _far_depth (same values, tested)
+            observed = np.ascontiguousarray(depth.detach().numpy(), dtype=np.float32)
+            far = far_depth(observed, occlusion_window_px)
         fx, fy, cx, cy = float(K[0, 0]), float(K[1, 1]), float(K[0, 2]), float(K[1, 2])
         keep = cull_rows(means.detach().numpy(), log_scales.detach().numpy(), pose[:3, :3].copy(),
                          pose[:3, 3].copy(), fx, fy, cx, cy, width, height, RASTER.near,

@@ -90,26 +90,6 @@ def downsample_observation(rgb: torch.Tensor, depth: torch.Tensor,
     return rgb, torch.where(all_valid, blocks.mean(dim=(1, 3)), depth.new_zeros(()))
 
 
-def _occlusion_culled_rows_cpu(means: torch.Tensor, log_scales: torch.Tensor, pose: np.ndarray, K: np.ndarray,
-                               width: int, height: int, depth: torch.Tensor, margin: float,
-                               window: int) -> torch.Tensor:
-    """:func:`frustum_rows` with an observed depth, on the CPU: its numba culling with the window maxima of
-    the depth from ``_mapper_numba.far_depth`` (the same values as ``gaussians._far_depth``'s two torch
-    max-pools, several times faster)."""
-    from activesplat.splat._mapper_numba import cull_rows, far_depth
-    from activesplat.splat.gaussians import _jacobian_limits
-    from activesplat.splat.raster.constants import RASTER
-
-    pose = np.asarray(pose, dtype=np.float64)
-    far = far_depth(np.ascontiguousarray(depth.numpy(), dtype=np.float32), window)
-    fx, fy, cx, cy = float(K[0, 0]), float(K[1, 1]), float(K[0, 2]), float(K[1, 2])
-    keep = cull_rows(means.detach().numpy(), log_scales.detach().numpy(), pose[:3, :3].copy(),
-                     pose[:3, 3].copy(), fx, fy, cx, cy, width, height, RASTER.near,
-                     *_jacobian_limits(K, width, height), RASTER.extent_sigmas, RASTER.low_pass, far, window,
-                     margin, True)
-    return torch.from_numpy(np.flatnonzero(keep))
-
-
 def _blank_render(width: int, height: int):
     """What rendering an empty map gives: all zeros (no colour, depth or opacity)."""
     return {"rgb": torch.zeros(height, width, 3), "depth": torch.zeros(height, width),
@@ -172,9 +152,6 @@ class Mapper:
         p, cfg = self.gaussians.params, self.config
         if cfg.cull_occluded_margin_m is None:
             depth = None
-        if depth is not None and p["means"].device.type == "cpu":
-            return _occlusion_culled_rows_cpu(p["means"], p["log_scales"], pose, K, width, height, depth,
-                                              cfg.cull_occluded_margin_m, cfg.cull_window_px)
         return frustum_rows(p["means"], p["log_scales"], pose, K, width, height, depth,
                             cfg.cull_occluded_margin_m or 0.0, cfg.cull_window_px)
 
