@@ -47,19 +47,25 @@ def cull_rows(means, log_scales, rot, t, fx, fy, cx, cy, width, height, near, li
     return keep
 
 
+@njit(inline="always", cache=True)
+def adam_row(param, exp_avg, exp_avg_sq, grad, k, i, step_size, bias2_sqrt, beta1, beta2, eps):
+    """In place: the Adam step of row ``i`` of the (N, D) arrays with the gradient row ``grad[k]``,
+    ``step_size`` = lr / (1 - beta1^t), ``bias2_sqrt`` = sqrt(1 - beta2^t)."""
+    for d in range(param.shape[1]):
+        g = grad[k, d]
+        m = beta1 * exp_avg[i, d] + (1.0 - beta1) * g
+        v = beta2 * exp_avg_sq[i, d] + (1.0 - beta2) * g * g
+        exp_avg[i, d] = m
+        exp_avg_sq[i, d] = v
+        param[i, d] -= step_size * m / (math.sqrt(v) / bias2_sqrt + eps)
+
+
 @njit(parallel=True, cache=True)
 def adam_rows(param, exp_avg, exp_avg_sq, grad, rows, step_size, bias2_sqrt, beta1, beta2, eps):
     """In place, for every k: Adam on row ``rows[k]`` of the (N, D) arrays with gradient ``grad[k]``;
     ``step_size[k]`` = lr / (1 - beta1^t), ``bias2_sqrt[k]`` = sqrt(1 - beta2^t) of the row's own t."""
     for k in prange(rows.shape[0]):
-        i = rows[k]
-        for d in range(param.shape[1]):
-            g = grad[k, d]
-            m = beta1 * exp_avg[i, d] + (1.0 - beta1) * g
-            v = beta2 * exp_avg_sq[i, d] + (1.0 - beta2) * g * g
-            exp_avg[i, d] = m
-            exp_avg_sq[i, d] = v
-            param[i, d] -= step_size[k] * m / (math.sqrt(v) / bias2_sqrt[k] + eps)
+        adam_row(param, exp_avg, exp_avg_sq, grad, k, rows[k], step_size[k], bias2_sqrt[k], beta1, beta2, eps)
 
 
 @njit(parallel=True, cache=True)
@@ -85,15 +91,8 @@ def adam_nonzero_rows(params, exp_avgs, exp_avg_sqs, grads, rows, steps, rates, 
         steps[i] += 1
         bias1, bias2_sqrt = bias1_of[steps[i]], bias2_sqrt_of[steps[i]]
         for p in range(len(params)):
-            param, exp_avg, exp_avg_sq, grad = params[p], exp_avgs[p], exp_avg_sqs[p], grads[p]
-            step_size = rates[p] / bias1
-            for d in range(param.shape[1]):
-                g = grad[k, d]
-                m = beta1 * exp_avg[i, d] + (1.0 - beta1) * g
-                v = beta2 * exp_avg_sq[i, d] + (1.0 - beta2) * g * g
-                exp_avg[i, d] = m
-                exp_avg_sq[i, d] = v
-                param[i, d] -= step_size * m / (math.sqrt(v) / bias2_sqrt + eps)
+            adam_row(params[p], exp_avgs[p], exp_avg_sqs[p], grads[p], k, i, rates[p] / bias1, bias2_sqrt,
+                     beta1, beta2, eps)
     return touched
 
 

@@ -65,11 +65,10 @@ def surface_elongation(depth: np.ndarray, v: np.ndarray, u: np.ndarray, K: np.nd
     s = stride
     ok = (u - s >= 0) & (u + s < w) & (v - s >= 0) & (v + s < h)
     vi, ui = np.where(ok, v, s), np.where(ok, u, s)  # in-range stand-ins for the rows that are not ok
-    fx, fy, cx, cy = K[0, 0], K[1, 1], K[0, 2], K[1, 2]
+    camera = np.eye(4)
 
-    def point(rows, cols):
-        z = depth[rows, cols].astype(np.float64)
-        return np.stack([(cols + 0.5 - cx) / fx * z, (rows + 0.5 - cy) / fy * z, z], axis=1), z
+    def point(rows, cols):  # camera-frame points and their depths
+        return backproject(depth, camera, K, rows, cols), depth[rows, cols].astype(np.float64)
 
     p, z = point(vi, ui)
     pr, zr = point(vi, ui + s)

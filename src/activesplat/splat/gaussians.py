@@ -135,8 +135,9 @@ class GaussianMap:
         return f_dc_to_rgb(self.params["f_dc"])
 
     def rows(self, index: torch.Tensor) -> dict[str, torch.Tensor]:
-        """Detached copies of the raw parameters of the Gaussians ``index`` (long indices)."""
-        return {name: t.detach()[index] for name, t in self.params.items()}
+        """Detached copies of the raw parameters of the Gaussians ``index`` (1-D long indices); index_select,
+        a few times faster than advanced indexing on the CPU for the same copies."""
+        return {name: t.detach().index_select(0, index) for name, t in self.params.items()}
 
     def raw(self) -> dict[str, torch.Tensor]:
         """Detached copies of the raw parameters."""

@@ -39,7 +39,7 @@ from activesplat.splat.densify import (
 from activesplat.splat.gaussians import GaussianMap, activate, frustum_rows
 from activesplat.splat.keyframes import Keyframe, mapping_window
 from activesplat.splat.losses import mapping_loss
-from activesplat.splat.optim import RowAdam
+from activesplat.splat.optim import RowAdam, nonzero_rows
 from activesplat.splat.ply import load_ply, save_ply
 
 
@@ -135,15 +135,10 @@ class Mapper:
         if rows is None:
             rows = self._view_rows(pose, K, width, height)
         if raw is None:
-            raw = self._gather(rows)
+            raw = self.gaussians.rows(rows)
         viewmat = torch.from_numpy(np.linalg.inv(pose).astype(np.float32)).to(self.device)
         Kt = torch.from_numpy(K.astype(np.float32)).to(self.device)
         return rasterize(*activate(raw), viewmat, Kt, width, height, backend=self.backend)
-
-    def _gather(self, rows: torch.Tensor) -> dict[str, torch.Tensor]:
-        """``GaussianMap.rows`` by index_select (the same copies, a few times faster than advanced indexing
-        on the CPU)."""
-        return {name: t.detach().index_select(0, rows) for name, t in self.gaussians.params.items()}
 
     def _view_rows(self, pose: np.ndarray, K: np.ndarray, width: int, height: int,
                    depth: torch.Tensor | None = None) -> torch.Tensor:
@@ -270,7 +265,7 @@ class Mapper:
         cfg = self.config
         keep = torch.ones(len(self.gaussians), dtype=torch.bool, device=self.device)
         if rows.numel():
-            sub = self._gather(rows)
+            sub = self.gaussians.rows(rows)
             ok = prune_mask(sub, cfg)
             if cfg.prune_floater_margin_m is not None:
                 ok &= ~free_space_mask(sub["means"], pose, self.K, obs_depth, cfg.prune_floater_margin_m,
@@ -330,7 +325,7 @@ class Mapper:
         width, height = obs_depth.shape[1], obs_depth.shape[0]
         if rows is None:
             rows = self._view_rows(pose, K, width, height, obs_depth)
-        raw = {name: t.requires_grad_(True) for name, t in self._gather(rows).items()}
+        raw = {name: t.requires_grad_(True) for name, t in self.gaussians.rows(rows).items()}
         out = self._render(pose, K, width, height, rows, raw)
         terms = mapping_loss(out.rgb, out.depth, obs_rgb, obs_depth, self.config)
         if not torch.isfinite(terms.total):
@@ -341,9 +336,7 @@ class Mapper:
         if self.config.sparse_adam:  # the rows with a non-zero gradient take a step
             touched = self.optimizer.step_nonzero(rows, grads)
         else:  # the release: one torch Adam over the whole map, zero gradient outside the view
-            touched = torch.zeros(len(rows), dtype=torch.bool, device=self.device)
-            for g in grads.values():
-                touched |= (g != 0).reshape(len(rows), -1).any(dim=1)
+            touched = nonzero_rows(grads, len(rows))
             for name, param in self.gaussians.params.items():
                 param.grad = torch.zeros_like(param)
                 param.grad[rows] = grads[name]

@@ -27,6 +27,14 @@ def learning_rates(lr: LearningRates) -> dict[str, float]:
             "opacity_logits": lr.opacities, "f_dc": lr.colors / SH_C0}
 
 
+def nonzero_rows(grads: dict[str, torch.Tensor], n: int) -> torch.Tensor:
+    """(n,) bool: the rows whose gradient is non-zero in some parameter (``grads[name]``: (n, ...))."""
+    touched = torch.zeros(n, dtype=torch.bool, device=next(iter(grads.values())).device)
+    for g in grads.values():
+        touched |= (g != 0).reshape(n, -1).any(dim=1)
+    return touched
+
+
 class RowAdam:
     """Adam with per-row state over the raw tensors of a :class:`GaussianMap`.
 
@@ -118,9 +126,7 @@ class RowAdam:
         (len(rows), ...)) is non-zero in some parameter; returns that mask over ``rows``. On the CPU in one
         parallel pass (no gathers of the rows and gradients)."""
         if rows.device.type != "cpu" or rows.numel() == 0:
-            touched = torch.zeros(len(rows), dtype=torch.bool, device=rows.device)
-            for g in grads.values():
-                touched |= (g != 0).reshape(len(rows), -1).any(dim=1)
+            touched = nonzero_rows(grads, len(rows))
             self.step(rows[touched], {name: g[touched] for name, g in grads.items()})
             return touched
         from activesplat.splat._mapper_numba import adam_nonzero_rows
