@@ -92,15 +92,15 @@ def test_sparse_far_floor_reads_as_observed_ground():
 def test_observed_ground_closing_fills_gaps_but_not_wide_ones():
     cfg = WorkspaceConfig()
     k = cfg.ground_closing_px
-    assert k == 5  # 0.25 m at 0.05 m/px
+    assert k == 13  # 0.65 m at 0.05 m/px
     for gap, closed in ((k - 1, True), (k, False)):
-        alpha = np.zeros((30, 40), np.float32)
-        alpha[5:25, 2:15] = 1.0
-        alpha[5:25, 15 + gap:35] = 1.0
+        alpha = np.zeros((40, 60), np.float32)
+        alpha[5:35, 2:20] = 1.0
+        alpha[5:35, 20 + gap:55] = 1.0
         observed = observed_ground(alpha, cfg)
-        assert observed[10, 15:15 + gap].all() == closed
+        assert observed[10, 20:20 + gap].all() == closed
         # Never grows the observed floor outwards.
-        assert not observed[:5].any() and not observed[25:].any() and not observed[:, 35:].any()
+        assert not observed[:5].any() and not observed[35:].any() and not observed[:, 55:].any()
     assert (observed_ground(alpha, WorkspaceConfig(ground_closing=0.0)) == (alpha > 0.4)).all()
 
 

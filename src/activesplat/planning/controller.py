@@ -7,7 +7,9 @@ reached within 1.5 forward steps. Rotation targets (yaw, pitch) become turns the
 
 from __future__ import annotations
 
+import itertools
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -64,6 +66,45 @@ def rotation_actions(pose: np.ndarray, target_yaw: float, target_pitch: float,
     """Turn to a rotation target, then tilt to its pitch."""
     yaw, pitch = pose_yaw_pitch(pose)
     return turn_toward(yaw, target_yaw, cfg) + tilt_toward(pitch, target_pitch, cfg)
+
+
+def tour_actions(yaw: float, pitch: float, stops: Sequence[tuple[float, float]], cfg: ControllerConfig,
+                 final_yaw: float | None = None) -> int:
+    """How many actions visiting the (yaw, pitch) `stops` in the given order takes from heading `yaw` and
+    pitch `pitch` (radians), with `rotation_actions` toward each in turn, the levelling tilts at the end and,
+    given `final_yaw`, the turns back to it. Turns and tilts are quantised as the simulator does them
+    (whole 10 / 15 deg steps)."""
+    turn, look = math.radians(cfg.turn_deg), math.radians(cfg.look_deg)
+    count = 0
+    for target_yaw, target_pitch in stops:
+        turns = turn_toward(yaw, target_yaw, cfg)
+        tilts = tilt_toward(pitch, target_pitch, cfg)
+        count += len(turns) + len(tilts)
+        yaw += turn * len(turns) * (1 if turns and turns[0] == "turn_left" else -1)
+        pitch += look * len(tilts) * (1 if tilts and tilts[0] == "look_up" else -1)
+    count += len(tilt_toward(pitch, 0.0, cfg))
+    return count if final_yaw is None else count + len(turn_toward(yaw, final_yaw, cfg))
+
+
+def fewest_actions_order(yaw: float, pitch: float, stops: Sequence[tuple[float, float]],
+                         cfg: ControllerConfig, final_yaw: float | None = None, max_exhaustive: int = 7
+                         ) -> list[int]:
+    """The order of the (yaw, pitch) `stops` that visits them all in the fewest actions (`tour_actions`,
+    ending at `final_yaw` when given):
+    every order is tried for up to `max_exhaustive` stops (5! = 120 for the release's 5 views); beyond,
+    the counter-clockwise sweep from the heading. Ties keep the earlier order in `itertools.permutations`,
+    i.e. the input order first."""
+    n = len(stops)
+    if n <= 1:
+        return list(range(n))
+    if n > max_exhaustive:
+        return sorted(range(n), key=lambda i: float(wrap_angle(stops[i][0] - yaw)) % (2 * math.pi))
+    best, best_cost = list(range(n)), None
+    for order in itertools.permutations(range(n)):
+        cost = tour_actions(yaw, pitch, [stops[i] for i in order], cfg, final_yaw)
+        if best_cost is None or cost < best_cost:
+            best, best_cost = list(order), cost
+    return best
 
 
 def level_actions(pose: np.ndarray, cfg: ControllerConfig) -> list[str]:

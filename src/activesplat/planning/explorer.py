@@ -68,6 +68,11 @@ class ExplorerConfig:
     `max_rotation_views` there too)."""
     rotation_skip_radii: float = 3.0
     """No on-the-spot rotations within this many agent radii of a spot already rotated at (release)."""
+    fewest_action_tour: bool = True
+    """Visit the rotation targets of a stop in the order that takes the fewest turns and tilts, levelling
+    included (ours: every order of the at most 5 targets is tried; False: counter-clockwise from the
+    heading, the order this project used before, which often swept a full circle for targets on both
+    sides of the heading)."""
     multi_node_radius_m: float = 0.3
     """Passing within this of a multi-connected node forces a short rotation stop there (ours)."""
     local_score_threshold: float = 5.0
@@ -427,7 +432,13 @@ class ActiveSplatExplorer(Explorer):
         origin = pose[:3, 3]
         pano = self.last_panorama = render_panorama(self.world.render, origin, pcfg.panorama)
         targets = rotation_candidates(pano, pcfg.rotation) + self.high_loss.targets(origin, max_distance=4.0)
-        return select_rotation_targets(targets, pose_yaw_pitch(pose)[0], pcfg, max_views)
+        yaw, pitch = pose_yaw_pitch(pose)
+        ctrl = self.cfg.controller if self.cfg.fewest_action_tour else None
+        resume = None  # a stop on the way turns back toward the path afterwards: count those turns too
+        if self.follower is not None and not self.follower.done:
+            ahead = self.follower.waypoints[0] - floor_xz(pose)
+            resume = math.atan2(ahead[0], ahead[1])
+        return select_rotation_targets(targets, yaw, pcfg, max_views, pitch, ctrl, resume)
 
 
 def goal_rules(cfg: ExplorerConfig) -> GoalRules:

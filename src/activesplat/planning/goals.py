@@ -14,6 +14,7 @@ import numpy as np
 
 from activesplat.geometry import wrap_angle
 from activesplat.planning.config import PlanningConfig
+from activesplat.planning.controller import ControllerConfig, fewest_actions_order
 from activesplat.planning.panorama import RenderFn, render_panorama
 from activesplat.planning.viewpoints import (
     RotationTarget,
@@ -199,11 +200,14 @@ def closer_on_the_way(plan: Plan, goal: np.ndarray, path: np.ndarray, visited: S
 
 
 def select_rotation_targets(targets: Sequence[RotationTarget], yaw: float, pcfg: PlanningConfig,
-                            max_views: int) -> list[RotationTarget]:
+                            max_views: int, pitch: float = 0.0, ctrl: ControllerConfig | None = None,
+                            final_yaw: float | None = None) -> list[RotationTarget]:
     """On-arrival rotation targets (sec. III-B3): the heaviest panorama / high-loss targets, skipping those
     already in view (within their source's minimum offset of the heading, and less than 20 deg off level)
-    and those within 20 deg of a chosen one, at most `max_views`; in angular order from the current
-    heading (less turning)."""
+    and those within 20 deg of a chosen one, at most `max_views`. Returned in counter-clockwise order from
+    the heading, or, given the controller `ctrl`, in the order that visits them in the fewest turns and
+    tilts from (`yaw`, `pitch`), levelling and the turn back to `final_yaw` (if given) included
+    (`controller.fewest_actions_order`)."""
     chosen: list[RotationTarget] = []
     for t in sorted(targets, key=lambda t: -t.weight):
         limit = pcfg.rotation.min_offset_deg if t.source == "panorama" else pcfg.high_loss.min_offset_deg
@@ -214,7 +218,11 @@ def select_rotation_targets(targets: Sequence[RotationTarget], yaw: float, pcfg:
         chosen.append(t)
         if len(chosen) >= max_views:
             break
-    return sorted(chosen, key=lambda t: float(wrap_angle(t.yaw - yaw)) % (2 * math.pi))
+    chosen.sort(key=lambda t: float(wrap_angle(t.yaw - yaw)) % (2 * math.pi))
+    if ctrl is None:
+        return chosen
+    order = fewest_actions_order(yaw, pitch, [(t.yaw, t.pitch) for t in chosen], ctrl, final_yaw)
+    return [chosen[i] for i in order]
 
 
 __all__ = ["GoalRules", "closer_on_the_way", "distance_to_polyline", "goal_candidates", "local_then_global",

@@ -132,8 +132,10 @@ def observed_ground(ground_alpha: np.ndarray, cfg: WorkspaceConfig) -> np.ndarra
     Gaussians (1 px each at the release's scale modifier) read as one observed floor, not stripes."""
     observed = (ground_alpha > cfg.ground_opacity).astype(np.uint8)
     k = cfg.ground_closing_px
-    if k > 1:
-        observed = cv2.morphologyEx(observed, cv2.MORPH_CLOSE, np.ones((k, k), np.uint8))
+    if k > 1:  # padded with unobserved pixels: cv2's default border would let the floor grow along the edge
+        h = k // 2
+        padded = cv2.copyMakeBorder(observed, h, h, h, h, cv2.BORDER_CONSTANT, value=0)
+        observed = cv2.morphologyEx(padded, cv2.MORPH_CLOSE, np.ones((k, k), np.uint8))[h:-h, h:-h]
     return observed.astype(bool)
 
 
