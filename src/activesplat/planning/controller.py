@@ -92,13 +92,11 @@ def fewest_actions_order(yaw: float, pitch: float, stops: Sequence[tuple[float, 
     """The order of the (yaw, pitch) `stops` that visits them all in the fewest actions (`tour_actions`,
     ending at `final_yaw` when given):
     every order is tried for up to `max_exhaustive` stops (5! = 120 for the release's 5 views); beyond,
-    the counter-clockwise sweep from the heading. Ties keep the earlier order in `itertools.permutations`,
-    i.e. the input order first."""
+    the input order is kept. Ties keep the earlier order in `itertools.permutations`, i.e. the input order
+    first."""
     n = len(stops)
-    if n <= 1:
+    if n <= 1 or n > max_exhaustive:
         return list(range(n))
-    if n > max_exhaustive:
-        return sorted(range(n), key=lambda i: float(wrap_angle(stops[i][0] - yaw)) % (2 * math.pi))
     best, best_cost = list(range(n)), None
     for order in itertools.permutations(range(n)):
         cost = tour_actions(yaw, pitch, [stops[i] for i in order], cfg, final_yaw)
@@ -117,14 +115,19 @@ def floor_xz(pose: np.ndarray) -> np.ndarray:
     return np.asarray(pose)[[0, 2], 3].astype(float)
 
 
+def yaw_toward(here_xz: np.ndarray, target_xz: np.ndarray) -> float:
+    """The yaw (radians, about +y) of the floor direction from `here_xz` to `target_xz`, both (x, z)."""
+    delta = np.asarray(target_xz, float) - np.asarray(here_xz, float)
+    return math.atan2(delta[0], delta[1])
+
+
 def follow_action(pose: np.ndarray, waypoint_xz: np.ndarray, cfg: ControllerConfig) -> str | None:
     """One step of path following toward a waypoint: None once within the arrival radius."""
     pos = floor_xz(pose)
-    delta = np.asarray(waypoint_xz, float) - pos
-    if np.hypot(*delta) <= cfg.arrive_radius:
+    if np.hypot(*(np.asarray(waypoint_xz, float) - pos)) <= cfg.arrive_radius:
         return None
     yaw, _ = pose_yaw_pitch(pose)
-    err = math.degrees(float(wrap_angle(math.atan2(delta[0], delta[1]) - yaw)))
+    err = math.degrees(float(wrap_angle(yaw_toward(pos, waypoint_xz) - yaw)))
     if abs(err) > cfg.heading_tolerance_deg:
         return "turn_left" if err > 0 else "turn_right"
     return "move_forward"

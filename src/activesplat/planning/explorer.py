@@ -28,6 +28,7 @@ from activesplat.planning.controller import (
     floor_xz,
     level_actions,
     rotation_actions,
+    yaw_toward,
 )
 from activesplat.planning.goals import GoalRules, closer_on_the_way, rank_goals, select_rotation_targets
 from activesplat.planning.panorama import Panorama, render_panorama
@@ -436,8 +437,7 @@ class ActiveSplatExplorer(Explorer):
         ctrl = self.cfg.controller if self.cfg.fewest_action_tour else None
         resume = None  # a stop on the way turns back toward the path afterwards: count those turns too
         if self.follower is not None and not self.follower.done:
-            ahead = self.follower.waypoints[0] - floor_xz(pose)
-            resume = math.atan2(ahead[0], ahead[1])
+            resume = yaw_toward(floor_xz(pose), self.follower.waypoints[0])
         return select_rotation_targets(targets, yaw, pcfg, max_views, pitch, ctrl, resume)
 
 
