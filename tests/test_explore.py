@@ -58,6 +58,14 @@ def test_episode_folder_is_complete(episode):
     assert int(coverage["n"]) == 4000 and n_points <= 4000
     assert 100 * completed.mean() == pytest.approx(saved["completion_ratio_pct"])
     assert (out / "trajectory.png").stat().st_size > 5000
+    # every turn toward a rotation target belongs to a logged stop of that cause with targets
+    stops = json.loads((out / "stops.json").read_text())["stops"]
+    for cause in ("arrival", "multi_stop"):
+        if saved["rotation_causes"].get(cause):
+            assert any(s["cause"] == cause and s["targets"] for s in stops), cause
+    for s in stops:
+        assert 72 <= s["step"] < 90 and len(s["xz"]) == 2
+        assert set(s["candidates"]) == {"panorama", "high_loss"}
     # poses are rigid transforms, camera 1.25 m above the floor
     R = ep.poses[:, :3, :3]
     assert np.allclose(R @ R.transpose(0, 2, 1), np.eye(3), atol=1e-6)

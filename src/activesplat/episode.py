@@ -20,7 +20,7 @@ import numpy as np
 from activesplat.errors import EpisodeError
 
 EPISODE_FILES = ("episode.json", "actions.txt", "poses.txt", "metrics.json", "gaussians.ply", "topdown.png",
-                 "completion.png", "keyframes.npz", "mapper.json")
+                 "completion.png", "keyframes.npz", "mapper.json", "stops.json")
 
 
 def write_json_atomic(path: Path, data: dict) -> None:

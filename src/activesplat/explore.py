@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from activesplat.episode import EpisodeWriter
+from activesplat.episode import EpisodeWriter, write_json_atomic
 from activesplat.eval.behaviour import action_counts, rotation_causes, rotation_pct
 
 TIMING_KEYS = ("mapper", "workspace", "voronoi", "subregions", "rotation_selection", "position_selection",
@@ -266,6 +266,8 @@ def _save_map(mapper, explorer, out_dir: Path, floor_height: float) -> None:
     from activesplat.workspace.plan import build_plan
 
     mapper.save(out_dir)
+    if getattr(explorer, "stops", None) is not None:
+        write_json_atomic(out_dir / "stops.json", {"stops": explorer.stops})
     traj = np.array(explorer.visited) if explorer.visited else None
     here = traj[-1] if traj is not None else floor_xz(np.eye(4))
     if len(mapper.gaussians) == 0:

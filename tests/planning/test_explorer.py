@@ -131,3 +131,38 @@ def test_a_multi_connected_stop_takes_its_own_view_budget_and_is_counted_as_such
     ex.queue.clear(), ex.queue_causes.clear()
     ex.act(_obs([5.0, 1.2]))
     assert ex.last_cause == "arrival"  # a turn toward the arrival target
+
+
+def test_high_loss_samples_come_only_from_a_mask_of_the_frame_itself(monkeypatch):
+    """The mapper maps every n-th frame; an older frame's mask must not be paired with a newer pose."""
+    calls = []
+    ex = ActiveSplatExplorer(SimpleNamespace(gaussians=None, high_loss_mask=None, render=None), 0.0,
+                             ExplorerConfig(workspace=WCFG))
+    monkeypatch.setattr(ex.high_loss, "update", lambda *a: calls.append("update"))
+    monkeypatch.setattr(ex.high_loss, "observe", lambda pose: calls.append("observe"))
+    obs = SimpleNamespace(**vars(_obs(HERE)), depth=np.ones((4, 4)))
+    ex.observe_mapping(obs, np.eye(3))
+    ex.world.high_loss_mask = np.zeros((4, 4), bool)
+    ex.observe_mapping(obs, np.eye(3))
+    assert calls == ["observe", "update"]
+
+
+def test_multi_connected_stops_keep_their_spacing_from_every_rotation_spot_and_the_start(monkeypatch):
+    import networkx as nx
+
+    from activesplat.planning.viewpoints import RotationTarget
+
+    graph = nx.Graph()
+    for i, x in enumerate((1.3, 2.1, 2.9)):
+        graph.add_node(i, pos=(x, 1.5), multi=True)
+    target = [RotationTarget(yaw=1.5, pitch=0.0, weight=1.0, source="panorama")]
+    for spacing, stops in ((0.0, [True, True, True]), (1.0, [False, True, False])):
+        ex = ActiveSplatExplorer(WORLD, 0.0, ExplorerConfig(workspace=WCFG, multi_stop_spacing_m=spacing))
+        ex.plan = Plan(graph=graph)
+        monkeypatch.setattr(ex, "_rotation_targets", lambda pose, n: list(target))
+        ex.visited.append(HERE)  # the start (1.0, 1.5): the bootstrap looked around there
+        got = []
+        for x in (1.3, 2.1, 2.9):  # 0.3 m from the start, 1.1 m from it, 0.8 m past the stop at 2.1
+            got.append(ex.stop_on_the_way(_obs([x, 1.5]).pose))
+            ex.rotation_targets = []
+        assert got == stops, spacing

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from activesplat.geometry import camera_pose, heading, wrap_angle
-from activesplat.planning.config import PanoramaConfig, ScoreConfig
+from activesplat.planning.config import HighLossConfig, PanoramaConfig, ScoreConfig
 from activesplat.planning.panorama import render_panorama
 from activesplat.planning.viewpoints import (
     HighLossTracker,
@@ -101,6 +101,21 @@ def test_high_loss_tracker_adds_then_drops_sample():
     assert target.yaw < 0 and target.pitch > 0
     tracker.observe(camera_pose(ORIGIN, target.yaw, target.pitch))
     assert tracker.samples == []
+
+
+def test_a_sample_seen_again_without_high_loss_is_forgotten_only_when_asked_and_not_hidden():
+    K = np.array([[64.0, 0, 64], [0, 64, 64], [0, 0, 1]])
+    pose = camera_pose(ORIGIN, 0.3)  # the sample lies off the heading: the 5 deg rule keeps it
+    mask = np.zeros((128, 128), bool)
+    mask[20:50, 90:120] = True
+    depth = np.full((128, 128), 2.0, np.float32)
+    clear = np.zeros_like(mask)
+    for forget, again, seen_depth, kept in ((False, clear, depth, 1), (True, clear, depth, 0),
+                                            (True, mask, depth, 2), (True, clear, depth - 1.0, 1)):
+        tracker = HighLossTracker(HighLossConfig(forget_resolved=forget))
+        tracker.update(mask, depth, pose, K, step=0)
+        tracker.update(again, seen_depth, pose, K, step=1)  # hidden behind 1 m nearer depth: kept
+        assert len(tracker.samples) == kept, (forget, kept)
 
 
 def test_tiny_mask_adds_nothing():

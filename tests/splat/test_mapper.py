@@ -84,8 +84,13 @@ def test_densification_adds_gaussians_only_where_the_mask_says():
 def test_schedule_dense_and_normal():
     mapper = _mapper(iterations=0, map_every=5, keyframe_every=5)
     rgb, depth = observe(pose(), S)
-    flags = [(s.mapped, s.keyframe) for s in (mapper.add_frame(rgb, depth, pose()) for _ in range(6))]
+    flags, masks = [], []
+    for _ in range(6):
+        s = mapper.add_frame(rgb, depth, pose())
+        flags.append((s.mapped, s.keyframe))
+        masks.append(mapper.high_loss_mask is not None)
     assert flags == [(True, True)] + [(False, False)] * 4 + [(True, True)]
+    assert masks == [True] + [False] * 4 + [True]  # no eq. 10 mask for a frame that was not mapped
     mapper.config = MapperConfig(dense_schedule=Schedule(2, 1, 0))
     dense = [mapper.add_frame(rgb, depth, pose(), dense=True) for _ in range(2)]
     dense = [(s.mapped, s.keyframe) for s in dense]

@@ -99,10 +99,19 @@ class HighLossConfig:
     """A tracked sample is dropped once the camera heading is within this of it (release: 5 deg)."""
     max_samples: int = 32
     """Most samples kept; the oldest are forgotten first (ours)."""
+    forget_resolved: bool = False
+    """Also forget a sample once a later mapped frame sees it again (inside the image, nothing observed
+    more than `resolved_tolerance_m` in front of it) with no high-loss pixel within `dbscan_eps` grid
+    cells of it (ours: the mapper has filled the region in; the release forgets samples only by heading,
+    so the agent turns back to regions already mapped)."""
+    resolved_tolerance_m: float = 0.3
+    """How far in front of a sample the observed depth may be before the sample counts as hidden (ours;
+    eq. 10's epsilon_1)."""
 
     def __post_init__(self) -> None:
         check_fields(self, positive=("dbscan_eps",), non_negative=("min_pixels", "min_cluster_sum",
-                                                                   "min_offset_deg", "drop_within_deg"),
+                                                                   "min_offset_deg", "drop_within_deg",
+                                                                   "resolved_tolerance_m"),
                      at_least_one=("grid", "dbscan_min_samples", "max_samples"))
 
 

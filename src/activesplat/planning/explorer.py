@@ -69,6 +69,10 @@ class ExplorerConfig:
     `max_rotation_views` there too)."""
     rotation_skip_radii: float = 3.0
     """No on-the-spot rotations within this many agent radii of a spot already rotated at (release)."""
+    multi_stop_spacing_m: float = 0.0
+    """No rotation stop at a multi-connected node within this of a spot already rotated at (the start's
+    look-around included); 0 = the arrival rule above (ours: in furnished rooms the Voronoi graph branches
+    around every piece of furniture, so junctions lie ~1 m apart and the agent stopped at each)."""
     fewest_action_tour: bool = True
     """Visit the rotation targets of a stop in the order that takes the fewest turns and tilts, levelling
     included (ours: every order of the at most 5 targets is tried; False: counter-clockwise from the
@@ -122,6 +126,7 @@ class ExplorerConfig:
     def __post_init__(self) -> None:
         check_fields(self, non_negative=("bootstrap_yaw_deg", "bootstrap_pitch_deg", "idle_yaw_deg",
                                          "max_rotation_views", "multi_stop_views", "rotation_skip_radii",
+                                         "multi_stop_spacing_m",
                                          "multi_node_radius_m", "local_score_threshold",
                                          "global_distance_weight", "long_path_m", "on_the_way_m",
                                          "escape_forward_steps", "lookahead_m", "ahead_tolerance_m",
@@ -222,11 +227,15 @@ class Explorer:
 
     # ------------------------------------------------------------------ the loop's interface
     def observe_mapping(self, obs: Any, K: np.ndarray) -> None:
-        """Called after the mapper processed `obs`: track its high-loss samples (eq. 10)."""
+        """Called after the mapper processed `obs`: track its high-loss samples (eq. 10). The world's mask is
+        None when the mapper did not map this frame (its schedule maps every n-th frame): then only the
+        samples this view looks at are forgotten."""
         mask = getattr(self.world, "high_loss_mask", None)
-        if mask is not None:
-            m = mask.detach().cpu().numpy() if hasattr(mask, "detach") else np.asarray(mask)
-            self.timers.time("rotation_selection", self.high_loss.update, m, obs.depth, obs.pose, K, obs.step)
+        if mask is None:
+            self.high_loss.observe(np.asarray(obs.pose, dtype=np.float64))
+            return
+        m = mask.detach().cpu().numpy() if hasattr(mask, "detach") else np.asarray(mask)
+        self.timers.time("rotation_selection", self.high_loss.update, m, obs.depth, obs.pose, K, obs.step)
 
     def act(self, obs: Any) -> str:
         """The next action after observation `obs` (its pose, and whether its forward move was refused)."""
@@ -360,6 +369,10 @@ class ActiveSplatExplorer(Explorer):
         super().__init__(world, floor_height, cfg, timers)
         self.rotated_at: list[np.ndarray] = []
         self.stopped_multi: list[np.ndarray] = []
+        self.stops: list[dict] = []
+        """Every rotation stop: step, cause (arrival / multi_stop), floor position, the targets chosen
+        (source, yaw / pitch in degrees, weight) and how many candidates each source offered (the
+        episode's stops.json)."""
 
     def replan(self, pose: np.ndarray) -> None:
         """Rebuild the workspace and graph, rank the nodes, go to the best one with a safe path."""
@@ -403,7 +416,13 @@ class ActiveSplatExplorer(Explorer):
             return
         here = floor_xz(pose)
         skip = self.cfg.rotation_skip_radii * self.cfg.workspace.agent_radius
-        if any(np.hypot(*(here - p)) < skip for p in self.rotated_at):
+        if cause == "multi_stop" and self.cfg.multi_stop_spacing_m > 0:
+            skip = self.cfg.multi_stop_spacing_m
+            start = self.visited[:1] if self.cfg.bootstrap_yaw_deg > 0 else []  # the look-around turned there
+            spots = self.rotated_at + start
+        else:
+            spots = self.rotated_at
+        if any(np.hypot(*(here - p)) < skip for p in spots):
             return
         self.rotated_at.append(here)
         self.rotation_cause = cause
@@ -438,7 +457,15 @@ class ActiveSplatExplorer(Explorer):
         resume = None  # a stop on the way turns back toward the path afterwards: count those turns too
         if self.follower is not None and not self.follower.done:
             resume = yaw_toward(floor_xz(pose), self.follower.waypoints[0])
-        return select_rotation_targets(targets, yaw, pcfg, max_views, pitch, ctrl, resume)
+        chosen = select_rotation_targets(targets, yaw, pcfg, max_views, pitch, ctrl, resume)
+        self.stops.append({
+            "step": len(self.visited) - 1, "cause": self.rotation_cause,
+            "xz": [round(float(v), 3) for v in floor_xz(pose)],
+            "candidates": {src: sum(t.source == src for t in targets) for src in ("panorama", "high_loss")},
+            "targets": [{"source": t.source, "yaw_deg": round(math.degrees(t.yaw), 1),
+                         "pitch_deg": round(math.degrees(t.pitch), 1), "weight": round(float(t.weight), 1)}
+                        for t in chosen]})
+        return chosen
 
 
 def goal_rules(cfg: ExplorerConfig) -> GoalRules:

@@ -155,7 +155,8 @@ class HighLossTracker:
     Each mapped frame's eq. 10 mask (computed by the mapper before densification, see
     `activesplat.splat.densify.high_loss_mask`) is downsampled, clustered with DBSCAN and
     the largest cluster's centre is back-projected with the observed depth into a world point. A sample is
-    forgotten once the camera heading comes within `drop_within_deg` of it.
+    forgotten once the camera heading comes within `drop_within_deg` of it, and (`forget_resolved`) once a
+    later mapped frame sees it with no high-loss pixels around it.
     """
 
     def __init__(self, cfg: HighLossConfig | None = None):
@@ -167,9 +168,11 @@ class HighLossTracker:
         cfg = self.cfg
         self.observe(pose)
         mask = np.asarray(mask, bool)
+        small = cv2.resize(mask.astype(np.float32), (cfg.grid, cfg.grid), interpolation=cv2.INTER_AREA) > 0
+        if cfg.forget_resolved and self.samples:
+            self.samples = [s for s in self.samples if not self._resolved(s.point, small, depth, pose, K)]
         if mask.sum() <= cfg.min_pixels:
             return
-        small = cv2.resize(mask.astype(np.float32), (cfg.grid, cfg.grid), interpolation=cv2.INTER_AREA) > 0
         clusters = [c for c in _clusters(small, cfg.dbscan_eps, cfg.dbscan_min_samples)
                     if len(c) > cfg.min_cluster_sum]
         if not clusters:
@@ -187,6 +190,24 @@ class HighLossTracker:
         point = pose[:3, :3] @ cam + pose[:3, 3]
         self.samples.append(HighLossSample(point, float(len(best)), step))
         self.samples = self.samples[-cfg.max_samples:]
+
+    def _resolved(self, point: np.ndarray, small: np.ndarray, depth: np.ndarray, pose: np.ndarray,
+                  K: np.ndarray) -> bool:
+        """Whether this frame sees `point` (in the image, not hidden behind observed depth) and finds no
+        high-loss pixel near it in the downsampled mask `small`."""
+        cam = pose[:3, :3].T @ (np.asarray(point, float) - pose[:3, 3])
+        if cam[2] <= 1e-6:
+            return False
+        h, w = depth.shape
+        u, v = K[0, 0] * cam[0] / cam[2] + K[0, 2], K[1, 1] * cam[1] / cam[2] + K[1, 2]
+        if not (0 <= u < w and 0 <= v < h):
+            return False
+        observed = float(depth[int(v), int(u)])
+        if observed <= 0 or observed < cam[2] - self.cfg.resolved_tolerance_m:
+            return False
+        grid, r = self.cfg.grid, int(math.ceil(self.cfg.dbscan_eps))
+        gy, gx = int(v * grid / h), int(u * grid / w)
+        return not small[max(gy - r, 0): gy + r + 1, max(gx - r, 0): gx + r + 1].any()
 
     def observe(self, pose: np.ndarray) -> None:
         """Forget the samples the camera now looks straight at (within drop_within_deg)."""

@@ -3,7 +3,8 @@
 Per accepted frame (``add_frame``), following the schedule of :class:`MapperConfig`:
 
 1. render the current view from the map (no grad);
-2. high-loss mask, eq. 10 (kept in :attr:`Mapper.high_loss_mask` for the planner), before densifying;
+2. high-loss mask, eq. 10 (kept in :attr:`Mapper.high_loss_mask` for the planner; None after a frame that
+   was not mapped, so that no one pairs an older frame's mask with the newest pose), before densifying;
 3. densification, eq. 8: new Gaussians on the masked pixels;
 4. a few Adam iterations over the mapping window (best-overlap keyframes + last keyframe + current
    frame), loss eqs. 5-7;
@@ -111,7 +112,8 @@ class Mapper:
         self.gaussians = GaussianMap.empty(self.device)
         self.optimizer = self._make_optimizer()
         self.keyframes: list[Keyframe] = []
-        self.high_loss_mask = np.zeros((self.height, self.width), dtype=bool)
+        self.high_loss_mask: np.ndarray | None = np.zeros((self.height, self.width), dtype=bool)
+        """The eq. 10 mask of the latest frame added, None when that frame was not mapped (or skipped)."""
         self.frames = 0  # accepted (non-skipped) frames
         self.received = 0  # add_frame calls that passed the input checks (the frame index in messages)
         self.broken_depth_frames = 0  # frames with NaN / inf / negative depth pixels (made invalid)
@@ -197,6 +199,7 @@ class Mapper:
         t0 = time.perf_counter()
         rgb, depth, pose = self._validate(rgb, depth, pose)
         self.received += 1
+        self.high_loss_mask = None  # set again only if this frame is mapped
         if not (depth > 0).any():
             warnings.warn(f"mapper: frame {self.received - 1} has no valid depth, skipped", stacklevel=2)
             return FrameStats(self.frames, False, False, True, len(self.gaussians))
