@@ -118,6 +118,23 @@ def test_a_sample_seen_again_without_high_loss_is_forgotten_only_when_asked_and_
         assert len(tracker.samples) == kept, (forget, kept)
 
 
+def test_only_the_heaviest_high_loss_samples_become_targets():
+    K = np.array([[64.0, 0, 64], [0, 64, 64], [0, 0, 1]])
+    depth = np.full((128, 128), 2.0, np.float32)
+    tracker = HighLossTracker(HighLossConfig(max_samples=8))
+    for step, (c0, size) in enumerate(((10, 20), (50, 36), (90, 28))):  # three clusters of three sizes
+        mask = np.zeros((128, 128), bool)
+        mask[40:40 + size, c0:c0 + size] = True
+        tracker.update(mask, depth, camera_pose(ORIGIN, 0.5), K, step=step)
+    weights = sorted((s.weight for s in tracker.samples), reverse=True)
+    assert len(weights) == 3 and len(set(weights)) == 3
+    capped = tracker.targets(ORIGIN)
+    assert [t.weight for t in capped] == weights[:2]  # default: the two heaviest
+    tracker.cfg = HighLossConfig(max_targets=0)
+    assert [t.weight for t in tracker.targets(ORIGIN)] == weights
+    assert tracker.targets(ORIGIN, max_distance=1.0) == []
+
+
 def test_tiny_mask_adds_nothing():
     tracker = HighLossTracker()
     mask = np.zeros((64, 64), bool)

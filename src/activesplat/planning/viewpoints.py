@@ -221,7 +221,8 @@ class HighLossTracker:
         self.samples = keep
 
     def targets(self, position: np.ndarray, max_distance: float | None = None) -> list[RotationTarget]:
-        """Rotation targets toward the tracked samples seen from `position`, heaviest first."""
+        """Rotation targets toward the tracked samples seen from `position`, heaviest first, at most
+        `max_targets` of them (0: all)."""
         out = []
         for s in self.samples:
             d = s.point - np.asarray(position)
@@ -229,7 +230,8 @@ class HighLossTracker:
                 continue
             yaw, pitch = yaw_pitch_of(d)
             out.append(RotationTarget(yaw, pitch, s.weight, "high_loss"))
-        return sorted(out, key=lambda t: -t.weight)
+        out.sort(key=lambda t: -t.weight)
+        return out[:self.cfg.max_targets] if self.cfg.max_targets > 0 else out
 
 
 # --------------------------------------------------------------------------- node score (eq. 12)
