@@ -19,6 +19,8 @@ from activesplat.planning.viewpoints import (
 )
 
 ORIGIN = np.array([0.0, 1.25, 0.0])
+K_128 = np.array([[64.0, 0, 64], [0, 64, 64], [0, 0, 1]])  # a 128 x 128 camera with a 90 deg field of view
+DEPTH_2M = np.full((128, 128), 2.0, np.float32)
 
 
 def fake_renderer(hole_yaw_deg, hole_pitch_deg, radius=3.0):
@@ -86,13 +88,11 @@ def test_hull_volume_grows_with_the_hole():
 
 
 def test_high_loss_tracker_adds_then_drops_sample():
-    K = np.array([[64.0, 0, 64], [0, 64, 64], [0, 0, 1]])
     pose = camera_pose(ORIGIN, 0.0)
     mask = np.zeros((128, 128), bool)
     mask[20:50, 90:120] = True  # upper right of the image
-    depth = np.full((128, 128), 2.0, np.float32)
     tracker = HighLossTracker()
-    tracker.update(mask, depth, pose, K, step=3)
+    tracker.update(mask, DEPTH_2M, pose, K_128, step=3)
     assert len(tracker.samples) == 1
     p = tracker.samples[0].point
     # upper right in the image: up (world +y) and to the right (world -x when looking along +z)
@@ -104,28 +104,24 @@ def test_high_loss_tracker_adds_then_drops_sample():
 
 
 def test_a_sample_seen_again_without_high_loss_is_forgotten_only_when_asked_and_not_hidden():
-    K = np.array([[64.0, 0, 64], [0, 64, 64], [0, 0, 1]])
     pose = camera_pose(ORIGIN, 0.3)  # the sample lies off the heading: the 5 deg rule keeps it
     mask = np.zeros((128, 128), bool)
     mask[20:50, 90:120] = True
-    depth = np.full((128, 128), 2.0, np.float32)
     clear = np.zeros_like(mask)
-    for forget, again, seen_depth, kept in ((False, clear, depth, 1), (True, clear, depth, 0),
-                                            (True, mask, depth, 2), (True, clear, depth - 1.0, 1)):
+    for forget, again, seen_depth, kept in ((False, clear, DEPTH_2M, 1), (True, clear, DEPTH_2M, 0),
+                                            (True, mask, DEPTH_2M, 2), (True, clear, DEPTH_2M - 1.0, 1)):
         tracker = HighLossTracker(HighLossConfig(forget_resolved=forget))
-        tracker.update(mask, depth, pose, K, step=0)
-        tracker.update(again, seen_depth, pose, K, step=1)  # hidden behind 1 m nearer depth: kept
+        tracker.update(mask, DEPTH_2M, pose, K_128, step=0)
+        tracker.update(again, seen_depth, pose, K_128, step=1)  # hidden behind 1 m nearer depth: kept
         assert len(tracker.samples) == kept, (forget, kept)
 
 
 def test_only_the_heaviest_high_loss_samples_become_targets():
-    K = np.array([[64.0, 0, 64], [0, 64, 64], [0, 0, 1]])
-    depth = np.full((128, 128), 2.0, np.float32)
     tracker = HighLossTracker(HighLossConfig(max_samples=8))
     for step, (c0, size) in enumerate(((10, 20), (50, 36), (90, 28))):  # three clusters of three sizes
         mask = np.zeros((128, 128), bool)
         mask[40:40 + size, c0:c0 + size] = True
-        tracker.update(mask, depth, camera_pose(ORIGIN, 0.5), K, step=step)
+        tracker.update(mask, DEPTH_2M, camera_pose(ORIGIN, 0.5), K_128, step=step)
     weights = sorted((s.weight for s in tracker.samples), reverse=True)
     assert len(weights) == 3 and len(set(weights)) == 3
     capped = tracker.targets(ORIGIN)
