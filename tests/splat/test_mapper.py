@@ -212,3 +212,42 @@ def test_depth_bias_on_a_slanted_wall_shrinks_with_the_means_rate():
     before = float((initial.render(cam).depth - torch.from_numpy(depth))[inner].mean())
     assert before < -0.1  # in front of the wall
     assert abs(bias[1e-3]) < 0.85 * abs(before) and abs(bias[1e-3]) < abs(bias[1e-4])
+
+
+
+def _wall_pose(z: float) -> np.ndarray:
+    p = pose()
+    p[2, 3] = z  # the wall (z = 2) is 2 - z metres ahead
+    return p
+
+
+def test_coarse_refresh_replaces_far_gaussians_with_fine_ones_only_in_full_view():
+    size = 64  # f = 32
+    far, near = _wall_pose(-0.5), _wall_pose(1.2)  # wall 2.5 m, then 0.8 m ahead
+    maps = {}
+    for factor in (None, 2.0):
+        cfg = MapperConfig(schedule=Schedule(1, 1, 0), refresh_coarse_factor=factor)
+        mapper = Mapper(intrinsics(size), size, size, cfg, backend=BACKEND)
+        mapper.add_frame(*observe(far, size), far)
+        before = mapper.gaussians.raw()
+        stats = mapper.add_frame(*observe(near, size), near)
+        maps[factor] = (mapper, before, stats)
+    plain, _, plain_stats = maps[None]
+    mapper, before, stats = maps[2.0]
+    assert plain_stats.refreshed == 0 and plain_stats.added == 0  # eq. 8 alone adds nothing: wall opaque
+    assert stats.refreshed > 0 and stats.added > 0
+    # from 0.8 m a new Gaussian gets 0.75 * 2 * 0.8 / 32 = 0.0375 m: none coarser than 2 x that is left
+    # where the near view sees them whole; the Gaussians beyond the near view are the far frame's, untouched
+    scales = mapper.gaussians.scales.max(dim=1).values.detach()
+    inside = (mapper.gaussians.means[:, :2].detach().abs() < 0.25).all(dim=1)
+    assert (scales[inside] <= 0.075).all()
+    outside = before["means"][(before["means"][:, :2].abs() > 1.0).any(dim=1)]
+    assert len(outside) > 0
+    gap = torch.cdist(outside, mapper.gaussians.means.detach()).min(dim=1).values
+    assert (gap == 0).all()  # still there, unmoved
+    rgb = torch.from_numpy(observe(near, size)[0]).float()[16:48, 16:48] / 255
+
+    def centre_psnr(m: Mapper) -> float:
+        return -10 * np.log10(((m.render(near).rgb[16:48, 16:48].clamp(0, 1) - rgb) ** 2).mean().item())
+
+    assert centre_psnr(mapper) > centre_psnr(plain) + 3.0

@@ -9,6 +9,7 @@ from activesplat.errors import InvalidInputError
 from activesplat.splat.config import LearningRates, MapperConfig, Schedule
 from activesplat.splat.densify import (
     cap_mask,
+    coarse_mask,
     densification_mask,
     gaussians_from_pixels,
     high_loss_mask,
@@ -236,3 +237,31 @@ def test_free_space_mask_flags_only_gaussians_in_observed_free_space():
     moved[:3, 3] = [0.0, 0.0, -1.0]  # camera 1 m back: the wall is at z = 3 in the camera
     assert free_space_mask(means + torch.tensor([0.0, 0.0, -1.0]), moved, K, depth, 0.1, 1).tolist() == \
         got.tolist()
+
+
+def test_coarse_mask_picks_only_what_the_view_sees_whole_and_much_finer():
+    size, f = 64, 32.0
+    K = np.array([[f, 0, size / 2], [0, f, size / 2], [0, 0, 1]])
+    cam = np.eye(4)  # looking down +z at a wall 2 m away
+    depth = torch.full((size, size), 2.0)
+    depth[44:50, 18:24] = 1.5  # a box in front of the wall, left of centre, lower half
+    cfg = MapperConfig(refresh_coarse_factor=2.0)  # new radius at 2 m: 0.75 * 2 * 2 / 32 = 0.094 m
+    centres = [(0.0, 0.0, 2.0),  # coarse (0.2 > 2 x 0.094), footprint +-6.4 px inside, unoccluded -> yes
+               (1.0, -1.0, 2.0),  # fine (0.05) -> no
+               (-1.0, 0.9, 2.0),  # coarse, the box covers part of its footprint -> no
+               (1.7, 0.0, 2.0),  # coarse, footprint leaves the image -> no
+               (0.0, 0.0, 3.0),  # coarse, behind the observed wall (hidden) -> no
+               (0.0, 0.0, 1.0)]  # coarse, 1 m in front of the wall (free space, not the surface) -> no
+    scales = [0.2, 0.05, 0.2, 0.2, 0.3, 0.1]
+    means = torch.tensor(centres)
+    log_scales = torch.log(torch.tensor(scales)).unsqueeze(1).repeat(1, 3)
+    expected = [True, False, False, False, False, False]
+    assert coarse_mask(means, log_scales, cam, K, depth, cfg).tolist() == expected
+    assert not coarse_mask(means, log_scales, cam, K, depth, MapperConfig()).any()  # off by default
+    big_floor = MapperConfig(refresh_coarse_factor=2.0, refresh_min_radius_m=0.15)  # 0.2 < 2 x 0.15
+    assert not coarse_mask(means, log_scales, cam, K, depth, big_floor).any()
+    invalid = depth.clone()
+    invalid[30, 30] = 0.0  # an unknown pixel inside the first one's footprint
+    assert not coarse_mask(means, log_scales, cam, K, invalid, cfg)[0]
+    with pytest.raises(InvalidInputError, match="refresh_coarse_factor"):
+        MapperConfig(refresh_coarse_factor=1.0)

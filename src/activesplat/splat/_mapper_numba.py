@@ -13,6 +13,17 @@ import numpy as np
 from numba import njit, prange
 
 
+@njit(inline="always", cache=True)
+def camera_point(means, i, rot, t):
+    """Row ``i`` of ``means`` in the camera frame of a camera-to-world (``rot``, ``t``): R^T (p - t)."""
+    dx = means[i, 0] - t[0]
+    dy = means[i, 1] - t[1]
+    dz = means[i, 2] - t[2]
+    return (dx * rot[0, 0] + dy * rot[1, 0] + dz * rot[2, 0],
+            dx * rot[0, 1] + dy * rot[1, 1] + dz * rot[2, 1],
+            dx * rot[0, 2] + dy * rot[1, 2] + dz * rot[2, 2])
+
+
 @njit(parallel=True, cache=True)
 def cull_rows(means, log_scales, rot, t, fx, fy, cx, cy, width, height, near, lim_x, lim_y, sigmas,
               low_pass, far, window, margin, use_depth):
@@ -21,14 +32,11 @@ def cull_rows(means, log_scales, rot, t, fx, fy, cx, cy, width, height, near, li
     n = means.shape[0]
     keep = np.zeros(n, dtype=np.bool_)
     for i in prange(n):
-        dx = means[i, 0] - t[0]
-        dy = means[i, 1] - t[1]
-        dz = means[i, 2] - t[2]
-        z = dx * rot[0, 2] + dy * rot[1, 2] + dz * rot[2, 2]
+        xw, yw, z = camera_point(means, i, rot, t)
         if z <= near:
             continue
-        x = (dx * rot[0, 0] + dy * rot[1, 0] + dz * rot[2, 0]) / z
-        y = (dx * rot[0, 1] + dy * rot[1, 1] + dz * rot[2, 1]) / z
+        x = xw / z
+        y = yw / z
         xc = min(max(x, -lim_x), lim_x)
         yc = min(max(y, -lim_y), lim_y)
         stretch = 1.0 + xc * xc + yc * yc
@@ -276,4 +284,47 @@ def far_depth(depth, r):
             for j in range(width):
                 v = rows[ii, j]
                 out[i, j] = v if v > out[i, j] else out[i, j]
+    return out
+
+
+# --------------------------------------------------------------------------- coarse-Gaussian refresh
+@njit(parallel=True, cache=True)
+def coarse_rows(means, log_scales, rot, t, fx, fy, cx, cy, depth, factor, radius_per_z, min_radius, sigmas,
+                margin):
+    """(N,) bool: the Gaussian is seen whole and at a much finer resolution by this view (see
+    ``densify.coarse_mask``): its largest scale exceeds ``factor`` x max(``radius_per_z`` x z,
+    ``min_radius``), its ``sigmas``-sigma footprint lies inside the image, every observed depth in that
+    footprint is valid and none is nearer than its centre by more than max(``margin``, scale), and the
+    depth observed at its centre is within that tolerance of the centre (it is the visible surface)."""
+    n = means.shape[0]
+    height, width = depth.shape
+    out = np.zeros(n, dtype=np.bool_)
+    for i in prange(n):
+        xw, yw, z = camera_point(means, i, rot, t)
+        if z <= 1e-3:
+            continue
+        s = math.exp(max(log_scales[i, 0], max(log_scales[i, 1], log_scales[i, 2])))
+        if s <= factor * max(radius_per_z * z, min_radius):
+            continue
+        u = fx * xw / z + cx
+        v = fy * yw / z + cy
+        r = sigmas * s * max(fx, fy) / z
+        if u - r < 0 or u + r >= width or v - r < 0 or v + r >= height:
+            continue
+        tol = max(margin, s)
+        ui = int(math.floor(u))
+        vi = int(math.floor(v))
+        centre = depth[vi, ui]
+        if centre <= 0 or abs(centre - z) > tol:
+            continue
+        ok = True
+        for y in range(int(math.floor(v - r)), int(math.floor(v + r)) + 1):
+            for x in range(int(math.floor(u - r)), int(math.floor(u + r)) + 1):
+                d = depth[y, x]
+                if d <= 0 or d < z - tol:
+                    ok = False
+                    break
+            if not ok:
+                break
+        out[i] = ok
     return out

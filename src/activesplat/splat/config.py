@@ -92,6 +92,19 @@ class MapperConfig:
     28.44 vs 28.85 dB, LPIPS 0.381 vs 0.324: texture smeared along the slant), and the floor far down a
     corridor still does not join the free-space grid (4 is not enough beyond ~5 m).
 
+    Coarse refresh (``refresh_coarse_factor``; paper, release and SplaTAM: none). Eq. 8 adds Gaussians
+    only where the map is transparent, so a wall first seen from 4 m keeps the 4-5 cm Gaussians it got
+    there when the robot walks up to it, and every close view of it renders blurred. A mapped frame first
+    finds the Gaussians it sees whole (footprint inside the image, nothing observed in front of them, the
+    observed depth at the centre on them) and at least this factor finer than their size (largest scale
+    > factor x the radius a new Gaussian would get at their depth, and > factor x
+    ``refresh_min_radius_m``), and makes them transparent before the eq. 8 render; the pruning at the
+    end of the frame removes them. Where they rendered with opacity above ``refresh_footprint_alpha``,
+    new Gaussians are added from this frame's pixels whatever the eq. 8 render says: without that, the
+    back face of a wall or the room behind it fills the opacity test and the hole stays (seen as
+    see-through walls in the first trial). Only what the current view observes in full is replaced,
+    so nothing is lost out of view; the density grows where the robot came close, not with time.
+
     Floater pruning (``prune_floater_margin_m``): a Gaussian whose centre the current frame sees as free
     space (projects in front of the observed depth by more than the margin, where the whole 3x3
     neighbourhood is valid and farther) is removed; this is how a map with known poses loses
@@ -136,6 +149,13 @@ class MapperConfig:
     densify_opacity: float = 0.98  # tau_o1 (paper)
     densify_k: float = 50.0  # k x median depth error (paper 50, release 2; see class docstring)
     densify_max_depth_m: float | None = None  # release applies the depth test only below 5 m; None = off
+
+    # --- coarse refresh (project; see class docstring "Coarse refresh"): None = off (paper, release)
+    refresh_coarse_factor: float | None = None
+    refresh_min_radius_m: float = 0.01  # project: never refresh for Gaussians finer than this x the factor
+    refresh_sigmas: float = 2.0  # project: footprint (in sigmas) that must be seen whole and unoccluded
+    refresh_footprint_alpha: float = 0.1  # project: where they render above this, eq. 8 adds anew
+    refresh_depth_margin_m: float = 0.05  # project: depth tolerance of the visibility test (>= the scale)
 
     # --- high-loss mask, eq. 10 (computed before densification, on the median depth as the release)
     high_loss_opacity: float = 0.8  # tau_o2 (paper eq. 10)
@@ -186,6 +206,9 @@ class MapperConfig:
         for name in ("pixel_stride", "mask_downscale", "train_downscale"):
             if getattr(self, name) < 1:
                 raise InvalidInputError(f"MapperConfig.{name} must be >= 1, got {getattr(self, name)}")
+        if self.refresh_coarse_factor is not None and self.refresh_coarse_factor <= 1.0:
+            raise InvalidInputError(f"MapperConfig.refresh_coarse_factor must be > 1 (or None = off), got "
+                                    f"{self.refresh_coarse_factor}: a view would replace what it just added")
         if not 0.0 < self.init_opacity < 1.0:
             raise InvalidInputError(f"MapperConfig.init_opacity must be in (0, 1), got {self.init_opacity}")
 

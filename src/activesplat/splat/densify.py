@@ -147,6 +147,28 @@ def free_space_mask(means: torch.Tensor, pose: np.ndarray, K: np.ndarray, obs_de
     return floater
 
 
+def coarse_mask(means: torch.Tensor, log_scales: torch.Tensor, pose: np.ndarray, K: np.ndarray,
+                obs_depth: torch.Tensor, cfg: MapperConfig) -> torch.Tensor:
+    """Coarse Gaussians (MapperConfig "Coarse refresh"): those this view sees whole, unoccluded and at
+    least ``refresh_coarse_factor`` times finer than their size, i.e. whose largest scale exceeds that
+    factor times the radius a new Gaussian would get at their depth (and ``refresh_min_radius_m``).
+    Their whole footprint (``refresh_sigmas`` sigmas) must lie inside the image on valid observed depth,
+    with nothing observed in front of the centre by more than max(``refresh_depth_margin_m``, scale),
+    and the depth observed at the centre must match it to that tolerance. Returns (N,) bool."""
+    from activesplat.splat._mapper_numba import coarse_rows
+
+    if means.shape[0] == 0 or cfg.refresh_coarse_factor is None:
+        return torch.zeros(means.shape[0], dtype=torch.bool, device=means.device)
+    pose = np.asarray(pose, dtype=np.float64)
+    fx, fy, cx, cy = float(K[0, 0]), float(K[1, 1]), float(K[0, 2]), float(K[1, 2])
+    radius_per_z = cfg.init_radius_scale * cfg.pixel_stride / (0.5 * (fx + fy))
+    depth = np.ascontiguousarray(obs_depth.detach().cpu().numpy(), dtype=np.float32)
+    out = coarse_rows(means.detach().cpu().numpy(), log_scales.detach().cpu().numpy(), pose[:3, :3].copy(),
+                      pose[:3, 3].copy(), fx, fy, cx, cy, depth, cfg.refresh_coarse_factor, radius_per_z,
+                      cfg.refresh_min_radius_m, cfg.refresh_sigmas, cfg.refresh_depth_margin_m)
+    return torch.from_numpy(out).to(means.device)
+
+
 def prune_mask(raw: dict[str, torch.Tensor], cfg: MapperConfig) -> torch.Tensor:
     """Gaussians to keep among the raw parameters ``raw`` (any subset of rows): drop near-transparent
     (opacity < prune_opacity) and oversized (largest scale > prune_max_scale_m) ones, as 3DGS."""

@@ -2,14 +2,16 @@
 
 Per accepted frame (``add_frame``), following the schedule of :class:`MapperConfig`:
 
-1. render the current view from the map (no grad);
-2. high-loss mask, eq. 10 (kept in :attr:`Mapper.high_loss_mask` for the planner; None after a frame that
+1. the coarse refresh (a project rule, off by default): Gaussians this view sees whole and much finer
+   are made transparent, to be covered anew by step 4 and removed in step 6;
+2. render the current view from the map (no grad);
+3. high-loss mask, eq. 10 (kept in :attr:`Mapper.high_loss_mask` for the planner; None after a frame that
    was not mapped, so that no one pairs an older frame's mask with the newest pose), before densifying;
-3. densification, eq. 8: new Gaussians on the masked pixels;
-4. a few Adam iterations over the mapping window (best-overlap keyframes + last keyframe + current
+4. densification, eq. 8: new Gaussians on the masked pixels;
+5. a few Adam iterations over the mapping window (best-overlap keyframes + last keyframe + current
    frame), loss eqs. 5-7;
-5. pruning of near-transparent and oversized Gaussians, and the Gaussian cap;
-6. every ``keyframe_every`` frames, the frame joins the keyframe buffer.
+6. pruning of near-transparent and oversized Gaussians, and the Gaussian cap;
+7. every ``keyframe_every`` frames, the frame joins the keyframe buffer.
 
 Input checks: wrong shapes/dtypes, non-finite poses or colours raise InvalidInputError and leave the
 map untouched; NaN/inf/negative depth pixels are treated as invalid (set to 0); a frame without any
@@ -31,6 +33,7 @@ from activesplat.errors import InvalidInputError
 from activesplat.splat.config import MapperConfig, Schedule
 from activesplat.splat.densify import (
     cap_mask,
+    coarse_mask,
     densification_mask,
     free_space_mask,
     gaussians_from_pixels,
@@ -55,6 +58,7 @@ class FrameStats:
     n_gaussians: int
     added: int = 0
     pruned: int = 0
+    refreshed: int = 0  # coarse Gaussians made transparent for the coarse refresh (MapperConfig)
     loss: float | None = None
     ms: float = 0.0
     timings: dict[str, float] = field(default_factory=dict)
@@ -222,11 +226,16 @@ class Mapper:
         cfg = self.config
         obs_rgb = torch.from_numpy(rgb).to(self.device, torch.float32) / 255.0
         obs_depth = torch.from_numpy(depth).to(self.device)
+        coarse, footprint = self._retire_coarse(pose, obs_depth)
+        stats.refreshed = int(coarse.numel())
+        clock.lap("refresh")
         with torch.no_grad():
             out = self._render_or_blank(pose)
             hl = high_loss_mask(out["alpha"], out["median_depth"], obs_depth, cfg)
             self.high_loss_mask = hl.cpu().numpy()
             new_mask = densification_mask(out["alpha"], out["depth"], obs_depth, cfg)
+            if footprint is not None:  # the retired Gaussians' footprint is covered anew, whatever is behind
+                new_mask |= footprint & (obs_depth > 0)
         clock.lap("render_masks")
         raw = gaussians_from_pixels(new_mask, obs_rgb, obs_depth, pose, self.K, cfg)
         stats.added = self._append(raw)
@@ -249,8 +258,26 @@ class Mapper:
         touched = torch.zeros(len(self.gaussians), dtype=torch.bool, device=self.device)
         for rows in trained:
             touched[rows] = True
-        stats.pruned = self._prune(torch.nonzero(touched, as_tuple=True)[0], pose, obs_depth)
+        stats.pruned = self._prune(torch.nonzero(touched, as_tuple=True)[0], pose, obs_depth, coarse)
         clock.lap("prune")
+
+    def _retire_coarse(self, pose: np.ndarray, obs_depth: torch.Tensor) -> torch.Tensor:
+        """The coarse refresh (MapperConfig): the Gaussians in this view that it sees whole and much finer
+        (:func:`coarse_mask`) are made fully transparent, so that eq. 8 covers their footprint anew from
+        this frame; the pruning at the end of the frame removes them. Returns their rows."""
+        if self.config.refresh_coarse_factor is None or len(self.gaussians) == 0:
+            return torch.zeros(0, dtype=torch.long, device=self.device), None
+        p = self.gaussians.params
+        rows = self._view_rows(pose, self.K, self.width, self.height, obs_depth)
+        hit = coarse_mask(p["means"].index_select(0, rows), p["log_scales"].index_select(0, rows), pose,
+                          self.K, obs_depth, self.config)
+        coarse = rows[hit]
+        footprint = None
+        if coarse.numel():
+            with torch.no_grad():
+                footprint = self._render_or_blank(pose, coarse)["alpha"] > self.config.refresh_footprint_alpha
+                p["opacity_logits"][coarse] = -30.0  # sigmoid ~ 1e-13: below prune_opacity, no weight
+        return coarse, footprint
 
     def _append(self, raw: dict[str, torch.Tensor]) -> int:
         """Add new Gaussians to the map and their (zero) state to the optimiser."""
@@ -260,20 +287,23 @@ class Mapper:
             return added
         return self.gaussians.append(raw, self.optimizer)
 
-    def _prune(self, rows: torch.Tensor, pose: np.ndarray, obs_depth: torch.Tensor) -> int:
+    def _prune(self, rows: torch.Tensor, pose: np.ndarray, obs_depth: torch.Tensor,
+               retired: torch.Tensor | None = None) -> int:
         """Pruning, only among ``rows`` (the Gaussians of the current view and of the views trained on
         this frame; nothing else changed): transparent / oversized (:func:`prune_mask`) and floaters in
-        the free space the current frame observes (:func:`free_space_mask`); then the optional global
-        cap (:func:`cap_mask`). Returns the number removed."""
+        the free space the current frame observes (:func:`free_space_mask`), and the ``retired`` rows of
+        the coarse refresh; then the optional global cap (:func:`cap_mask`). Returns the number removed."""
         cfg = self.config
         keep = torch.ones(len(self.gaussians), dtype=torch.bool, device=self.device)
+        if retired is not None:
+            keep[retired] = False
         if rows.numel():
             sub = self.gaussians.rows(rows)
             ok = prune_mask(sub, cfg)
             if cfg.prune_floater_margin_m is not None:
                 ok &= ~free_space_mask(sub["means"], pose, self.K, obs_depth, cfg.prune_floater_margin_m,
                                        cfg.prune_floater_window_px)
-            keep[rows] = ok
+            keep[rows] &= ok
         if cfg.max_gaussians is not None:
             keep &= cap_mask(self.gaussians.params["opacity_logits"].detach(), keep, cfg.max_gaussians)
         self.peak_gaussians = max(self.peak_gaussians, len(self.gaussians))
@@ -286,7 +316,7 @@ class Mapper:
                 self.gaussians.keep(keep, self.optimizer)
         return removed
 
-    def _render_or_blank(self, pose: np.ndarray) -> dict[str, torch.Tensor]:
+    def _render_or_blank(self, pose: np.ndarray, rows: torch.Tensor | None = None) -> dict[str, torch.Tensor]:
         """Opacity, depth and median depth of the current view for eqs. 8 and 10, rendered at
         1/``mask_downscale`` resolution and upsampled (nearest) to the sensor size."""
         if len(self.gaussians) == 0:
@@ -295,7 +325,7 @@ class Mapper:
         w, h = -(-self.width // d), -(-self.height // d)
         K = self.K.copy()
         K[:2] /= d
-        out = self._render(pose, K, w, h)
+        out = self._render(pose, K, w, h, rows)
 
         def upsample(t: torch.Tensor) -> torch.Tensor:
             return t.repeat_interleave(d, 0).repeat_interleave(d, 1)[: self.height, : self.width]

@@ -89,9 +89,11 @@ class RowAdam:
 
     def keep(self, mask: torch.Tensor) -> None:
         """Drop the state of the rows where ``mask`` is False (compacted within the buffers)."""
-        n, k = len(self), int(mask.sum())
+        n = len(self)
+        index = torch.nonzero(mask, as_tuple=True)[0]  # index_select: several times faster than a bool mask
+        k = len(index)
         for buf in self._buffers.values():
-            buf[:k] = buf[:n][mask]
+            buf[:k] = buf[:n].index_select(0, index)
         self._views(k)
 
     @torch.no_grad()
