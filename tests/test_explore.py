@@ -66,6 +66,11 @@ def test_episode_folder_is_complete(episode):
     for s in stops:
         assert 72 <= s["step"] < 90 and len(s["xz"]) == 2
         assert set(s["candidates"]) == {"panorama", "high_loss"}
+    # every replan after the look-around is logged: the goal it took and how it was ranked
+    replans = json.loads((out / "stops.json").read_text())["replans"]
+    assert replans and all(72 <= r["step"] < 90 and r["stage"] in ("local", "global") for r in replans)
+    for r in replans:
+        assert r["goal"] is None or (r["path_m"] > 0 and r["candidates"] >= r["promising"])
     # poses are rigid transforms, camera 1.25 m above the floor
     R = ep.poses[:, :3, :3]
     assert np.allclose(R @ R.transpose(0, 2, 1), np.eye(3), atol=1e-6)

@@ -90,6 +90,22 @@ def test_local_nodes_come_first_while_they_promise_something_then_score_minus_di
                              global_scores=scores - np.array([0.0, 0.0, 10.0])) == [0, 2, 1]
 
 
+def test_global_stage_with_information_first_prefers_a_far_node_with_something_to_see():
+    # the agent's subregion is seen; node 0 is near with only the unvisited and in-horizon flags (20),
+    # node 1 is 23 m away behind a door with unseen space (info 30), node 2 is near but visited
+    scores = np.array([20.0, 40.0, 30.0])
+    info = np.array([0.0, 30.0, 30.0])
+    travel = np.array([1.5, 23.0, 1.0])
+    open_ = np.array([True, True, False])
+    in_local = np.array([True, False, True])
+    plain = dataclasses.replace(RULES, global_information_first=False)
+    assert local_then_global(scores, info, travel, open_, in_local, plain) == [2, 0, 1]
+    first = dataclasses.replace(RULES, global_information_first=True)
+    assert local_then_global(scores, info, travel, open_, in_local, first) == [1, 2, 0]
+    info[1] = RULES.local_score_threshold  # nothing promising anywhere: score minus distance as before
+    assert local_then_global(scores, info, travel, open_, in_local, first) == [2, 0, 1]
+
+
 class HalfSeen:
     """A map whose every view has its lower half mapped: an invisible share at every node."""
 

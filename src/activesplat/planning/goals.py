@@ -46,6 +46,7 @@ class GoalRules:
     long_path_m: float
     on_the_way_m: float
     global_in_horizon: bool = True
+    global_information_first: bool = False
 
 
 def node_state(node_pos: np.ndarray, visited: Sequence[np.ndarray], failed: Sequence[np.ndarray],
@@ -102,7 +103,9 @@ def local_then_global(scores: np.ndarray, info: np.ndarray, travel: np.ndarray, 
     """Indices best first (sec. III-C). Ties go to the shorter travel. Hierarchical: while an open node of
     the agent's own subregion (`in_local`) promises something to see (information above the local
     threshold), those nodes come first in score order; otherwise every node is ranked by its global score
-    (`global_scores`, default `scores`) minus the distance cost. Flat (`no-hp`): score order."""
+    (`global_scores`, default `scores`) minus the distance cost, with `global_information_first` the open
+    nodes that promise something to see (information above the same threshold) ahead of the others.
+    Flat (`no-hp`): score order."""
     n = len(scores)
     order = sorted(range(n), key=lambda i: (-scores[i], travel[i]))
     if not rules.hierarchical:
@@ -114,7 +117,13 @@ def local_then_global(scores: np.ndarray, info: np.ndarray, travel: np.ndarray, 
         return local_best + [i for i in order if i not in local_best]
     base = scores if global_scores is None else global_scores
     global_score = base - rules.global_distance_weight * travel
-    return sorted(range(n), key=lambda i: (-global_score[i], travel[i]))
+    ranked = sorted(range(n), key=lambda i: (-global_score[i], travel[i]))
+    if not rules.global_information_first:
+        return ranked
+    # a node that promises something to see beats one that only has the unvisited / in-horizon flags,
+    # however near: the flags alone kept the agent going from node to node of a room it had seen (ours)
+    promising = [i for i in ranked if open_[i] and info[i] > rules.local_score_threshold]
+    return promising + [i for i in ranked if not (open_[i] and info[i] > rules.local_score_threshold)]
 
 
 def rank_goals(plan: Plan, here: np.ndarray, render: RenderFn, floor_height: float,
@@ -160,6 +169,8 @@ def rank_goals(plan: Plan, here: np.ndarray, render: RenderFn, floor_height: flo
     local = agent_subregion(graph, plan.subregions, here) if hierarchical else None
     in_local = np.array([hierarchical and plan.subregions.get(n) == local for n in nodes])
     rules = dataclasses.replace(rules, hierarchical=hierarchical)
+    promising = open_ & (info > rules.local_score_threshold)
+    plan.stage = "flat" if not hierarchical else "local" if (promising & in_local).any() else "global"
     order = local_then_global(scores, info, travel, open_, in_local, rules, global_scores)
     return [nodes[i] for i in order]
 

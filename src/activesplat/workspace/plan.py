@@ -32,6 +32,9 @@ class Plan:
     info: dict[int, float] = field(default_factory=dict)
     """The information part of each node's score (w_o s_o + w_c s_c), see
     `activesplat.planning.viewpoints.information_scores`."""
+    stage: str = ""
+    """How the goal ranking went: "local" (a node of the agent's subregion promised something to see),
+    "global" (score minus distance over every node) or "flat" (no hierarchical planning)."""
     goal: np.ndarray | None = None
     path: np.ndarray | None = None
 
