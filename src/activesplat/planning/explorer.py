@@ -385,13 +385,13 @@ class ActiveSplatExplorer(Explorer):
         self.rotated_at: list[np.ndarray] = []
         self.stopped_multi: list[np.ndarray] = []
         self.stops: list[dict] = []
-        self.replans: list[dict] = []
-        """Every replan: step, floor position, stage (local / global, `Plan.stage`), the goal (None: idle),
-        its eq. 12 score and information part, the path length, and how many candidates were open and
-        promised something to see (the episode's stops.json, under "replans")."""
         """Every rotation stop: step, cause (arrival / multi_stop), floor position, the targets chosen
         (source, yaw / pitch in degrees, weight) and how many candidates each source offered (the
         episode's stops.json)."""
+        self.replans: list[dict] = []
+        """Every replan: step, floor position, stage (local / global, `Plan.stage`), the goal (None: idle),
+        its eq. 12 score and information part, the path length, and how many candidates promised something
+        to see (the episode's stops.json, under "replans")."""
 
     def replan(self, pose: np.ndarray) -> None:
         """Rebuild the workspace and graph, rank the nodes, go to the best one with a safe path."""

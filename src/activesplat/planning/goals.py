@@ -45,8 +45,8 @@ class GoalRules:
     random_goals: bool
     long_path_m: float
     on_the_way_m: float
-    global_in_horizon: bool = True
-    global_information_first: bool = False
+    global_in_horizon: bool = False
+    global_information_first: bool = True
 
 
 def node_state(node_pos: np.ndarray, visited: Sequence[np.ndarray], failed: Sequence[np.ndarray],
@@ -112,7 +112,8 @@ def local_then_global(scores: np.ndarray, info: np.ndarray, travel: np.ndarray, 
         return order
     # stay local while a node of this subregion promises something to see; the unvisited / in-horizon flags
     # alone do not keep the agent in a room it has seen
-    local_best = [i for i in order if in_local[i] and open_[i] and info[i] > rules.local_score_threshold]
+    worth = [bool(open_[i] and info[i] > rules.local_score_threshold) for i in range(n)]
+    local_best = [i for i in order if in_local[i] and worth[i]]
     if local_best:
         return local_best + [i for i in order if i not in local_best]
     base = scores if global_scores is None else global_scores
@@ -122,8 +123,7 @@ def local_then_global(scores: np.ndarray, info: np.ndarray, travel: np.ndarray, 
         return ranked
     # a node that promises something to see beats one that only has the unvisited / in-horizon flags,
     # however near: the flags alone kept the agent going from node to node of a room it had seen (ours)
-    promising = [i for i in ranked if open_[i] and info[i] > rules.local_score_threshold]
-    return promising + [i for i in ranked if not (open_[i] and info[i] > rules.local_score_threshold)]
+    return [i for i in ranked if worth[i]] + [i for i in ranked if not worth[i]]
 
 
 def rank_goals(plan: Plan, here: np.ndarray, render: RenderFn, floor_height: float,

@@ -34,7 +34,8 @@ class Plan:
     `activesplat.planning.viewpoints.information_scores`."""
     stage: str = ""
     """How the goal ranking went: "local" (a node of the agent's subregion promised something to see),
-    "global" (score minus distance over every node) or "flat" (no hierarchical planning)."""
+    "global" (score minus distance over every node), "flat" (no hierarchical planning); empty when the
+    nodes were not ranked (random goals)."""
     goal: np.ndarray | None = None
     path: np.ndarray | None = None
 
