@@ -58,6 +58,12 @@ def node_state(node_pos: np.ndarray, visited: Sequence[np.ndarray], failed: Sequ
     return unvisited, is_failed
 
 
+def worth_a_visit(info: np.ndarray, open_: np.ndarray, threshold: float) -> np.ndarray:
+    """Nodes that promise something to see: open (unvisited, not failed) with an information part above
+    `threshold` (the local-score threshold of both planning stages)."""
+    return np.asarray(open_, bool) & (np.asarray(info, float) > threshold)
+
+
 def goal_candidates(graph: nx.Graph) -> list[int]:
     """View-position candidates: nodes marked `view` and leaves; every node when there are none."""
     nodes = [n for n, d in graph.nodes(data=True) if d.get("view") or graph.degree[n] <= 1]
@@ -112,7 +118,7 @@ def local_then_global(scores: np.ndarray, info: np.ndarray, travel: np.ndarray, 
         return order
     # stay local while a node of this subregion promises something to see; the unvisited / in-horizon flags
     # alone do not keep the agent in a room it has seen
-    worth = [bool(open_[i] and info[i] > rules.local_score_threshold) for i in range(n)]
+    worth = worth_a_visit(info, open_, rules.local_score_threshold)
     local_best = [i for i in order if in_local[i] and worth[i]]
     if local_best:
         return local_best + [i for i in order if i not in local_best]
@@ -169,7 +175,7 @@ def rank_goals(plan: Plan, here: np.ndarray, render: RenderFn, floor_height: flo
     local = agent_subregion(graph, plan.subregions, here) if hierarchical else None
     in_local = np.array([hierarchical and plan.subregions.get(n) == local for n in nodes])
     rules = dataclasses.replace(rules, hierarchical=hierarchical)
-    promising = open_ & (info > rules.local_score_threshold)
+    promising = worth_a_visit(info, open_, rules.local_score_threshold)
     plan.stage = "flat" if not hierarchical else "local" if (promising & in_local).any() else "global"
     order = local_then_global(scores, info, travel, open_, in_local, rules, global_scores)
     return [nodes[i] for i in order]
@@ -237,4 +243,5 @@ def select_rotation_targets(targets: Sequence[RotationTarget], yaw: float, pcfg:
 
 
 __all__ = ["GoalRules", "closer_on_the_way", "distance_to_polyline", "goal_candidates", "local_then_global",
-           "node_state", "panorama_candidates", "rank_goals", "select_rotation_targets", "travel_lengths"]
+           "node_state", "panorama_candidates", "rank_goals", "select_rotation_targets", "travel_lengths",
+           "worth_a_visit"]
