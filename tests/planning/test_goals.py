@@ -17,6 +17,7 @@ from activesplat.planning.goals import (  # noqa: E402
     closer_on_the_way,
     distance_to_polyline,
     local_then_global,
+    panorama_candidates,
     rank_goals,
 )
 from activesplat.workspace.clean import extract_workspace  # noqa: E402
@@ -113,6 +114,22 @@ class HalfSeen:
         alpha = np.zeros((height, width), np.float32)
         alpha[height // 2:] = 1.0
         return SimpleNamespace(alpha=alpha, median_depth=np.full((height, width), 2.0, np.float32))
+
+
+def test_every_subregion_gets_a_panorama_however_far_and_the_nearest_nodes_come_on_top():
+    # ten nodes on a line, two per subregion, the agent at x = 0; node 3 is visited (not open)
+    nodes = list(range(10))
+    dist = np.arange(10, dtype=float)
+    open_ = np.ones(10, bool)
+    open_[3] = False
+    subregions = {n: n // 2 for n in nodes}
+    both = panorama_candidates(nodes, dist, open_, subregions, max_panoramas=2)
+    # one per subregion (the nearest open node of each: 0, 2, 4, 6, 8), then the 2 nearest open nodes
+    # not yet chosen among the 2 nearest (0 and 1: only 1 is new)
+    assert both == [0, 2, 4, 6, 8, 1]
+    capped = panorama_candidates(nodes, dist, open_, subregions, max_panoramas=2, every_subregion=False)
+    assert capped == [0, 2]  # the old rule: the far subregions get no panorama
+    assert 3 not in panorama_candidates(nodes, dist, open_, subregions, max_panoramas=10)
 
 
 def test_node_information_is_scored_with_and_without_hierarchical_planning():

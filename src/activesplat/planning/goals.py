@@ -47,6 +47,7 @@ class GoalRules:
     on_the_way_m: float
     global_in_horizon: bool = False
     global_information_first: bool = True
+    panorama_every_subregion: bool = True
 
 
 def node_state(node_pos: np.ndarray, visited: Sequence[np.ndarray], failed: Sequence[np.ndarray],
@@ -71,9 +72,12 @@ def goal_candidates(graph: nx.Graph) -> list[int]:
 
 
 def panorama_candidates(nodes: list[int], dist: np.ndarray, open_: np.ndarray, subregions: dict[int, int],
-                        max_panoramas: int) -> list[int]:
-    """Indices of the nodes scored by panorama (at most `max_panoramas`): the nearest open node of every
-    subregion first, so that rooms farther away are weighed too, then the nearest open nodes."""
+                        max_panoramas: int, every_subregion: bool = True) -> list[int]:
+    """Indices of the nodes scored by panorama: the nearest open node of every subregion first, so that
+    rooms farther away are weighed too, then the nearest open nodes, `max_panoramas` in all. With
+    `every_subregion` the subregions' nodes do not count against `max_panoramas`: every subregion with an
+    open node gets one panorama however many there are, and `max_panoramas` nearest open nodes come on top
+    (those already chosen are not scored twice)."""
     order = [int(i) for i in np.argsort(dist, kind="stable") if open_[i]]
     chosen: list[int] = []
     seen: set[int] = set()
@@ -82,6 +86,9 @@ def panorama_candidates(nodes: list[int], dist: np.ndarray, open_: np.ndarray, s
         if region is not None and region not in seen:
             seen.add(region)
             chosen.append(i)
+    if every_subregion:
+        taken = set(chosen)
+        return chosen + [i for i in order[:max_panoramas] if i not in taken]
     chosen = chosen[:max_panoramas]
     taken = set(chosen)
     chosen += [i for i in order if i not in taken][: max_panoramas - len(chosen)]
@@ -155,7 +162,8 @@ def rank_goals(plan: Plan, here: np.ndarray, render: RenderFn, floor_height: flo
     inv = np.zeros(len(nodes))
     vol = np.zeros(len(nodes))
     height = floor_height + rules.panorama_height_m
-    for i in panorama_candidates(nodes, dist, open_, plan.subregions, rules.max_panoramas):
+    for i in panorama_candidates(nodes, dist, open_, plan.subregions, rules.max_panoramas,
+                                  rules.panorama_every_subregion):
         pano = render_panorama(render, [pos[i][0], height, pos[i][1]], pcfg.panorama)
         inv[i] = invisible_share(pano, pcfg.rotation)
         vol[i] = hull_volume(pano, pcfg.hull)
