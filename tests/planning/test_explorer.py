@@ -56,6 +56,33 @@ def test_the_bootstrap_and_the_escape_turn_by_the_action_sizes():
         assert escape[len(turn):] == ["move_forward"] * 3
 
 
+def test_an_escape_does_not_retry_a_heading_the_scene_refused_from_the_same_spot():
+    # the map shows a free corridor, the scene refuses every forward move but one heading (a thing the map
+    # does not have): each escape tries a new heading until the free one, instead of cycling
+    from activesplat.geometry import pose_yaw_pitch
+
+    cfg = ExplorerConfig(workspace=WCFG)
+    ex = ActiveSplatExplorer(WORLD, 0.0, cfg)
+    ex.queue, ex.queue_causes = [], []
+    ex.plan = Plan(workspace=extract_workspace(corridor(), HERE, WCFG))
+    free_yaw = np.radians(-170.0)
+    yaw, collided, tried = 0.0, True, []
+    for _ in range(400):
+        action = ex.act(_obs(HERE, yaw, collided=collided))
+        collided = False
+        if action in ("turn_left", "turn_right"):
+            yaw += np.radians(10.0) * (1 if action == "turn_left" else -1)
+        elif action == "move_forward":
+            heading = pose_yaw_pitch(_obs(HERE, yaw).pose)[0]
+            tried.append(round(float(np.degrees(heading))) % 360)
+            if abs(np.degrees(np.angle(np.exp(1j * (heading - free_yaw))))) < 5:
+                break  # the free heading: the agent gets out
+            collided = True
+    assert tried and abs((tried[-1] - 190) % 360) < 5, tried
+    assert len(tried) == len(set(tried))  # no refused heading tried twice
+    assert len(tried) <= 36
+
+
 def test_the_path_ahead_is_blocked_only_where_it_gets_narrower_than_the_agent_and_than_here():
     ws = extract_workspace(corridor(), HERE, WCFG)
 

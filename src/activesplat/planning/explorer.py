@@ -14,13 +14,14 @@ latest high-loss mask) and its own observations; it never reads the ground-truth
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 import numpy as np
 
 from activesplat.errors import check_fields
-from activesplat.geometry import pose_yaw_pitch
+from activesplat.geometry import pose_yaw_pitch, wrap_angle
 from activesplat.planning.config import PlanningConfig
 from activesplat.planning.controller import (
     ControllerConfig,
@@ -190,13 +191,15 @@ def bootstrap_actions(cfg: ExplorerConfig) -> list[str]:
 
 
 def escape_actions(pose: np.ndarray, workspace: Workspace | None, ctrl: ControllerConfig,
-                   forward_steps: int) -> list[str]:
+                   forward_steps: int, blocked: Sequence[float] = ()) -> list[str]:
     """After a collision: turn to the heading of a full circle of turns whose next 0.3 m has the most
     clearance on the workspace (the shorter way round on ties), then move forward `forward_steps` times.
-    Without a workspace: a quarter turn left."""
+    Headings within half a turn of a `blocked` yaw (radians: forward moves refused from this spot) are
+    not taken while another is left. Without a workspace: a quarter turn left."""
     yaw, _ = pose_yaw_pitch(pose)
     here = floor_xz(pose)
     full = turns_for(360.0, ctrl)
+    half_turn = math.radians(0.5 * ctrl.turn_deg)
     best_turns, best_clear = full // 2, -1.0
     for k in range(1, full):
         turns = k if k <= full // 2 else k - full  # positive: left
@@ -204,6 +207,8 @@ def escape_actions(pose: np.ndarray, workspace: Workspace | None, ctrl: Controll
             best_turns = turns_for(90.0, ctrl)
             break
         h = yaw + math.radians(ctrl.turn_deg * turns)
+        if any(abs(float(wrap_angle(h - b))) < half_turn for b in blocked):
+            continue
         ahead = here + 0.3 * np.array([math.sin(h), math.cos(h)])
         clear = float(workspace.segments_clearance(here[None], ahead[None])[0])
         if clear > best_clear + 1e-6:
@@ -240,6 +245,9 @@ class Explorer:
         self.last_panorama: Panorama | None = None
         self.queue: list[str] = []
         self.queue_causes: list[str] = []
+        self.refused: list[tuple[np.ndarray, float]] = []
+        """(floor position, yaw) of the refused forward moves at the agent's spot (older spots are dropped
+        at the next refusal): the escape does not try a refused heading from the same spot again."""
         self.rotation_cause = "arrival"
         self.last_cause = ""
         """Why the latest action was taken: bootstrap, idle, escape, level, look_around (queued actions),
@@ -371,12 +379,22 @@ class Explorer:
         self.follower = None
 
     def _on_collision(self, pose: np.ndarray) -> None:
-        """A refused forward move: mark the goal failed and escape toward the clearest heading."""
+        """A refused forward move: mark the goal failed and escape toward the clearest heading not yet
+        refused from this spot. Where the map shows free space that the scene does not have (a chair leg,
+        a door frame it has not mapped), the clearest heading on the map is refused every time: without
+        the memory an agent tried the same three headings for 1300 steps (fresh medium-101, seed 2)."""
         self._fail_goal()
         self.rotation_targets = []
         self.queue, self.queue_causes = [], []
+        here = floor_xz(pose)
+        near = self.cfg.controller.forward_m * 0.5
+        self.refused = [(p, y) for p, y in self.refused if np.hypot(*(p - here)) <= near]
+        self.refused.append((here, pose_yaw_pitch(pose)[0]))
+        blocked = [y for _, y in self.refused]
+        if len(blocked) >= turns_for(360.0, self.cfg.controller):
+            self.refused, blocked = [], []  # every heading refused once: start over
         self.enqueue(escape_actions(pose, self.plan.workspace, self.cfg.controller,
-                                    self.cfg.escape_forward_steps), "escape")
+                                    self.cfg.escape_forward_steps, blocked), "escape")
 
 
 class ActiveSplatExplorer(Explorer):
