@@ -11,7 +11,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "workspace"))
 from layouts import RES, corridor  # noqa: E402
 
 import activesplat.planning.explorer as explorer_module  # noqa: E402
-from activesplat.geometry import camera_pose  # noqa: E402
+from activesplat.geometry import camera_pose, pose_yaw_pitch, wrap_angle  # noqa: E402
 from activesplat.planning.controller import ControllerConfig  # noqa: E402
 from activesplat.planning.explorer import ActiveSplatExplorer, ExplorerConfig  # noqa: E402
 from activesplat.workspace.clean import extract_workspace  # noqa: E402
@@ -59,8 +59,6 @@ def test_the_bootstrap_and_the_escape_turn_by_the_action_sizes():
 def test_an_escape_does_not_retry_a_heading_the_scene_refused_from_the_same_spot():
     # the map shows a free corridor, the scene refuses every forward move but one heading (a thing the map
     # does not have): each escape tries a new heading until the free one, instead of cycling
-    from activesplat.geometry import pose_yaw_pitch
-
     cfg = ExplorerConfig(workspace=WCFG)
     ex = ActiveSplatExplorer(WORLD, 0.0, cfg)
     ex.queue, ex.queue_causes = [], []
@@ -75,7 +73,7 @@ def test_an_escape_does_not_retry_a_heading_the_scene_refused_from_the_same_spot
         elif action == "move_forward":
             heading = pose_yaw_pitch(_obs(HERE, yaw).pose)[0]
             tried.append(round(float(np.degrees(heading))) % 360)
-            if abs(np.degrees(np.angle(np.exp(1j * (heading - free_yaw))))) < 5:
+            if abs(np.degrees(wrap_angle(heading - free_yaw))) < 5:
                 break  # the free heading: the agent gets out
             collided = True
     assert tried and abs((tried[-1] - 190) % 360) < 5, tried
