@@ -28,11 +28,13 @@ from __future__ import annotations
 
 import argparse
 import ast
+import dataclasses
 import resource
 import time
 from collections import defaultdict
 from pathlib import Path
 
+import numba
 import numpy as np
 import torch
 
@@ -44,6 +46,20 @@ from activesplat.splat import Mapper, MapperConfig
 TILTS = ("look_down", "look_down", "look_down", "look_up", "look_up", "look_up")
 SURFACE_VOXEL_M = 0.05
 BYTES_PER_GAUSSIAN = 4 * (14 + 2 * 14) + 4  # float32 parameters, two Adam moments, a step count
+
+
+def config_with(overrides: list[str]) -> MapperConfig:
+    """MapperConfig with FIELD=VALUE overrides; a dotted FIELD sets a field of a nested dataclass
+    (``schedule.iterations=4``, ``lr.means=2e-3``)."""
+    config = MapperConfig()
+    for item in overrides:
+        key, value = item.split("=", 1)
+        head, _, sub = key.partition(".")
+        new = ast.literal_eval(value)
+        if sub:
+            new = dataclasses.replace(getattr(config, head), **{sub: new})
+        config = dataclasses.replace(config, **{head: new})
+    return config
 
 
 def bootstrap_actions() -> list[str]:
@@ -123,7 +139,7 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=None, help="actions to map (default: all / 300)")
     parser.add_argument("--backend", default="auto")
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--threads", type=int, default=2, help="torch threads (the target is 2 cores)")
+    parser.add_argument("--threads", type=int, default=2, help="torch and numba threads (target: 2 cores)")
     parser.add_argument("--probe", type=int, default=5, help="first keyframes watched for forgetting")
     parser.add_argument("--every", type=int, default=250, help="steps between forgetting-curve points")
     parser.add_argument("--repeat", type=int, default=1,
@@ -131,10 +147,11 @@ def main() -> None:
                              "a map whose memory grows with the scene, not with time, stops growing)")
     parser.add_argument("--out", type=Path, help="write the map (and render-eval, with --episode) here")
     parser.add_argument("--set", nargs="*", default=[], metavar="FIELD=VALUE",
-                        help="MapperConfig overrides, e.g. sparse_adam=False max_gaussians=300000")
+                        help="MapperConfig overrides, e.g. sparse_adam=False schedule.iterations=4")
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
-    config = MapperConfig(**{k: ast.literal_eval(v) for k, v in (s.split("=", 1) for s in args.set)})
+    numba.set_num_threads(min(args.threads, numba.config.NUMBA_NUM_THREADS))  # the kernels' threads too
+    config = config_with(args.set)
 
     if args.episode is not None:
         sim, poses, dense = episode_poses(args.episode, args.steps)

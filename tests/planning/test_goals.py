@@ -14,6 +14,7 @@ from layouts import RES, corridor  # noqa: E402
 from activesplat.planning.config import PlanningConfig  # noqa: E402
 from activesplat.planning.explorer import ExplorerConfig, goal_rules  # noqa: E402
 from activesplat.planning.goals import (  # noqa: E402
+    bridge_toward,
     closer_on_the_way,
     distance_to_polyline,
     local_then_global,
@@ -67,6 +68,33 @@ def test_a_long_path_is_kept_when_nothing_on_the_way_is_worth_a_stop():
     assert _closer(plan, goal, path, visited=[np.array([3.0, 1.5])])[0] is goal
 
 
+def test_a_goal_cut_off_from_the_agent_is_approached_through_the_nearest_open_node_of_its_own_part():
+    plan, goal, _ = _corridor_plan(mid_info=10.0)
+    graph = plan.graph
+    pos = {n: np.asarray(d["pos"], float) for n, d in graph.nodes(data=True)}
+    # the floor around x = 4 m was seen only from afar: the graph is cut there
+    graph.remove_edges_from([(a, b) for a, b in list(graph.edges) if min(pos[a][0], pos[b][0]) < 4.0
+                             < max(pos[a][0], pos[b][0])])
+    near_part = [n for n in graph.nodes if pos[n][0] < 4.0]
+    asked = []
+
+    def find_path(node_pos):
+        asked.append(node_pos)
+        return None if node_pos[0] > 4.0 else np.stack([HERE, node_pos])
+
+    bridge = bridge_toward(plan, HERE, goal, [], [], RADIUS, WCFG, 1.0, find_path)
+    assert bridge is not None
+    best = max(near_part, key=lambda n: pos[n][0])  # the corridor runs along x: nearest to the goal
+    np.testing.assert_allclose(bridge[0], pos[best])
+    np.testing.assert_allclose(bridge[1][-1], pos[best])
+    assert all(p[0] < 4.0 for p in asked)  # only nodes of the agent's own part are candidates
+    # once that node is visited the next one nearer to the goal is taken, never one behind the agent
+    second = bridge_toward(plan, HERE, goal, [pos[best]], [], RADIUS, WCFG, 1.0, find_path)
+    assert second is not None and second[0][0] < pos[best][0] and second[0][0] > HERE[0] + 1.0
+    # nothing at least `gain_m` nearer to the goal than the agent: no bridge
+    assert bridge_toward(plan, HERE, goal, [], [], RADIUS, WCFG, 10.0, find_path) is None
+
+
 def test_distance_to_polyline():
     path = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 2.0]])
     assert distance_to_polyline(np.array([1.0, 0.5]), path) == 0.5
@@ -105,6 +133,23 @@ def test_global_stage_with_information_first_prefers_a_far_node_with_something_t
     assert local_then_global(scores, info, travel, open_, in_local, first) == [1, 2, 0]
     info[1] = RULES.local_score_threshold  # nothing promising anywhere: score minus distance as before
     assert local_then_global(scores, info, travel, open_, in_local, first) == [2, 0, 1]
+
+
+def test_global_halving_ranks_score_per_way_whatever_the_scale_of_the_scores():
+    # node 0 promises twice what node 1 does but lies 25 m away against 2 m; nothing local is left
+    info = np.array([30.0, 15.0])
+    travel = np.array([25.0, 2.0])
+    open_ = np.ones(2, bool)
+    in_local = np.zeros(2, bool)
+    halving = dataclasses.replace(RULES, global_halving_m=5.0)
+    for scale in (1.0, 3.0):  # the difference rule flips with the scale of the scores, the ratio does not
+        scores = scale * np.array([40.0, 20.0])
+        linear = local_then_global(scores, scale * info, travel, open_, in_local, RULES)
+        assert linear == ([1, 0] if scale == 1.0 else [0, 1])
+        assert local_then_global(scores, scale * info, travel, open_, in_local, halving) == [1, 0]
+    # a far node wins once it promises more than its travel costs: 40 / (1 + 5 / 5) = 20 > 20 / 1.4
+    assert local_then_global(np.array([40.0, 20.0]), info, np.array([5.0, 2.0]), open_, in_local,
+                             halving) == [0, 1]
 
 
 class HalfSeen:

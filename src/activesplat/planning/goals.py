@@ -24,7 +24,7 @@ from activesplat.planning.viewpoints import (
     node_scores,
 )
 from activesplat.workspace.config import WorkspaceConfig
-from activesplat.workspace.paths import line_of_sight, path_length
+from activesplat.workspace.paths import line_of_sight, path_length, visible_nodes
 from activesplat.workspace.plan import Plan
 from activesplat.workspace.subregions import agent_subregion
 
@@ -48,6 +48,7 @@ class GoalRules:
     global_in_horizon: bool = False
     global_information_first: bool = True
     panorama_every_subregion: bool = True
+    global_halving_m: float | None = None
 
 
 def node_state(node_pos: np.ndarray, visited: Sequence[np.ndarray], failed: Sequence[np.ndarray],
@@ -130,7 +131,10 @@ def local_then_global(scores: np.ndarray, info: np.ndarray, travel: np.ndarray, 
     if local_best:
         return local_best + [i for i in order if i not in local_best]
     base = scores if global_scores is None else global_scores
-    global_score = base - rules.global_distance_weight * travel
+    if rules.global_halving_m is None:
+        global_score = base - rules.global_distance_weight * travel
+    else:  # score per way: halved at global_halving_m of travel
+        global_score = base / (1.0 + travel / rules.global_halving_m)
     ranked = sorted(range(n), key=lambda i: (-global_score[i], travel[i]))
     if not rules.global_information_first:
         return ranked
@@ -187,6 +191,35 @@ def rank_goals(plan: Plan, here: np.ndarray, render: RenderFn, floor_height: flo
     plan.stage = "flat" if not hierarchical else "local" if (promising & in_local).any() else "global"
     order = local_then_global(scores, info, travel, open_, in_local, rules, global_scores)
     return [nodes[i] for i in order]
+
+
+def bridge_toward(plan: Plan, here: np.ndarray, goal: np.ndarray, visited: Sequence[np.ndarray],
+                  failed: Sequence[np.ndarray], unvisited_radius: float, wcfg: WorkspaceConfig, gain_m: float,
+                  find_path: Callable[[np.ndarray], np.ndarray | None],
+                  tries: int = 3) -> tuple[np.ndarray, np.ndarray] | None:
+    """A way toward a goal that has no safe path from the agent, typically because the graph is cut where
+    the floor was only seen from afar (ours): the open (unvisited, not failed) node of the agent's own
+    graph component nearest to `goal`, if it is at least `gain_m` nearer to it than the agent is. Standing
+    there, the agent sees the gap from close by and the map joins the two parts. Returns (node position,
+    path) or None; the `tries` nearest candidates are planned to."""
+    graph = plan.graph
+    entries = visible_nodes(graph, plan.workspace, here, wcfg)
+    if not entries:
+        return None
+    component = nx.node_connected_component(graph, entries[0])
+    limit = float(np.hypot(*(goal - here))) - gain_m
+    candidates = []
+    for node in component:
+        pos = np.asarray(graph.nodes[node]["pos"], float)
+        gap = float(np.hypot(*(pos - goal)))
+        unvisited, is_failed = node_state(pos, visited, failed, unvisited_radius)
+        if gap <= limit and unvisited and not is_failed:
+            candidates.append((gap, node, pos))
+    for _, _, pos in sorted(candidates, key=lambda c: (c[0], c[1]))[:tries]:
+        path = find_path(pos)
+        if path is not None:
+            return pos, path
+    return None
 
 
 def distance_to_polyline(p: np.ndarray, path: np.ndarray) -> float:
