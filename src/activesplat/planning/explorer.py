@@ -498,8 +498,7 @@ class ActiveSplatExplorer(Explorer):
         cfg = self.cfg
         if cfg.bridge_gain_m is None:
             return None
-        info = np.array([plan.info.get(node, 0.0)])
-        if not worth_a_visit(info, np.array([True]), cfg.local_score_threshold)[0]:
+        if not worth_a_visit(plan.info.get(node, 0.0), True, cfg.local_score_threshold):
             return None
         radius = cfg.planning.score.unvisited_radius_m
         return bridge_toward(plan, here, goal, self.visited, self.failed, radius, cfg.workspace,

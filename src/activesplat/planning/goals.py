@@ -60,9 +60,9 @@ def node_state(node_pos: np.ndarray, visited: Sequence[np.ndarray], failed: Sequ
     return unvisited, is_failed
 
 
-def worth_a_visit(info: np.ndarray, open_: np.ndarray, threshold: float) -> np.ndarray:
+def worth_a_visit(info: np.ndarray | float, open_: np.ndarray | bool, threshold: float) -> np.ndarray:
     """Nodes that promise something to see: open (unvisited, not failed) with an information part above
-    `threshold` (the local-score threshold of both planning stages)."""
+    `threshold` (the local-score threshold of both planning stages). Arrays or one node's scalars."""
     return np.asarray(open_, bool) & (np.asarray(info, float) > threshold)
 
 
