@@ -65,6 +65,12 @@ def backproject(depth: np.ndarray, pose: np.ndarray, K: np.ndarray, v: np.ndarra
     return cam @ pose[:3, :3].T + pose[:3, 3]
 
 
+def voxel_keys(pts: np.ndarray, size: float) -> np.ndarray:
+    """One int64 per voxel of `size` metres holding each point (M, 3) (21 bits per axis: +-10 km at 1 cm)."""
+    v = np.floor(np.asarray(pts, np.float64) / size).astype(np.int64) + (1 << 20)
+    return (v[:, 0] << 42) | (v[:, 1] << 21) | v[:, 2]
+
+
 def wrap_angle(a):
     """Wrap radians to [-pi, pi)."""
     return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi

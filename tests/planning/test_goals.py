@@ -20,6 +20,8 @@ from activesplat.planning.goals import (  # noqa: E402
     local_then_global,
     panorama_candidates,
     rank_goals,
+    shortest_tour,
+    tour_first,
 )
 from activesplat.workspace.clean import extract_workspace  # noqa: E402
 from activesplat.workspace.config import WorkspaceConfig  # noqa: E402
@@ -152,6 +154,66 @@ def test_global_halving_ranks_score_per_way_whatever_the_scale_of_the_scores():
                              halving) == [0, 1]
 
 
+def _line(x: np.ndarray, agent: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    x = np.asarray(x, float)
+    return np.abs(x - agent), np.abs(x[:, None] - x[None])
+
+
+def test_the_shortest_tour_finishes_one_side_before_crossing_to_the_other():
+    # stops on a line, the agent at 0: nearest-first goes 1, 2, 3, 4 and then back to -3 (4 + 7 = 11 m);
+    # the route that takes -3 first walks 3 + 7 = 10 m
+    start, pairwise = _line([-3.0, 1.0, 2.0, 3.0, 4.0])
+    assert shortest_tour(start, pairwise) == [0, 1, 2, 3, 4]
+    start, pairwise = _line([-1.0, 2.0, 3.0, 4.0])  # here the near side first is shorter
+    assert shortest_tour(start, pairwise) == [0, 1, 2, 3]
+    assert shortest_tour(np.array([2.0]), np.zeros((1, 1))) == [0]
+    assert shortest_tour(np.zeros(0), np.zeros((0, 0))) == []
+
+
+def _route_length(start: np.ndarray, pairwise: np.ndarray, route: list[int]) -> float:
+    return start[route[0]] + sum(pairwise[a, b] for a, b in zip(route[:-1], route[1:], strict=False))
+
+
+def test_the_shortest_tour_matches_the_best_order_on_small_random_sets():
+    import itertools
+
+    rng = np.random.default_rng(3)
+    for _ in range(10):
+        pts, agent = rng.uniform(0, 10, (6, 2)), rng.uniform(0, 10, 2)
+        start = np.hypot(*(pts - agent).T)
+        pairwise = np.hypot(*(pts[:, None] - pts[None]).transpose(2, 0, 1))
+
+        best = min(_route_length(start, pairwise, list(p)) for p in itertools.permutations(range(6)))
+        assert np.isclose(_route_length(start, pairwise, shortest_tour(start, pairwise)), best)
+        # the local search (used beyond `exact_up_to` stops) is a heuristic: a valid route, near the best
+        local = shortest_tour(start, pairwise, exact_up_to=0)
+        assert sorted(local) == list(range(6)) and _route_length(start, pairwise, local) <= 1.1 * best
+
+
+def test_tour_first_orders_one_node_per_subregion_along_the_route():
+    import networkx as nx
+
+    # a corridor graph: nodes every metre at x = -3..4, the agent at 0; subregion A holds x = -3 (with a
+    # promising node), B holds x = 1, 2 (both promising), C holds x = 4; x = 3 promises nothing
+    xs = [-3.0, -2.0, -1.0, 0.0, 1.0, 2.0, 3.0, 4.0]
+    graph = nx.Graph()
+    for n, x in enumerate(xs):
+        graph.add_node(n, pos=(x, 0.0))
+        if n:
+            graph.add_edge(n - 1, n, weight=1.0)
+    nodes = [0, 4, 5, 6, 7]
+    subregions = {0: "A", 1: "A", 2: "A", 3: "A", 4: "B", 5: "B", 6: "C", 7: "C"}
+    worth = np.array([True, True, True, False, True])
+    travel = np.array([3.0, 1.0, 2.0, 3.0, 4.0])
+    ranked = [2, 1, 4, 0, 3]  # score minus distance: node 5 (B) first, the far side (node 0) late
+    order = tour_first(ranked, worth, travel, nodes, subregions, graph)
+    # A (x = -3) first, then B (represented by its first-ranked node, index 2), then C; the rest after
+    assert order == [0, 2, 4, 1, 3]
+    # one subregion with something to see: the ranking stands
+    assert tour_first(ranked, np.array([False, True, True, False, False]), travel, nodes, subregions,
+                      graph) == ranked
+
+
 class HalfSeen:
     """A map whose every view has its lower half mapped: an invisible share at every node."""
 
@@ -187,3 +249,24 @@ def test_node_information_is_scored_with_and_without_hierarchical_planning():
                             np.random.default_rng(0))
         assert ranked and set(plan.info) == set(plan.scores)
         assert max(plan.info.values()) > cfg.local_score_threshold
+
+
+def test_the_sampled_surface_term_adds_to_the_information_of_the_scored_nodes_only_when_asked():
+    from activesplat.planning.observed import ObservedSurface
+
+    base = ExplorerConfig(workspace=WCFG)
+    with_q = dataclasses.replace(base, planning=dataclasses.replace(
+        base.planning, score=dataclasses.replace(base.planning.score, w_q=20.0)))
+    infos = []
+    for cfg, observed in ((base, None), (with_q, None), (with_q, ObservedSurface())):
+        ws = extract_workspace(corridor(), HERE, WCFG)
+        plan = Plan(workspace=ws, graph=build_voronoi_graph(ws, WCFG))
+        rank_goals(plan, HERE, HalfSeen().render, 0.0, [], [], cfg.planning, WCFG, goal_rules(cfg),
+                   np.random.default_rng(0), observed)
+        infos.append(plan.info)
+    plain, no_memory, sampled = infos
+    assert no_memory == plain  # the weight alone does nothing without the agent's sampled surface
+    # nothing sampled yet: every panorama shows the same unsampled surface within reach, so each scored
+    # node (information above 0) gains the full weight and the others nothing
+    for node, info in plain.items():
+        assert sampled[node] == (info + 20.0 if info > 0 else info)

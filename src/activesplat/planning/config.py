@@ -145,9 +145,27 @@ class ScoreConfig:
     """A node is unvisited when farther than this from every past position (release: 10 x 0.065 m)."""
     preset: Literal["paper", "release"] = "paper"
     """"paper" (continuous shares, weights above) or "release" (the release's quantised formula)."""
+    w_q: float = 0.0
+    """Weight of a fifth, information term (ours; 0 = off, eq. 12 as published): the share of the node's
+    panorama showing mapped surface within `quality_radius_m` that none of the agent's depth points has
+    sampled (`planning.observed`), divided by its maximum over the candidates like s_o and s_c. A room
+    looked into from its door is mapped, so eq. 12 sees nothing left there, but its floor was sampled
+    10-20 cm apart and the completion measure does not count it. 20 on medium-0..3 x 2 seeds: 86.02 ->
+    84.61 % counted in the global stage only, 4 runs 86.00 -> 82.70 % in both stages, so off
+    (docs/benchmark.md "A route through the subregions, and a sampled-surface term")."""
+    quality_in_local: bool = True
+    """The w_q term counts in the local stage too (whether a node of the agent's own subregion is still
+    worth a visit); False: only in the global stage, where it makes a room sampled from afar worth the
+    trip, and the local stage keeps eq. 12's information."""
+    quality_radius_m: float = 2.5
+    """Surface within this of a node counts for the w_q term (ours: close enough that a look from the node
+    samples it densely)."""
+    quality_voxel_m: float = 0.1
+    """Voxel size of the sampled-surface memory (ours: twice the completion measure's 5 cm threshold)."""
 
     def __post_init__(self) -> None:
-        check_fields(self, non_negative=("w_o", "w_c", "w_u", "w_h", "failed_penalty", "unvisited_radius_m"))
+        check_fields(self, non_negative=("w_o", "w_c", "w_u", "w_h", "failed_penalty", "unvisited_radius_m",
+                                         "w_q"), positive=("quality_radius_m", "quality_voxel_m"))
         if self.preset not in ("paper", "release"):
             raise InvalidInputError(f"ScoreConfig.preset must be 'paper' or 'release', got {self.preset!r}")
 

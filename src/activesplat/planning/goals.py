@@ -15,6 +15,7 @@ import numpy as np
 from activesplat.geometry import wrap_angle
 from activesplat.planning.config import PlanningConfig
 from activesplat.planning.controller import ControllerConfig, fewest_actions_order
+from activesplat.planning.observed import ObservedSurface, poorly_observed_share
 from activesplat.planning.panorama import RenderFn, render_panorama
 from activesplat.planning.viewpoints import (
     RotationTarget,
@@ -49,6 +50,7 @@ class GoalRules:
     global_information_first: bool = True
     panorama_every_subregion: bool = True
     global_halving_m: float | None = None
+    global_tour: bool = False
 
 
 def node_state(node_pos: np.ndarray, visited: Sequence[np.ndarray], failed: Sequence[np.ndarray],
@@ -111,15 +113,127 @@ def travel_lengths(graph: nx.Graph, here: np.ndarray, nodes: list[int], pos: np.
     return np.where(np.isfinite(out), out, eu * 3.0)
 
 
+def pairwise_travel(graph: nx.Graph, nodes: Sequence[int]) -> np.ndarray:
+    """Graph path lengths between `nodes` (K, K), three times the straight distance where the graph gives no
+    path (as `travel_lengths`)."""
+    pos = np.stack([np.asarray(graph.nodes[n]["pos"], float) for n in nodes]) if nodes else np.zeros((0, 2))
+    out = np.zeros((len(nodes), len(nodes)))
+    for i, a in enumerate(nodes):
+        lengths = nx.single_source_dijkstra_path_length(graph, a, weight="weight")
+        for j, b in enumerate(nodes):
+            out[i, j] = lengths.get(b, 3.0 * float(np.hypot(*(pos[i] - pos[j]))))
+    return out
+
+
+def shortest_tour(start: np.ndarray, pairwise: np.ndarray, exact_up_to: int = 10,
+                  max_rounds: int = 100) -> list[int]:
+    """An open route from the agent through every stop, short first: the order of the K stops (indices)
+    that visits them all, starting where the agent is (`start[i]`: travel from the agent to stop i;
+    `pairwise`: between stops, symmetric) and ending anywhere. Up to `exact_up_to` stops the shortest
+    (Held-Karp dynamic programme over subsets); beyond, nearest neighbour and then local search until no
+    move shortens the route: 2-opt (walk a stretch backwards) and or-opt (move a stretch of up to three
+    stops elsewhere, either way round)."""
+    k = len(start)
+    if k <= 1:
+        return list(range(k))
+    start, pairwise = np.asarray(start, float), np.asarray(pairwise, float)
+    if k <= exact_up_to:
+        return _held_karp(start, pairwise)
+    left, route, at = set(range(k)), [], None
+    while left:
+        row = start if at is None else pairwise[at]
+        at = min(left, key=lambda j: (row[j], j))
+        route.append(at)
+        left.remove(at)
+
+    def length(r: list[int]) -> float:
+        a = np.asarray(r)
+        return float(start[a[0]] + pairwise[a[:-1], a[1:]].sum())
+
+    def moves(r: list[int]):
+        for i in range(k - 1):
+            for j in range(i + 1, k):
+                yield r[:i] + r[i:j + 1][::-1] + r[j + 1:]
+        for size in range(1, min(3, k - 1) + 1):
+            for i in range(k - size + 1):
+                stretch, rest = r[i:i + size], r[:i] + r[i + size:]
+                for at in range(len(rest) + 1):
+                    if at != i:
+                        yield rest[:at] + stretch + rest[at:]
+                    if size > 1:
+                        yield rest[:at] + stretch[::-1] + rest[at:]
+
+    best = length(route)
+    for _ in range(max_rounds):
+        for candidate in moves(route):
+            cost = length(candidate)
+            if cost < best - 1e-9:
+                route, best = candidate, cost
+                break
+        else:
+            break
+    return route
+
+
+def _held_karp(start: np.ndarray, pairwise: np.ndarray) -> list[int]:
+    """The shortest open route from the agent through every stop (see `shortest_tour`): cost[S, j] is the
+    shortest route that visits the set S (a bit mask) and ends at j."""
+    k = len(start)
+    full = 1 << k
+    cost = np.full((full, k), np.inf)
+    back = np.full((full, k), -1, dtype=np.int64)
+    for j in range(k):
+        cost[1 << j, j] = start[j]
+    bits = 1 << np.arange(k)
+    for mask in range(1, full):
+        ends = np.flatnonzero(mask & bits)
+        if len(ends) < 2:
+            continue
+        # arriving at j from i: the route over mask without j, ending at i, then the leg i -> j
+        via = cost[mask ^ bits[ends]] + pairwise[:, ends].T
+        best = np.argmin(via, axis=1)
+        cost[mask, ends] = via[np.arange(len(ends)), best]
+        back[mask, ends] = best
+    route, mask, at = [], full - 1, int(np.argmin(cost[full - 1]))
+    while at >= 0:
+        route.append(at)
+        mask, at = mask ^ (1 << at), int(back[mask, at])
+    return route[::-1]
+
+
+def tour_first(ranked: list[int], worth: np.ndarray, travel: np.ndarray, nodes: Sequence[int],
+               subregions: dict[int, int], graph: nx.Graph) -> list[int]:
+    """The global stage's order with a route (ours, `global_tour`): of the nodes that promise something to
+    see (`worth`), the first in `ranked` of each subregion stands for it; the subregions come in the order
+    of the shortest open route from the agent through them all (`shortest_tour`), and the rest of `ranked`
+    follows in its own order. Score minus distance alone sends the agent to the best node, then to the best
+    from there, and a room left on the way is a long trip back at the end."""
+    reps: list[int] = []
+    seen: set = set()
+    for i in ranked:
+        if not worth[i]:
+            continue
+        key = subregions.get(nodes[i], ("node", i))
+        if key not in seen:
+            seen.add(key)
+            reps.append(i)
+    if len(reps) <= 1:
+        return ranked
+    route = shortest_tour(travel[reps], pairwise_travel(graph, [nodes[i] for i in reps]))
+    first = [reps[r] for r in route]
+    taken = set(first)
+    return first + [i for i in ranked if i not in taken]
+
+
 def local_then_global(scores: np.ndarray, info: np.ndarray, travel: np.ndarray, open_: np.ndarray,
-                      in_local: np.ndarray, rules: GoalRules,
-                      global_scores: np.ndarray | None = None) -> list[int]:
+                      in_local: np.ndarray, rules: GoalRules, global_scores: np.ndarray | None = None,
+                      global_info: np.ndarray | None = None) -> list[int]:
     """Indices best first (sec. III-C). Ties go to the shorter travel. Hierarchical: while an open node of
     the agent's own subregion (`in_local`) promises something to see (information above the local
     threshold), those nodes come first in score order; otherwise every node is ranked by its global score
     (`global_scores`, default `scores`) minus the distance cost, with `global_information_first` the open
-    nodes that promise something to see (information above the same threshold) ahead of the others.
-    Flat (`no-hp`): score order."""
+    nodes that promise something to see (information above the same threshold; `global_info`, default
+    `info`) ahead of the others. Flat (`no-hp`): score order."""
     n = len(scores)
     order = sorted(range(n), key=lambda i: (-scores[i], travel[i]))
     if not rules.hierarchical:
@@ -130,6 +244,8 @@ def local_then_global(scores: np.ndarray, info: np.ndarray, travel: np.ndarray, 
     local_best = [i for i in order if in_local[i] and worth[i]]
     if local_best:
         return local_best + [i for i in order if i not in local_best]
+    if global_info is not None:
+        worth = worth_a_visit(global_info, open_, rules.local_score_threshold)
     base = scores if global_scores is None else global_scores
     if rules.global_halving_m is None:
         global_score = base - rules.global_distance_weight * travel
@@ -145,11 +261,13 @@ def local_then_global(scores: np.ndarray, info: np.ndarray, travel: np.ndarray, 
 
 def rank_goals(plan: Plan, here: np.ndarray, render: RenderFn, floor_height: float,
                visited: Sequence[np.ndarray], failed: Sequence[np.ndarray], pcfg: PlanningConfig,
-               wcfg: WorkspaceConfig, rules: GoalRules, rng: np.random.Generator) -> list[int]:
+               wcfg: WorkspaceConfig, rules: GoalRules, rng: np.random.Generator,
+               observed: ObservedSurface | None = None) -> list[int]:
     """Candidate goal nodes of `plan.graph`, best first (eq. 12 scores; local-then-global, sec. III-C).
     Renders a panorama at up to `max_panoramas` open candidates and records every candidate's score and
     information part in `plan.scores` / `plan.info`. `random_goals`: a random order of the open nodes,
-    then the others (no scores)."""
+    then the others (no scores). With `observed` and a positive `ScoreConfig.w_q`, the information part
+    also counts the surface near each node that the agent's depth has not sampled (`planning.observed`)."""
     graph, ws = plan.graph, plan.workspace
     nodes = goal_candidates(graph)
     if not nodes:
@@ -165,31 +283,44 @@ def rank_goals(plan: Plan, here: np.ndarray, render: RenderFn, floor_height: flo
         return [nodes[i] for i in order if open_[i]] + [nodes[i] for i in order if not open_[i]]
     inv = np.zeros(len(nodes))
     vol = np.zeros(len(nodes))
+    poor = np.zeros(len(nodes))
     height = floor_height + rules.panorama_height_m
+    score_cfg = pcfg.score
+    quality = observed is not None and score_cfg.w_q > 0
     for i in panorama_candidates(nodes, dist, open_, plan.subregions, rules.max_panoramas,
                                   rules.panorama_every_subregion):
         pano = render_panorama(render, [pos[i][0], height, pos[i][1]], pcfg.panorama)
         inv[i] = invisible_share(pano, pcfg.rotation)
         vol[i] = hull_volume(pano, pcfg.hull)
+        if quality:
+            poor[i] = poorly_observed_share(pano, observed, score_cfg.quality_radius_m)
+    # the sampled-surface term (ours, off by default): normalised by its maximum like s_o and s_c
+    extra = score_cfg.w_q * poor / poor.max() if quality and poor.max() > 0 else np.zeros(len(nodes))
     in_horizon = np.array([line_of_sight(ws, here, p, wcfg) for p in pos])
-    scores = node_scores(inv, vol, unvisited, in_horizon, is_failed, pcfg.score)
+    scores = node_scores(inv, vol, unvisited, in_horizon, is_failed, score_cfg) + extra
     # the global stage weighs what a node promises against the way there; the in-horizon flag (a node in
     # sight of the agent) is a local preference and, counted there too, keeps the agent near (ours)
     global_scores = None if rules.global_in_horizon else node_scores(
-        inv, vol, unvisited, np.zeros_like(in_horizon), is_failed, pcfg.score)
+        inv, vol, unvisited, np.zeros_like(in_horizon), is_failed, score_cfg) + extra
     plan.scores = {n: float(s) for n, s in zip(nodes, scores, strict=True)}
     travel = travel_lengths(graph, here, nodes, pos)
     # the information terms (w_o s_o + w_c s_c, shares relative to the best node anywhere): what keeps
     # planning local, and what makes a node worth a stop on a long path's way
-    info = information_scores(inv, vol, pcfg.score)
+    info = information_scores(inv, vol, score_cfg) + extra
     plan.info = {n: float(v) for n, v in zip(nodes, info, strict=True)}
+    # with `quality_in_local` off the sampled-surface term does not keep the agent in its subregion: it
+    # only makes poorly sampled rooms worth a trip in the global stage
+    local_info = info if score_cfg.quality_in_local else info - extra
     hierarchical = rules.hierarchical and bool(plan.subregions)
     local = agent_subregion(graph, plan.subregions, here) if hierarchical else None
     in_local = np.array([hierarchical and plan.subregions.get(n) == local for n in nodes])
     rules = dataclasses.replace(rules, hierarchical=hierarchical)
     promising = worth_a_visit(info, open_, rules.local_score_threshold)
-    plan.stage = "flat" if not hierarchical else "local" if (promising & in_local).any() else "global"
-    order = local_then_global(scores, info, travel, open_, in_local, rules, global_scores)
+    local_promising = worth_a_visit(local_info, open_, rules.local_score_threshold)
+    plan.stage = "flat" if not hierarchical else "local" if (local_promising & in_local).any() else "global"
+    order = local_then_global(scores, local_info, travel, open_, in_local, rules, global_scores, info)
+    if rules.global_tour and plan.stage == "global":
+        order = tour_first(order, promising, travel, nodes, plan.subregions, graph)
     return [nodes[i] for i in order]
 
 
@@ -284,5 +415,5 @@ def select_rotation_targets(targets: Sequence[RotationTarget], yaw: float, pcfg:
 
 
 __all__ = ["GoalRules", "closer_on_the_way", "distance_to_polyline", "goal_candidates", "local_then_global",
-           "node_state", "panorama_candidates", "rank_goals", "select_rotation_targets", "travel_lengths",
-           "worth_a_visit"]
+           "node_state", "pairwise_travel", "panorama_candidates", "rank_goals", "select_rotation_targets",
+           "shortest_tour", "tour_first", "travel_lengths", "worth_a_visit"]
