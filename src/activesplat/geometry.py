@@ -71,6 +71,26 @@ def voxel_keys(pts: np.ndarray, size: float) -> np.ndarray:
     return (v[:, 0] << 42) | (v[:, 1] << 21) | v[:, 2]
 
 
+def in_sorted(known: np.ndarray, keys: np.ndarray) -> np.ndarray:
+    """(M,) whether each of `keys` is in the sorted array `known`, by binary search."""
+    if not len(known):
+        return np.zeros(len(keys), bool)
+    at = np.minimum(np.searchsorted(known, keys), len(known) - 1)
+    return known[at] == keys
+
+
+def merge_sorted(known: np.ndarray, keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Add the sorted, unique `keys` to the sorted array `known`: (the merged sorted array, which of
+    `keys` were new). The new keys are merged by a stable sort of the two sorted runs (timsort merges them
+    in linear time; np.union1d re-sorts from scratch)."""
+    fresh = ~in_sorted(known, keys)
+    if not fresh.any():
+        return known, fresh
+    merged = np.concatenate([known, keys[fresh]])
+    merged.sort(kind="stable")
+    return merged, fresh
+
+
 def wrap_angle(a):
     """Wrap radians to [-pi, pi)."""
     return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi

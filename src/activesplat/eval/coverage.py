@@ -15,7 +15,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from activesplat.errors import check_fields
-from activesplat.geometry import backproject, voxel_keys
+from activesplat.geometry import backproject, merge_sorted, voxel_keys
 
 
 @dataclass(frozen=True)
@@ -97,15 +97,8 @@ class CoverageAccumulator:
         """One observed point per 2 cm voxel, for the uncapped distances beyond the cap."""
         keys = voxel_keys(pts, self.cfg.far_voxel_m)
         keys, first = np.unique(keys, return_index=True)
-        # membership in the sorted voxel set by binary search; the new keys are merged by a stable sort of
-        # the two sorted runs (timsort merges them in linear time; np.union1d re-sorts from scratch)
-        known = self._voxels
-        at = np.minimum(np.searchsorted(known, keys), max(len(known) - 1, 0))
-        fresh = known[at] != keys if len(known) else np.ones(len(keys), bool)
+        self._voxels, fresh = merge_sorted(self._voxels, keys)
         if fresh.any():
-            merged = np.concatenate([known, keys[fresh]])
-            merged.sort(kind="stable")
-            self._voxels = merged
             self._thinned.append(pts[first[fresh]])
 
     def _uncapped(self) -> np.ndarray:

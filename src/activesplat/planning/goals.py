@@ -29,6 +29,9 @@ from activesplat.workspace.paths import line_of_sight, path_length, visible_node
 from activesplat.workspace.plan import Plan
 from activesplat.workspace.subregions import agent_subregion
 
+NO_PATH_FACTOR = 3.0
+"""Travel to a node the graph gives no path to: this times the straight distance (a stand-in, ours)."""
+
 VISIT_MEMORY = 2000
 """Positions of the agent's most recent steps that count for the unvisited flag (every step of a 1000- or
 2000-step episode)."""
@@ -110,7 +113,7 @@ def travel_lengths(graph: nx.Graph, here: np.ndarray, nodes: list[int], pos: np.
     lengths = nx.single_source_dijkstra_path_length(graph, start, weight="weight")
     out = np.array([hop + lengths.get(n, np.inf) for n in nodes])
     eu = np.hypot(*(pos - here).T)
-    return np.where(np.isfinite(out), out, eu * 3.0)
+    return np.where(np.isfinite(out), out, eu * NO_PATH_FACTOR)
 
 
 def pairwise_travel(graph: nx.Graph, nodes: Sequence[int]) -> np.ndarray:
@@ -121,7 +124,7 @@ def pairwise_travel(graph: nx.Graph, nodes: Sequence[int]) -> np.ndarray:
     for i, a in enumerate(nodes):
         lengths = nx.single_source_dijkstra_path_length(graph, a, weight="weight")
         for j, b in enumerate(nodes):
-            out[i, j] = lengths.get(b, 3.0 * float(np.hypot(*(pos[i] - pos[j]))))
+            out[i, j] = lengths.get(b, NO_PATH_FACTOR * float(np.hypot(*(pos[i] - pos[j]))))
     return out
 
 

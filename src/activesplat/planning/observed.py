@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from activesplat.geometry import backproject, voxel_keys
+from activesplat.geometry import backproject, in_sorted, merge_sorted, voxel_keys
 from activesplat.planning.panorama import Panorama
 
 
@@ -28,24 +28,18 @@ class ObservedSurface:
 
     def add(self, depth: np.ndarray, pose: np.ndarray, K: np.ndarray) -> None:
         """Add one depth frame (z-depth, 0 or non-finite = no depth) seen from camera-to-world `pose`."""
-        d = np.asarray(depth, np.float64)
-        if hasattr(depth, "detach"):
-            d = depth.detach().cpu().numpy().astype(np.float64)
+        d = np.asarray(depth.detach().cpu().numpy() if hasattr(depth, "detach") else depth, np.float64)
         sub = np.zeros(d.shape, bool)
         sub[self.stride // 2::self.stride, self.stride // 2::self.stride] = True
         v, u = np.nonzero(sub & np.isfinite(d) & (d > 0))
         if not len(v):
             return
         keys = np.unique(voxel_keys(backproject(d, np.asarray(pose, np.float64), K, v, u), self.voxel_m))
-        self.keys = np.union1d(self.keys, keys)
+        self.keys, _ = merge_sorted(self.keys, keys)
 
     def contains(self, points: np.ndarray) -> np.ndarray:
         """(M,) whether each world point (M, 3) lies in a voxel some depth point has fallen into."""
-        keys = voxel_keys(np.asarray(points, np.float64).reshape(-1, 3), self.voxel_m)
-        if not len(self.keys):
-            return np.zeros(len(keys), bool)
-        at = np.minimum(np.searchsorted(self.keys, keys), len(self.keys) - 1)
-        return self.keys[at] == keys
+        return in_sorted(self.keys, voxel_keys(np.asarray(points, np.float64).reshape(-1, 3), self.voxel_m))
 
 
 def poorly_observed_share(pano: Panorama, observed: ObservedSurface, radius_m: float) -> float:
