@@ -16,8 +16,8 @@ from activesplat.splat.densify import (
     prune_mask,
     surface_elongation,
 )
-from activesplat.splat.gaussians import SH_C0, GaussianMap
-from activesplat.splat.kernels import quat_to_rotmat
+from activesplat.splat.gaussians import SH_C0, GaussianMap, back_facing
+from activesplat.splat.kernels import quat_to_rotmat, rotmat_to_quat
 
 
 def _planar_render(h=4, w=4):
@@ -58,7 +58,7 @@ def test_high_loss_mask_eq10():
 
 
 def test_gaussians_from_pixels_backprojects_with_projective_radius():
-    cfg = MapperConfig(pixel_stride=1, init_radius_scale=1.0)
+    cfg = MapperConfig(pixel_stride=1, init_radius_scale=1.0, init_normal_scale=1.0)  # the paper: isotropic
     K = np.array([[8.0, 0, 4], [0, 8.0, 4], [0, 0, 1]])
     pose = np.eye(4)
     pose[:3, 3] = [1.0, 2.0, 3.0]
@@ -77,7 +77,7 @@ def test_gaussians_from_pixels_backprojects_with_projective_radius():
 
 
 def test_pixel_stride_subsamples_the_mask():
-    cfg = MapperConfig(pixel_stride=2)
+    cfg = MapperConfig(pixel_stride=2, init_normal_scale=1.0)
     K = np.array([[8.0, 0, 4], [0, 8.0, 4], [0, 0, 1]])
     raw = gaussians_from_pixels(torch.ones(8, 8, dtype=torch.bool), torch.zeros(8, 8, 3), torch.ones(8, 8),
                                 np.eye(4), K, cfg)
@@ -119,7 +119,7 @@ def test_surface_elongation_leaves_depth_edges_isotropic():
 
 
 def test_elongated_gaussians_stretch_along_the_floor_under_the_ray():
-    cfg = MapperConfig(init_max_elongation=8.0)
+    cfg = MapperConfig(init_max_elongation=8.0, init_normal_scale=1.0)
     K = np.array([[32.0, 0, 32], [0, 32.0, 32], [0, 0, 1]])
     depth = torch.from_numpy(_floor_depth())
     mask = torch.zeros(64, 64, dtype=torch.bool)
@@ -137,6 +137,61 @@ def test_elongated_gaussians_stretch_along_the_floor_under_the_ray():
     assert float(scales[0]) == pytest.approx(radius / ray[1], rel=1e-3)
     stretched = rot[:, 0].numpy()  # the rotation takes x onto the stretched axis: in the floor, under the ray
     assert abs(stretched[1]) < 1e-4 and abs(np.cross(stretched, ray)[1]) < 1e-4
+
+
+def test_flat_gaussians_lie_in_the_floor_and_are_thin_along_its_normal():
+    cfg = MapperConfig(init_normal_scale=0.1)
+    K = np.array([[32.0, 0, 32], [0, 32.0, 32], [0, 0, 1]])
+    depth = torch.from_numpy(_floor_depth())
+    mask = torch.zeros(64, 64, dtype=torch.bool)
+    mask[47, 33] = mask[41, 21] = True
+    pose = np.eye(4)
+    pose[:3, :3] = [[0, 0, 1], [0, 1, 0], [-1, 0, 0]]  # camera turned: the axes must come out in the world
+    raw = gaussians_from_pixels(mask, torch.zeros(64, 64, 3), depth, pose, K, cfg)
+    scales = torch.exp(raw["log_scales"])
+    rot = quat_to_rotmat(raw["quats"])
+    z = depth[[41, 47], [21, 33]]  # torch.nonzero order: row-major
+    radius = cfg.init_radius_scale * 2 * z / 32.0
+    assert torch.allclose(scales[:, :2], radius[:, None].expand(2, 2), rtol=1e-5)  # no elongation (1 = off)
+    assert torch.allclose(scales[:, 2], 0.1 * radius, rtol=1e-5)
+    normal = rot[:, :, 2]  # world floor normal (0, +-1, 0): the camera looks down on it from above
+    assert torch.allclose(normal.abs(), torch.tensor([[0.0, 1.0, 0.0]]).expand(2, 3), atol=1e-4)
+    assert torch.allclose(torch.linalg.det(rot), torch.ones(2), atol=1e-5)
+    # the normal points to the camera that made them: seen from there they face it, from below the floor not
+    assert not back_facing(raw["quats"], raw["log_scales"], raw["means"], pose[:3, 3]).any()
+    assert back_facing(raw["quats"], raw["log_scales"], raw["means"], [0.0, 5.0, 0.0]).all()
+    # an edge (neighbours off the plane) stays isotropic
+    edge = torch.full((64, 64), 3.0)
+    edge[:, 34:] = 1.5
+    one = torch.zeros(64, 64, dtype=torch.bool)
+    one[21, 33] = True
+    raw = gaussians_from_pixels(one, torch.zeros(64, 64, 3), edge, np.eye(4), K, cfg)
+    assert torch.allclose(raw["log_scales"][0], raw["log_scales"][0, :1].expand(3))
+    with pytest.raises(InvalidInputError):
+        MapperConfig(init_normal_scale=0.0)
+
+
+def test_rotmat_to_quat_inverts_quat_to_rotmat_including_half_turns():
+    g = torch.Generator().manual_seed(0)
+    q = torch.randn(200, 4, generator=g, dtype=torch.float64)
+    q /= q.norm(dim=1, keepdim=True)
+    half_turns = torch.diag_embed(torch.tensor([[1.0, -1, -1], [-1, 1, -1], [-1, -1, 1], [1, 1, 1]],
+                                               dtype=torch.float64))
+    rots = torch.cat([quat_to_rotmat(q), half_turns])
+    back = rotmat_to_quat(rots)
+    assert torch.all(back[:, 0] >= 0)
+    assert torch.allclose(back.norm(dim=1), torch.ones(204, dtype=torch.float64))
+    assert torch.allclose(quat_to_rotmat(back), rots, atol=1e-12)
+
+
+def test_back_facing_marks_flat_gaussians_seen_from_behind_only():
+    half_turn_about_x = [0.0, 1.0, 0.0, 0.0]  # normal (third axis) -z
+    quats = torch.tensor([[1.0, 0, 0, 0], half_turn_about_x, [1.0, 0, 0, 0]])
+    log_scales = torch.log(torch.tensor([[0.05, 0.05, 0.005], [0.05, 0.05, 0.005], [0.05, 0.05, 0.05]]))
+    means = torch.zeros(3, 3)
+    assert back_facing(quats, log_scales, means, [0.0, 0.0, 1.0]).tolist() == [False, True, False]
+    assert back_facing(quats, log_scales, means, [0.3, 0.0, -2.0]).tolist() == [True, False, False]
+    assert back_facing(quats[:0], log_scales[:0], means[:0], [0.0, 0.0, 1.0]).numel() == 0
 
 
 def _map(n=6, seed=0) -> GaussianMap:

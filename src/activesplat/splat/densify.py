@@ -46,21 +46,20 @@ def stride_mask(mask: torch.Tensor, stride: int) -> torch.Tensor:
     return mask & grid
 
 
-def surface_elongation(depth: np.ndarray, v: np.ndarray, u: np.ndarray, K: np.ndarray, stride: int,
-                       max_elongation: float, plane_tol: float) -> tuple[np.ndarray, np.ndarray]:
-    """How far one pixel block's footprint on the observed surface stretches along the surface, and in
-    which direction (camera frame): the ``elongation`` 1 / cos(theta) (theta between the viewing ray and
-    the surface normal, clipped to [1, ``max_elongation``]) and the unit ``axis`` in the surface plane
-    along which it stretches (the viewing ray projected onto the plane). The normal comes from the
-    back-projected neighbours ``stride`` pixels away on either side in u and in v. Pixels whose
-    neighbours are invalid, off the image, or not on one plane with it (inverse depth, which is affine
-    in the pixel coordinates on a plane, departs from the neighbours' mean by more than ``plane_tol``
-    of its value: a depth edge or a curved surface) keep elongation 1. Returns ((M, 3), (M,))."""
+def surface_frame(depth: np.ndarray, v: np.ndarray, u: np.ndarray, K: np.ndarray, stride: int,
+                  plane_tol: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The observed surface around pixels (v, u) in the camera frame: ``normal`` (unit, facing the
+    camera), ``along`` (unit, in the surface plane: the viewing ray projected onto it, or any tangent
+    where the ray is the normal), ``cos`` of the angle between ray and normal, and ``ok``. The normal
+    comes from the back-projected neighbours ``stride`` pixels away on either side in u and in v.
+    Pixels whose neighbours are invalid, off the image, or not on one plane with it (inverse depth,
+    which is affine in the pixel coordinates on a plane, departs from the neighbours' mean by more
+    than ``plane_tol`` of its value: a depth edge or a curved surface) are not ``ok`` (their rows of
+    the other arrays are 0). Returns ((M, 3), (M, 3), (M,), (M,) bool)."""
     m = len(v)
-    axis = np.zeros((m, 3))
-    elongation = np.ones(m)
-    if m == 0 or max_elongation <= 1.0:
-        return axis, elongation
+    normal, along, cos = np.zeros((m, 3)), np.zeros((m, 3)), np.zeros(m)
+    if m == 0:
+        return normal, along, cos, np.zeros(0, dtype=bool)
     h, w = depth.shape
     s = stride
     ok = (u - s >= 0) & (u + s < w) & (v - s >= 0) & (v + s < h)
@@ -80,13 +79,36 @@ def surface_elongation(depth: np.ndarray, v: np.ndarray, u: np.ndarray, K: np.nd
         inv = 1.0 / z
         for za, zb in ((zr, zl), (zd, zu)):
             ok &= np.abs(0.5 * (1.0 / za + 1.0 / zb) - inv) <= plane_tol * inv
-        normal = np.cross(pr - pl, pd - pu)
-        normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+        n = np.cross(pr - pl, pd - pu)
+        n /= np.linalg.norm(n, axis=1, keepdims=True)
         ray = p / np.linalg.norm(p, axis=1, keepdims=True)
-        cos = np.abs((ray * normal).sum(axis=1))
-        along = ray - (ray * normal).sum(axis=1, keepdims=True) * normal
-        along /= np.linalg.norm(along, axis=1, keepdims=True)
-    ok &= np.isfinite(cos) & np.isfinite(along).all(axis=1) & (cos > 0)
+        c = (ray * n).sum(axis=1)
+        n = np.where(c[:, None] > 0, -n, n)  # facing the camera: against the ray
+        c = np.abs(c)
+        a = ray + c[:, None] * n  # ray minus its normal component
+        norm_a = np.linalg.norm(a, axis=1)
+        # head-on (ray along the normal): any tangent does; take camera x made orthogonal to n
+        x = np.array([1.0, 0.0, 0.0]) - n[:, :1] * n
+        a = np.where((norm_a > 1e-6)[:, None], a, x)
+        a /= np.linalg.norm(a, axis=1, keepdims=True)
+    ok &= np.isfinite(c) & (c > 0) & np.isfinite(n).all(axis=1) & np.isfinite(a).all(axis=1)
+    normal[ok], along[ok], cos[ok] = n[ok], a[ok], c[ok]
+    return normal, along, cos, ok
+
+
+def surface_elongation(depth: np.ndarray, v: np.ndarray, u: np.ndarray, K: np.ndarray, stride: int,
+                       max_elongation: float, plane_tol: float) -> tuple[np.ndarray, np.ndarray]:
+    """How far one pixel block's footprint on the observed surface stretches along the surface, and in
+    which direction (camera frame): the ``elongation`` 1 / cos(theta) (theta between the viewing ray and
+    the surface normal, clipped to [1, ``max_elongation``]) and the unit ``axis`` in the surface plane
+    along which it stretches (the viewing ray projected onto the plane). Pixels that
+    :func:`surface_frame` finds on no plane keep elongation 1 and axis 0. Returns ((M, 3), (M,))."""
+    m = len(v)
+    axis = np.zeros((m, 3))
+    elongation = np.ones(m)
+    if m == 0 or max_elongation <= 1.0:
+        return axis, elongation
+    _, along, cos, ok = surface_frame(depth, v, u, K, stride, plane_tol)
     elongation[ok] = np.clip(1.0 / cos[ok], 1.0, max_elongation)
     axis[ok] = along[ok]
     return axis, elongation
@@ -97,9 +119,12 @@ def gaussians_from_pixels(mask: torch.Tensor, rgb: torch.Tensor, depth: torch.Te
     """Raw parameters of one Gaussian per masked pixel on the ``pixel_stride`` grid: back-projected
     centre, radius = init_radius_scale * stride * depth / focal (projective scale), opacity
     ``init_opacity``, colour = the pixel's colour (docs/protocol.md §2, initialisation). Isotropic as the
-    paper when ``init_max_elongation`` is 1; otherwise the radius along the surface's slant direction
-    is stretched by :func:`surface_elongation` so that a surface seen at a grazing angle is covered
-    between the rows of pixels that sample it (a departure, see MapperConfig)."""
+    paper when ``init_max_elongation`` and ``init_normal_scale`` are 1. Otherwise, where the observed
+    depth around the pixel is one plane (:func:`surface_frame`), the Gaussian is aligned with it: its
+    radius along the slant direction is stretched by 1 / cos(viewing angle) (at most
+    ``init_max_elongation``) so that a surface seen at a grazing angle is covered between the rows of
+    pixels that sample it, and its radius along the normal is ``init_normal_scale`` times the radius
+    (departures, see MapperConfig)."""
     pick = stride_mask(mask, cfg.pixel_stride)
     v, u = (t.cpu().numpy() for t in torch.nonzero(pick, as_tuple=True))
     depth_np = depth.detach().cpu().numpy()
@@ -108,11 +133,20 @@ def gaussians_from_pixels(mask: torch.Tensor, rgb: torch.Tensor, depth: torch.Te
     focal = 0.5 * (float(K[0, 0]) + float(K[1, 1]))
     radii = cfg.init_radius_scale * cfg.pixel_stride * z / focal
     colors = rgb[torch.from_numpy(v), torch.from_numpy(u)]
-    axis, elongation = surface_elongation(depth_np, v, u, K, cfg.pixel_stride, cfg.init_max_elongation,
-                                          cfg.init_plane_tol)
+    frames = factors = None
+    if cfg.init_max_elongation > 1.0 or cfg.init_normal_scale < 1.0:
+        normal, along, cos, ok = surface_frame(depth_np, v, u, K, cfg.pixel_stride, cfg.init_plane_tol)
+        rot = pose[:3, :3]
+        # world-frame columns (slant axis, tangent across it, normal): a right-handed frame
+        frames = np.stack([along @ rot.T, np.cross(normal, along) @ rot.T, normal @ rot.T], axis=2)[ok]
+        factors = np.ones((int(ok.sum()), 3))
+        factors[:, 0] = np.clip(1.0 / cos[ok], 1.0, max(cfg.init_max_elongation, 1.0))
+        factors[:, 2] = cfg.init_normal_scale
+        frames = torch.from_numpy(frames.astype(np.float32))
+        factors = torch.from_numpy(factors.astype(np.float32))
+        ok = torch.from_numpy(ok)
     raw = GaussianMap.raw_from_points(points, colors, radii, cfg.init_opacity,
-                                      torch.from_numpy((axis @ pose[:3, :3].T).astype(np.float32)),
-                                      torch.from_numpy(elongation.astype(np.float32)))
+                                      None if frames is None else (ok, frames, factors))
     return {k: t.to(rgb.device) for k, t in raw.items()}
 
 

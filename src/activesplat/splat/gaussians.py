@@ -17,6 +17,7 @@ import torch
 
 from activesplat.errors import InvalidInputError
 from activesplat.splat.config import LearningRates
+from activesplat.splat.kernels import rotmat_to_quat
 
 SH_C0 = 0.28209479177387814  # degree-0 real spherical harmonic, 1 / (2 sqrt(pi))
 PARAM_NAMES = ("means", "quats", "log_scales", "opacity_logits", "f_dc")
@@ -68,25 +69,21 @@ class GaussianMap:
 
     @staticmethod
     def raw_from_points(points: torch.Tensor, rgb: torch.Tensor, radii: torch.Tensor, opacity: float,
-                        axes: torch.Tensor | None = None,
-                        elongation: torch.Tensor | None = None) -> dict[str, torch.Tensor]:
+                        oriented: tuple[torch.Tensor, torch.Tensor, torch.Tensor] | None = None
+                        ) -> dict[str, torch.Tensor]:
         """Gaussians at ``points`` (M,3) with colour ``rgb`` (M,3) in [0,1] and radius ``radii`` (M,),
-        opacity ``opacity`` (docs/protocol.md §2, initialisation). Isotropic with identity rotation, unless
-        ``axes`` (M,3) unit world directions and ``elongation`` (M,) >= 1 are given: then the first scale
-        is ``radii * elongation`` along ``axes`` (the rotation takes x onto the axis), the other two stay
-        ``radii``; rows with elongation 1 stay isotropic with identity rotation."""
+        opacity ``opacity`` (docs/protocol.md §2, initialisation). Isotropic with identity rotation,
+        except the rows that ``oriented`` = (rows (M,) bool, frames (R,3,3), factors (R,3)) names: their
+        rotation is the right-handed frame whose columns are the Gaussian's axes, and their scales are
+        ``radii`` times the factors."""
         m = points.shape[0]
         quats = torch.zeros((m, 4), dtype=torch.float32, device=points.device)
         quats[:, 0] = 1.0
         log_scales = torch.log(radii.to(torch.float32)).unsqueeze(1).expand(m, 3).clone()
-        if axes is not None and elongation is not None:
-            stretched = elongation > 1.0
-            a = axes[stretched].to(torch.float32)
-            a = torch.where(a[:, :1] < 0, -a, a)  # the same ellipsoid; keeps 1 + a_x away from 0
-            # unit quaternion turning e_x onto a: (1 + e_x . a, e_x x a), normalised
-            q = torch.stack([1.0 + a[:, 0], torch.zeros_like(a[:, 0]), -a[:, 2], a[:, 1]], dim=1)
-            quats[stretched] = q / q.norm(dim=1, keepdim=True)
-            log_scales[stretched, 0] += torch.log(elongation[stretched].to(torch.float32))
+        if oriented is not None:
+            rows, frames, factors = oriented
+            quats[rows] = rotmat_to_quat(frames.to(torch.float32))
+            log_scales[rows] += torch.log(factors.to(torch.float32))
         logit = float(np.log(opacity / (1.0 - opacity)))
         return {
             "means": points.to(torch.float32),
@@ -239,6 +236,24 @@ def frustum_rows(means: torch.Tensor, log_scales: torch.Tensor, pose, K, width: 
         return torch.from_numpy(np.flatnonzero(keep))
     return _frustum_rows_torch(means, log_scales, pose, K, width, height, depth, occlusion_margin_m,
                                occlusion_window_px)
+
+
+def back_facing(quats: torch.Tensor, log_scales: torch.Tensor, means: torch.Tensor, camera_center,
+                flatness: float = 0.5) -> torch.Tensor:
+    """(N,) bool: flat Gaussians seen from behind. A Gaussian is flat when its third scale is below
+    ``flatness`` times the smaller of the other two; its third rotation axis is then the normal of the
+    surface it was made from, pointing to the side that observed it (``densify.gaussians_from_pixels``
+    turns it so). Seen from behind = the camera centre lies on the other side of that plane: the
+    Gaussian belongs to the far face of a wall or an object, not to a surface this camera can see."""
+    from activesplat.splat.kernels import quat_to_rotmat
+
+    with torch.no_grad():
+        if quats.shape[0] == 0:
+            return torch.zeros(0, dtype=torch.bool, device=quats.device)
+        flat = log_scales[:, 2] < torch.minimum(log_scales[:, 0], log_scales[:, 1]) + float(np.log(flatness))
+        normal = quat_to_rotmat(quats)[:, :, 2]
+        c = torch.as_tensor(np.asarray(camera_center, dtype=np.float32), device=means.device)
+        return flat & (((c - means) * normal).sum(dim=1) < 0)
 
 
 def _frustum_rows_torch(means, log_scales, pose, K, width, height, depth, occlusion_margin_m,

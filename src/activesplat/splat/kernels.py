@@ -85,6 +85,28 @@ def quat_to_rotmat(quats: Tensor) -> Tensor:
     return torch.stack(rows, dim=-1).reshape(-1, 3, 3)
 
 
+def rotmat_to_quat(rot: Tensor) -> Tensor:
+    """(N,3,3) rotation matrices -> (N,4) unit quaternions wxyz with w >= 0, the inverse of
+    :func:`quat_to_rotmat` (Shepperd's method: the largest of the four candidates' diagonals)."""
+    r = rot.to(torch.float64)
+    tr = r[:, 0, 0] + r[:, 1, 1] + r[:, 2, 2]
+    diag = torch.stack([r[:, 0, 0], r[:, 1, 1], r[:, 2, 2]], dim=1)
+    cand = torch.cat([(1 + tr)[:, None], 1 + 2 * diag - tr[:, None]], dim=1)
+    best = cand.argmax(dim=1)
+    q = torch.empty((r.shape[0], 4), dtype=torch.float64, device=rot.device)
+    for k in range(4):
+        rows = best == k
+        m = r[rows]
+        s = 2.0 * torch.sqrt(cand[rows, k].clamp_min(1e-12))  # 4 x the chosen component
+        d21, d02, d10 = m[:, 2, 1] - m[:, 1, 2], m[:, 0, 2] - m[:, 2, 0], m[:, 1, 0] - m[:, 0, 1]
+        a01, a02, a12 = m[:, 0, 1] + m[:, 1, 0], m[:, 0, 2] + m[:, 2, 0], m[:, 1, 2] + m[:, 2, 1]
+        cols = {0: (s / 4, d21 / s, d02 / s, d10 / s), 1: (d21 / s, s / 4, a01 / s, a02 / s),
+                2: (d02 / s, a01 / s, s / 4, a12 / s), 3: (d10 / s, a02 / s, a12 / s, s / 4)}[k]
+        q[rows] = torch.stack(cols, dim=1)
+    q = torch.where(q[:, :1] < 0, -q, q)
+    return (q / q.norm(dim=1, keepdim=True)).to(rot.dtype)
+
+
 @njit(cache=True, error_model="numpy")
 def quat_rotmat(w, x, y, z):
     """Rotation matrix (row-major 9-tuple) of a unit quaternion wxyz (the kernels' `quat_to_rotmat`)."""
@@ -136,4 +158,4 @@ def inlined(fn):
 
 
 __all__ = ["check_size", "check_tensors", "inlined", "matmul3", "quat_rotmat", "quat_to_rotmat", "quat_vjp",
-           "to_numpy", "transpose3"]
+           "rotmat_to_quat", "to_numpy", "transpose3"]

@@ -40,7 +40,7 @@ from activesplat.splat.densify import (
     high_loss_mask,
     prune_mask,
 )
-from activesplat.splat.gaussians import GaussianMap, activate, frustum_rows
+from activesplat.splat.gaussians import GaussianMap, activate, back_facing, frustum_rows
 from activesplat.splat.keyframes import Keyframe, mapping_window
 from activesplat.splat.losses import mapping_loss
 from activesplat.splat.optim import RowAdam, nonzero_rows
@@ -230,7 +230,8 @@ class Mapper:
         stats.refreshed = int(coarse.numel())
         clock.lap("refresh")
         with torch.no_grad():
-            out = self._render_or_blank(pose)
+            front = self._front_rows(pose) if cfg.densify_front_faces_only else None
+            out = self._render_or_blank(pose, front)
             hl = high_loss_mask(out["alpha"], out["median_depth"], obs_depth, cfg)
             self.high_loss_mask = hl.cpu().numpy()
             new_mask = densification_mask(out["alpha"], out["depth"], obs_depth, cfg)
@@ -260,6 +261,15 @@ class Mapper:
             touched[rows] = True
         stats.pruned = self._prune(torch.nonzero(touched, as_tuple=True)[0], pose, obs_depth, coarse)
         clock.lap("prune")
+
+    def _front_rows(self, pose: np.ndarray) -> torch.Tensor:
+        """The Gaussians of this view's frustum less the flat ones it sees from behind
+        (:func:`back_facing`; MapperConfig "Back faces")."""
+        rows = self._view_rows(pose, self.K, self.width, self.height)
+        p = self.gaussians.params
+        behind = back_facing(p["quats"].index_select(0, rows), p["log_scales"].index_select(0, rows),
+                             p["means"].index_select(0, rows), pose[:3, 3])
+        return rows[~behind]
 
     def _retire_coarse(self, pose: np.ndarray, obs_depth: torch.Tensor) -> torch.Tensor:
         """The coarse refresh (MapperConfig): the Gaussians in this view that it sees whole and much finer
