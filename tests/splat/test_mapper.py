@@ -251,3 +251,24 @@ def test_coarse_refresh_replaces_far_gaussians_with_fine_ones_only_in_full_view(
         return -10 * np.log10(((m.render(near).rgb[16:48, 16:48].clamp(0, 1) - rgb) ** 2).mean().item())
 
     assert centre_psnr(mapper) > centre_psnr(plain) + 3.0
+
+
+def test_a_wall_seen_from_its_other_side_gets_its_own_gaussians_only_with_the_back_face_rule():
+    """Back faces (MapperConfig): the flat Gaussians of a wall's front do not pass eq. 8's opacity test for
+    a camera behind the wall, so its back face is mapped; with every Gaussian in the mask render it is not."""
+    K = intrinsics(32)
+    depth = np.full((32, 32), 2.0, np.float32)
+    behind = np.eye(4)
+    behind[:3, 3] = [0.0, 0.0, 4.0]
+    behind[:3, :3] = np.diag([-1.0, 1.0, -1.0])  # turned round, looking back at the same plane z = 2
+    counts = {}
+    for rule in (True, False):
+        mapper = Mapper(K, 32, 32, MapperConfig(densify_front_faces_only=rule))
+        mapper.add_frame(np.full((32, 32, 3), 200, np.uint8), depth, np.eye(4), dense=True)
+        front = len(mapper.gaussians)
+        for _ in range(3):
+            mapper.add_frame(np.full((32, 32, 3), 30, np.uint8), depth, behind, dense=True)
+        counts[rule] = (front, len(mapper.gaussians))
+    assert counts[True][0] == counts[False][0] > 0
+    assert counts[False][1] == counts[False][0]  # the front's Gaussians already make the view opaque
+    assert counts[True][1] > 1.5 * counts[True][0]  # the back is mapped: most of the plane anew

@@ -17,7 +17,7 @@ import torch
 
 from activesplat.errors import InvalidInputError
 from activesplat.splat.config import LearningRates
-from activesplat.splat.kernels import rotmat_to_quat
+from activesplat.splat.kernels import quat_to_rotmat, rotmat_to_quat
 
 SH_C0 = 0.28209479177387814  # degree-0 real spherical harmonic, 1 / (2 sqrt(pi))
 PARAM_NAMES = ("means", "quats", "log_scales", "opacity_logits", "f_dc")
@@ -245,8 +245,6 @@ def back_facing(quats: torch.Tensor, log_scales: torch.Tensor, means: torch.Tens
     surface it was made from, pointing to the side that observed it (``densify.gaussians_from_pixels``
     turns it so). Seen from behind = the camera centre lies on the other side of that plane: the
     Gaussian belongs to the far face of a wall or an object, not to a surface this camera can see."""
-    from activesplat.splat.kernels import quat_to_rotmat
-
     with torch.no_grad():
         if quats.shape[0] == 0:
             return torch.zeros(0, dtype=torch.bool, device=quats.device)
