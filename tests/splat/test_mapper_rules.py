@@ -15,6 +15,7 @@ from activesplat.splat.densify import (
     high_loss_mask,
     prune_mask,
     surface_elongation,
+    surface_frame,
 )
 from activesplat.splat.gaussians import SH_C0, GaussianMap, back_facing
 from activesplat.splat.kernels import quat_to_rotmat, rotmat_to_quat
@@ -96,23 +97,25 @@ def test_surface_elongation_follows_the_viewing_angle_on_a_plane():
     K = np.array([[32.0, 0, 32], [0, 32.0, 32], [0, 0, 1]])
     depth = _floor_depth()
     v, u = np.array([40, 50, 60, 20, 33]), np.array([32, 10, 50, 32, 0])
-    axis, elongation = surface_elongation(depth, v, u, K, 2, 100.0, 0.02)
+    _, axis, cos, ok = surface_frame(depth, v, u, K, 2, 0.02)
+    elongation = surface_elongation(cos, ok, 100.0)
     rays = np.stack([(u + 0.5 - 32) / 32, (v + 0.5 - 32) / 32, np.ones(5)], axis=1)
     rays /= np.linalg.norm(rays, axis=1, keepdims=True)
     assert np.allclose(elongation[:3], 1.0 / rays[:3, 1], rtol=1e-4)  # 1 / cos to the floor normal (0, 1, 0)
     assert np.allclose(axis[:3, 1], 0.0, atol=1e-5)  # the axis lies in the floor...
     assert np.allclose(np.cross(axis[:3], rays[:3])[:, 1], 0.0, atol=1e-5)  # ...under the viewing ray
     assert elongation[3] == 1.0 and elongation[4] == 1.0  # no depth (ceiling side) / neighbour off the image
-    capped = surface_elongation(depth, v, u, K, 2, 2.0, 0.02)[1]
+    capped = surface_elongation(cos, ok, 2.0)
     assert capped.max() == 2.0 and np.all(capped >= 1.0)
-    assert np.all(surface_elongation(depth, v, u, K, 2, 1.0, 0.02)[1] == 1.0)  # 1 = off
+    assert np.all(surface_elongation(cos, ok, 1.0) == 1.0)  # 1 = off
 
 
 def test_surface_elongation_leaves_depth_edges_isotropic():
     K = np.array([[32.0, 0, 32], [0, 32.0, 32], [0, 0, 1]])
     depth = np.full((64, 64), 3.0, np.float32)
     depth[:, 33:] = 1.5  # a box edge: neighbours off the plane
-    _, elongation = surface_elongation(depth, np.array([20, 20]), np.array([32, 20]), K, 2, 8.0, 0.02)
+    _, _, cos, ok = surface_frame(depth, np.array([20, 20]), np.array([32, 20]), K, 2, 0.02)
+    elongation = surface_elongation(cos, ok, 8.0)
     assert elongation[0] == 1.0  # the edge
     ray = np.array([(20.5 - 32) / 32, (20.5 - 32) / 32, 1.0])  # a wall facing the camera, seen off-axis
     assert elongation[1] == pytest.approx(np.linalg.norm(ray), rel=1e-4)

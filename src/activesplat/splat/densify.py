@@ -96,22 +96,15 @@ def surface_frame(depth: np.ndarray, v: np.ndarray, u: np.ndarray, K: np.ndarray
     return normal, along, cos, ok
 
 
-def surface_elongation(depth: np.ndarray, v: np.ndarray, u: np.ndarray, K: np.ndarray, stride: int,
-                       max_elongation: float, plane_tol: float) -> tuple[np.ndarray, np.ndarray]:
-    """How far one pixel block's footprint on the observed surface stretches along the surface, and in
-    which direction (camera frame): the ``elongation`` 1 / cos(theta) (theta between the viewing ray and
-    the surface normal, clipped to [1, ``max_elongation``]) and the unit ``axis`` in the surface plane
-    along which it stretches (the viewing ray projected onto the plane). Pixels that
-    :func:`surface_frame` finds on no plane keep elongation 1 and axis 0. Returns ((M, 3), (M,))."""
-    m = len(v)
-    axis = np.zeros((m, 3))
-    elongation = np.ones(m)
-    if m == 0 or max_elongation <= 1.0:
-        return axis, elongation
-    _, along, cos, ok = surface_frame(depth, v, u, K, stride, plane_tol)
-    elongation[ok] = np.clip(1.0 / cos[ok], 1.0, max_elongation)
-    axis[ok] = along[ok]
-    return axis, elongation
+def surface_elongation(cos: np.ndarray, ok: np.ndarray, max_elongation: float) -> np.ndarray:
+    """How far one pixel block's footprint on the observed surface stretches along the surface's slant
+    direction (the ``along`` axis of :func:`surface_frame`): 1 / cos(theta), theta between the viewing
+    ray and the surface normal, clipped to [1, ``max_elongation``]; 1 where :func:`surface_frame` found no
+    plane (not ``ok``) or ``max_elongation`` <= 1 (off). Returns (M,)."""
+    elongation = np.ones(len(cos))
+    if max_elongation > 1.0:
+        elongation[ok] = np.clip(1.0 / cos[ok], 1.0, max_elongation)
+    return elongation
 
 
 def gaussians_from_pixels(mask: torch.Tensor, rgb: torch.Tensor, depth: torch.Tensor, pose: np.ndarray,
@@ -140,7 +133,7 @@ def gaussians_from_pixels(mask: torch.Tensor, rgb: torch.Tensor, depth: torch.Te
         # world-frame columns (slant axis, tangent across it, normal): a right-handed frame
         frames = np.stack([along @ rot.T, np.cross(normal, along) @ rot.T, normal @ rot.T], axis=2)[ok]
         factors = np.ones((int(ok.sum()), 3))
-        factors[:, 0] = np.clip(1.0 / cos[ok], 1.0, max(cfg.init_max_elongation, 1.0))
+        factors[:, 0] = surface_elongation(cos, ok, cfg.init_max_elongation)[ok]
         factors[:, 2] = cfg.init_normal_scale
         frames = torch.from_numpy(frames.astype(np.float32))
         factors = torch.from_numpy(factors.astype(np.float32))
