@@ -56,7 +56,8 @@ def test_map_quality_improves_with_iterations():
 
 
 def test_densification_adds_gaussians_only_where_the_mask_says():
-    mapper = _mapper(iterations=0, pixel_stride=2, mask_downscale=1)
+    # the stride grid alone: the box's silhouette would get one Gaussian per pixel with edge_band_px
+    mapper = _mapper(iterations=0, pixel_stride=2, mask_downscale=1, edge_band_px=0)
     rgb, depth = observe(pose(), S)
     mapper.add_frame(rgb, depth, pose())
     n0 = len(mapper.gaussians)
@@ -272,3 +273,21 @@ def test_a_wall_seen_from_its_other_side_gets_its_own_gaussians_only_with_the_ba
     assert counts[True][0] == counts[False][0] > 0
     assert counts[False][1] == counts[False][0]  # the front's Gaussians already make the view opaque
     assert counts[True][1] > 1.5 * counts[True][0]  # the back is mapped: most of the plane anew
+
+
+def test_depth_edges_at_pixel_resolution_bleed_less_over_what_lies_behind():
+    # a face 1 m in front of the wall (2 m), mapped from scratch in one frame, no optimisation: with the grid
+    # alone the face's Gaussians reach past its silhouette; with edge_band_px its near-side edge pixels get
+    # their own, smaller ones (256 -> 316 Gaussians), and the blended depth mixes face and wall less
+    rgb, depth = observe(pose(), S, box=(-0.35, 0.35, -0.35, 0.35, 1.0))
+    errors, counts = {}, {}
+    for band in (0, 2):
+        mapper = _mapper(iterations=0, pixel_stride=2, mask_downscale=1, edge_band_px=band,
+                         init_normal_scale=1.0)
+        mapper.add_frame(rgb, depth, pose())
+        with torch.no_grad():
+            out = mapper.render(pose())
+        errors[band] = float(np.abs(out.depth.numpy() - depth).mean())
+        counts[band] = len(mapper.gaussians)
+    assert counts[2] > counts[0]
+    assert errors[2] < 0.8 * errors[0], errors  # measured 0.061 vs 0.086 m

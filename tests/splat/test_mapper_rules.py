@@ -11,6 +11,7 @@ from activesplat.splat.densify import (
     cap_mask,
     coarse_mask,
     densification_mask,
+    depth_edge_band,
     gaussians_from_pixels,
     high_loss_mask,
     prune_mask,
@@ -44,6 +45,23 @@ def test_densification_mask_eq8():
     expected[0, 0] = expected[1, 1] = True
     assert torch.equal(mask, expected)
     assert not densification_mask(alpha, depth, obs, MapperConfig(densify_max_depth_m=1.0))[1, 1]
+
+
+def test_depth_test_with_the_median_rule_skips_blended_edges_but_not_missing_objects():
+    cfg = MapperConfig(densify_k=5.0, densify_median_depth=True)
+    alpha, depth, obs = _planar_render()
+    obs = obs + 0.001 * torch.arange(16.0).reshape(4, 4)  # median |error| = 0.0075 -> margin 0.0375
+    median = depth.clone()
+    obs[1, 1] = 1.5  # a missing object: the blend and the first surface are both the wall behind -> densify
+    obs[1, 2], median[1, 2] = 1.5, 1.5  # an edge: the blend is pulled back, the first surface is the object
+    obs[2, 1], median[2, 1] = 1.5, 1.52  # the object mapped within the margin -> keep
+    mask = densification_mask(alpha, depth, obs, cfg, median)
+    expected = torch.zeros(4, 4, dtype=torch.bool)
+    expected[1, 1] = True
+    assert torch.equal(mask, expected)
+    assert densification_mask(alpha, depth, obs, MapperConfig(densify_k=5.0), median)[1:3, 1:3].sum() == 3
+    with pytest.raises(ValueError, match="median_depth"):
+        densification_mask(alpha, depth, obs, cfg)
 
 
 def test_high_loss_mask_eq10():
@@ -140,6 +158,45 @@ def test_elongated_gaussians_stretch_along_the_floor_under_the_ray():
     assert float(scales[0]) == pytest.approx(radius / ray[1], rel=1e-3)
     stretched = rot[:, 0].numpy()  # the rotation takes x onto the stretched axis: in the floor, under the ray
     assert abs(stretched[1]) < 1e-4 and abs(np.cross(stretched, ray)[1]) < 1e-4
+
+
+def test_depth_edge_band_marks_the_near_side_of_a_jump_not_a_steep_plane():
+    depth = torch.full((6, 9), 2.0)
+    depth[:, 4:] = 4.0  # a jump between columns 3 (near) and 4 (far)
+    depth[5, 0] = 0.0  # an invalid pixel: counts as infinitely far
+    band = depth_edge_band(depth, 1, 0.05)
+    expected = torch.zeros(6, 9, dtype=torch.bool)
+    expected[:, 3] = True
+    expected[4, 0] = expected[5, 1] = True
+    assert torch.equal(band, expected)
+    wide = depth_edge_band(depth, 2, 0.05)
+    assert wide[:, 2:4].all() and not wide[:, 4:].any() and not wide[5, 0]  # far side and invalid: never
+    # a floor seen from 1.2 m: depth grows by more than 5 % per row far away, but smoothly (no jump)
+    rows = torch.arange(40, 64, dtype=torch.float32)[:, None] + 0.5
+    floor = (1.2 * 128.0 / (rows - 32.0)).expand(24, 64).contiguous()
+    assert (floor[1:5, 0] / floor[2:6, 0] > 1.05).all()
+    assert not depth_edge_band(floor, 2, 0.05)[1:-1].any()
+
+
+def test_pixels_near_a_depth_jump_get_one_gaussian_each_of_a_one_pixel_radius():
+    K = np.array([[32.0, 0, 32], [0, 32.0, 32], [0, 0, 1]])
+    depth = torch.full((64, 64), 3.0)
+    depth[:, 33:] = 1.5  # a jump between columns 32 (far) and 33 (near)
+    mask = torch.ones(64, 64, dtype=torch.bool)
+    grid = MapperConfig(edge_band_px=0)
+    off = gaussians_from_pixels(mask, torch.zeros(64, 64, 3), depth, np.eye(4), K, grid)
+    cfg = MapperConfig(edge_band_px=2)
+    on = gaussians_from_pixels(mask, torch.zeros(64, 64, 3), depth, np.eye(4), K, cfg)
+    assert len(off["means"]) == 32 * 32
+    # the near side's columns 33 and 34 at every row (2 x 64) replace the grid's column 33 (32)
+    assert len(on["means"]) == 32 * 32 - 32 + 2 * 64
+    x = on["means"][:, 0] / on["means"][:, 2] * 32 + 32  # back to the pixel column (centre at u + 0.5)
+    radius = torch.exp(on["log_scales"]).max(dim=1).values
+    band = (x > 33) & (x < 35)
+    z = on["means"][:, 2]
+    assert torch.allclose(z[band], torch.full_like(z[band], 1.5))
+    assert torch.allclose(radius[band], cfg.init_radius_scale * 1 * z[band] / 32.0, rtol=1e-5)
+    assert torch.allclose(radius[~band], cfg.init_radius_scale * 2 * z[~band] / 32.0, rtol=1e-5)
 
 
 def test_flat_gaussians_lie_in_the_floor_and_are_thin_along_its_normal():

@@ -120,6 +120,38 @@ class MapperConfig:
     for 16-25 % more Gaussians. Requiring the camera 15 degrees behind the plane instead of just behind
     it changed nothing (medium-0: the same PSNR to 0.01 dB).
 
+    Depth edges (``edge_band_px``; paper and release: one Gaussian per pixel, the project one per
+    ``pixel_stride`` block). A Gaussian of the stride grid reaches about its radius (1.5 px at stride 2)
+    past the pixel it was made from, so at a depth jump the near surface's Gaussians cover a pixel or two
+    of what lies behind, and the blended depth there is a mix of both: on the train views of a medium-0
+    replay the pixels within 3 px of a depth jump were 6 % of the image and held 44 % of the depth error
+    (17 cm on average against 1.5 cm elsewhere). With this field > 0, every masked pixel on the near side
+    of a jump and within that many pixels of it gets its own Gaussian with the radius of stride 1, instead
+    of the grid's one per block (``densify.depth_edge_band``: a jump is a kink of more than ``edge_jump``
+    in the inverse depth, which is affine on a plane, so a far floor whose depth grows fast but smoothly
+    is none; only the near side's Gaussians reach over something else, and the far side keeps the grid,
+    which leaves no holes where a near object is later removed). Replays of the seed-0 explorations
+    (``benchmarks/mapper.py --episode E``; before = ``--set edge_band_px=0``), mean of medium-0..3: train
+    PSNR / LPIPS / depth L1 29.29 / 0.267 / 3.05 -> 29.67 / 0.245 / 2.44 cm, test 26.91 / 0.338 / 5.26 ->
+    27.09 / 0.321 / 4.80 cm, every house better on both splits, for 9 % more Gaussians and 10 % more
+    mapper CPU. Both sides of the jump at pixel resolution, with any 5 % step between neighbours counted
+    as a jump, scored higher on the train views and lower on the test views for twice the extra Gaussians.
+    Off by default: the tuning explorations run with it (medium-0..3 x seeds 0, 1) reached 79.47 % instead
+    of 85.94 % completion, one run losing half the house (README, "Mapping at house scale"), and a second
+    pass over the same trajectory adds 9.8 % Gaussians instead of 8.0 %.
+
+    Depth test at edges (``densify_median_depth``; paper and release: the blended depth only). Where a
+    pixel straddles a depth jump the blended depth sum w_i z_i lies between the near and the far surface,
+    so eq. 8's depth test fires on the edges of objects that are mapped, on every frame that sees them
+    again: mapping medium-0's first 1000 steps a second time (``--steps 1000 --repeat 2``, nothing new)
+    added 8 % more Gaussians, 88 % of them from the depth test. With this rule the depth test also needs
+    the median depth (the first surface the render reaches) behind the observation by the same margin:
+    an object missing from the map still passes (the first surface is the wall behind it), a mapped one
+    whose edge blends does not. Measured before the depth edges above: second and third pass +3.3 % and
+    +2.0 % instead of +8.0 % and +5.6 %, but
+    the edges it leaves alone are also where new Gaussians sharpened the map: medium-0 train / test PSNR
+    -0.04 / -0.06 dB, medium-1 -0.24 / -0.24 dB, so it is off by default.
+
     Coarse refresh (``refresh_coarse_factor``; paper, release and SplaTAM: none). Eq. 8 adds Gaussians
     only where the map is transparent, so a wall first seen from 4 m keeps the 4-5 cm Gaussians it got
     there when the robot walks up to it, and every close view of it renders blurred. A mapped frame first
@@ -170,6 +202,10 @@ class MapperConfig:
     # project: a new Gaussian on a plane is this fraction of its radius thick along the plane's normal
     # (paper, release and SplaTAM: 1 = isotropic; see class docstring "Flat Gaussians")
     init_normal_scale: float = 0.1
+    # project: pixels on the near side of an observed depth jump, within this many pixels of it, each get a
+    # Gaussian of stride 1's radius instead of one per pixel_stride block (0 = off; docstring "Depth edges")
+    edge_band_px: int = 0
+    edge_jump: float = 0.05  # project: a kink of 5 % in the inverse depth is a jump
     init_plane_tol: float = 0.02  # project: neighbours within 2 % (inverse depth) count as one plane
     min_depth_m: float = 0.05  # project: depth below this is treated as invalid (sensor noise)
 
@@ -180,6 +216,8 @@ class MapperConfig:
     densify_opacity: float = 0.98  # tau_o1 (paper)
     densify_k: float = 5.0  # project: k x median depth error (paper 50, release 2; see class docstring)
     densify_max_depth_m: float | None = None  # release applies the depth test only below 5 m; None = off
+    # project: the depth test also needs the median depth behind the observation (see "Depth test at edges")
+    densify_median_depth: bool = False
     # project: the eq. 8 / eq. 10 render leaves out the flat Gaussians seen from behind (the far face of a
     # wall or an object); False = every Gaussian, as paper and release (see class docstring "Back faces")
     densify_front_faces_only: bool = True

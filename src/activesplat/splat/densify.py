@@ -15,13 +15,20 @@ from activesplat.splat.gaussians import GaussianMap
 
 
 def densification_mask(alpha: torch.Tensor, depth: torch.Tensor, obs_depth: torch.Tensor,
-                       cfg: MapperConfig) -> torch.Tensor:
+                       cfg: MapperConfig, median_depth: torch.Tensor | None = None) -> torch.Tensor:
     """Eq. 8: M_k = (O < tau_o1) or (D_obs < D_render and |D_obs - D_render| > k * median error),
-    only where the observed depth is valid. ``depth`` is the alpha-blended render (as SplaTAM)."""
+    only where the observed depth is valid. ``depth`` is the alpha-blended render (as SplaTAM).
+    With ``cfg.densify_median_depth`` the depth test also needs the render's ``median_depth`` behind the
+    observation by the same margin (MapperConfig "Depth test at edges")."""
     valid = obs_depth > 0
     error = (obs_depth - depth).abs()
     median_error = error[valid].median() if bool(valid.any()) else error.new_zeros(())
-    in_front = (obs_depth < depth) & (error > cfg.densify_k * median_error)
+    margin = cfg.densify_k * median_error
+    in_front = (obs_depth < depth) & (error > margin)
+    if cfg.densify_median_depth:
+        if median_depth is None:
+            raise ValueError("densification_mask: densify_median_depth needs the median_depth render")
+        in_front &= (median_depth - obs_depth) > margin
     if cfg.densify_max_depth_m is not None:
         in_front &= obs_depth < cfg.densify_max_depth_m
     return valid & ((alpha < cfg.densify_opacity) | in_front)
@@ -44,6 +51,35 @@ def stride_mask(mask: torch.Tensor, stride: int) -> torch.Tensor:
     grid = torch.zeros_like(mask)
     grid[stride // 2::stride, stride // 2::stride] = True
     return mask & grid
+
+
+def depth_edge_band(depth: torch.Tensor, band_px: int, jump: float) -> torch.Tensor:
+    """(H, W) bool: the pixels on the near side of a depth jump, within ``band_px`` pixels of it. A jump
+    is where the observed surface is not continuous: the inverse depth, affine on a plane, has a second
+    difference (along rows or columns, neighbours 1 px away) above ``jump`` times its value, or a
+    neighbour is invalid. A pixel is on its near side when some depth within ``band_px`` pixels is farther
+    than its own by more than ``jump`` of it (invalid depth counts as infinitely far). Only those
+    Gaussians reach over something else; a far floor or a wall seen at a slant, whose depth grows fast
+    but smoothly, is no jump."""
+    d = depth.to(torch.float32)
+    valid = d > 0
+    inv = torch.where(valid, 1.0 / d.clamp_min(1e-12), torch.zeros_like(d))
+    edge = torch.zeros_like(valid)
+    for dim in (0, 1):
+        n = d.shape[dim]
+        if n < 3:
+            continue
+        a, p, b = (inv.narrow(dim, i, n - 2) for i in range(3))
+        va, vp, vb = (valid.narrow(dim, i, n - 2) for i in range(3))
+        kink = vp & (~va | ~vb | ((a - 2.0 * p + b).abs() > jump * p))
+        edge.narrow(dim, 1, n - 2).logical_or_(kink)
+    k = 2 * band_px + 1
+    far = torch.where(valid, d, torch.full_like(d, float("inf")))[None, None]
+    near = torch.nn.functional.max_pool2d(far, k, stride=1, padding=band_px)[0, 0] > d * (1.0 + jump)
+    if band_px > 1:
+        edge = torch.nn.functional.max_pool2d(edge[None, None].float(), 2 * band_px - 1, stride=1,
+                                              padding=band_px - 1)[0, 0] > 0
+    return edge & near & valid
 
 
 def surface_frame(depth: np.ndarray, v: np.ndarray, u: np.ndarray, K: np.ndarray, stride: int,
@@ -119,12 +155,17 @@ def gaussians_from_pixels(mask: torch.Tensor, rgb: torch.Tensor, depth: torch.Te
     pixels that sample it, and its radius along the normal is ``init_normal_scale`` times the radius
     (departures, see MapperConfig)."""
     pick = stride_mask(mask, cfg.pixel_stride)
+    fine = torch.zeros_like(mask)
+    if cfg.edge_band_px > 0 and cfg.pixel_stride > 1:  # every pixel near a depth jump, at its own radius
+        fine = mask & depth_edge_band(depth, cfg.edge_band_px, cfg.edge_jump)
+        pick = (pick & ~fine) | fine
     v, u = (t.cpu().numpy() for t in torch.nonzero(pick, as_tuple=True))
     depth_np = depth.detach().cpu().numpy()
     points = torch.from_numpy(backproject(depth_np, pose, K, v, u).astype(np.float32))
     z = torch.from_numpy(depth_np[v, u])
     focal = 0.5 * (float(K[0, 0]) + float(K[1, 1]))
-    radii = cfg.init_radius_scale * cfg.pixel_stride * z / focal
+    stride = torch.where(fine.cpu()[torch.from_numpy(v), torch.from_numpy(u)], 1.0, float(cfg.pixel_stride))
+    radii = cfg.init_radius_scale * stride * z / focal
     colors = rgb[torch.from_numpy(v), torch.from_numpy(u)]
     frames = factors = None
     if cfg.init_max_elongation > 1.0 or cfg.init_normal_scale < 1.0:

@@ -234,7 +234,7 @@ class Mapper:
             out = self._render_or_blank(pose, front)
             hl = high_loss_mask(out["alpha"], out["median_depth"], obs_depth, cfg)
             self.high_loss_mask = hl.cpu().numpy()
-            new_mask = densification_mask(out["alpha"], out["depth"], obs_depth, cfg)
+            new_mask = densification_mask(out["alpha"], out["depth"], obs_depth, cfg, out["median_depth"])
             if footprint is not None:  # the retired Gaussians' footprint is covered anew, whatever is behind
                 new_mask |= footprint & (obs_depth > 0)
         clock.lap("render_masks")
