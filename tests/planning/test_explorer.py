@@ -191,3 +191,26 @@ def test_multi_connected_stops_keep_their_spacing_from_every_rotation_spot_and_t
             got.append(ex.stop_on_the_way(_obs([x, 1.5]).pose))
             ex.rotation_targets = []
         assert got == stops, spacing
+
+
+def test_a_goal_with_no_path_is_marked_failed_and_logged(monkeypatch):
+    """stops.json's "failures" say which goals were closed and why (a closed goal stays closed until no
+    goal is left, so these marks explain an agent that ignores part of the house)."""
+    ws = extract_workspace(corridor(), HERE, WCFG)
+    graph = build_voronoi_graph(ws, WCFG)
+    pos = {n: np.asarray(d["pos"], float) for n, d in graph.nodes(data=True)}
+    far = max(pos, key=lambda n: pos[n][0])
+    mid = sorted(pos, key=lambda n: pos[n][0])[len(pos) // 2]
+    monkeypatch.setattr(explorer_module, "build_plan", lambda *a, **k: Plan(workspace=ws, graph=graph))
+    monkeypatch.setattr(explorer_module, "rank_goals", lambda *a, **k: [far, mid])
+    real = explorer_module.plan_safe_path
+    monkeypatch.setattr(explorer_module, "plan_safe_path",
+                        lambda g, w, a, b, c: None if np.allclose(b, pos[far]) else real(g, w, a, b, c))
+    ex = ActiveSplatExplorer(WORLD, 0.0, ExplorerConfig(workspace=WCFG))
+    obs = _obs(HERE)
+    _after_bootstrap(ex, obs)
+    ex.act(obs)
+    assert np.allclose(ex.plan.goal, pos[mid])
+    assert len(ex.failed) == 1 and np.allclose(ex.failed[0], pos[far])
+    assert ex.failures == [{"step": len(ex.visited) - 1, "goal": [round(float(v), 3) for v in pos[far]],
+                            "why": "no path", "failed_now": 1}]

@@ -279,6 +279,10 @@ class Explorer:
         self.rotation_targets: list[RotationTarget] = []
         self.visited: list[np.ndarray] = []
         self.failed: list[np.ndarray] = []
+        self.failures: list[dict] = []
+        """Every goal marked failed: step, goal (x, z), why ("no path" to it on the graph, or the path was
+        "blocked" ahead / a forward move refused) and the failed list's size then (the episode's
+        stops.json, under "failures"). A failed goal stays closed until no goal is left."""
         self.dense_mapping = True
         self.last_panorama: Panorama | None = None
         self.queue: list[str] = []
@@ -416,8 +420,13 @@ class Explorer:
 
     def _fail_goal(self) -> None:
         if self.plan.goal is not None:
-            self.failed.append(self.plan.goal)
+            self._mark_failed(self.plan.goal, "blocked")
         self.follower = None
+
+    def _mark_failed(self, goal: np.ndarray, why: str) -> None:
+        self.failed.append(goal)
+        self.failures.append({"step": len(self.visited) - 1, "goal": [round(float(v), 3) for v in goal],
+                              "why": why, "failed_now": len(self.failed)})
 
     def _on_collision(self, pose: np.ndarray) -> None:
         """A refused forward move: mark the goal failed and escape toward the clearest heading not yet
@@ -484,7 +493,7 @@ class ActiveSplatExplorer(Explorer):
             if path is None:
                 bridge = self._bridge(plan, here, node, goal, find_path)
                 if bridge is None:
-                    self.failed.append(goal)
+                    self._mark_failed(goal, "no path")
                     continue
                 # not marked failed: from the bridge node it may have a path (each bridge is a node not yet
                 # visited and nearer to the goal, so the bridges toward one goal end)
