@@ -214,3 +214,9 @@ def test_a_goal_with_no_path_is_marked_failed_and_logged(monkeypatch):
     assert len(ex.failed) == 1 and np.allclose(ex.failed[0], pos[far])
     assert ex.failures == [{"step": len(ex.visited) - 1, "goal": [round(float(v), 3) for v in pos[far]],
                             "why": "no path", "failed_now": 1}]
+    # with retry_unreachable the goal is only skipped: not closed, logged as such
+    ex = ActiveSplatExplorer(WORLD, 0.0, ExplorerConfig(workspace=WCFG, retry_unreachable=True))
+    _after_bootstrap(ex, obs)
+    ex.act(obs)
+    assert np.allclose(ex.plan.goal, pos[mid]) and ex.failed == []
+    assert [f["why"] for f in ex.failures] == ["no path, skipped"]

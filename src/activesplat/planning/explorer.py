@@ -113,6 +113,12 @@ class ExplorerConfig:
     marked failed and the agent turns to what it can reach. Fresh medium-100 seed 1: 76.22 -> 81.97 %;
     medium-0..3 x 2 seeds 86.02 -> 86.00 %, fresh medium-100..109 seed 0 86.03 -> 85.43 %, so off
     (docs/benchmark.md "Score per way, and a bridge")."""
+    retry_unreachable: bool = False
+    """A goal with no safe path on this replan's graph is skipped for this replan only instead of marked
+    failed (ours; False = marked failed, i.e. closed until no goal is left, as in the release). A goal cut
+    off for one replan (the floor of a doorway or a corridor not yet mapped) otherwise stays closed for the
+    rest of the episode (medium-1 seed 0 with `--mapper.edge-band-px 2`, README "Mapping at house
+    scale"). Goals refused on the way (a blocked path, a refused forward move) are still marked failed."""
     global_tour: bool = False
     """In the global stage, go first to the subregion that comes first on the shortest open route from the
     agent through every subregion with a node worth a visit (information above `local_score_threshold`;
@@ -493,7 +499,12 @@ class ActiveSplatExplorer(Explorer):
             if path is None:
                 bridge = self._bridge(plan, here, node, goal, find_path)
                 if bridge is None:
-                    self._mark_failed(goal, "no path")
+                    if cfg.retry_unreachable:
+                        self.failures.append({"step": len(self.visited) - 1, "why": "no path, skipped",
+                                              "goal": [round(float(v), 3) for v in goal],
+                                              "failed_now": len(self.failed)})
+                    else:
+                        self._mark_failed(goal, "no path")
                     continue
                 # not marked failed: from the bridge node it may have a path (each bridge is a node not yet
                 # visited and nearer to the goal, so the bridges toward one goal end)
