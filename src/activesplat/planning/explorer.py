@@ -431,6 +431,9 @@ class Explorer:
 
     def _mark_failed(self, goal: np.ndarray, why: str) -> None:
         self.failed.append(goal)
+        self._log_failure(goal, why)
+
+    def _log_failure(self, goal: np.ndarray, why: str) -> None:
         self.failures.append({"step": len(self.visited) - 1, "goal": [round(float(v), 3) for v in goal],
                               "why": why, "failed_now": len(self.failed)})
 
@@ -500,9 +503,7 @@ class ActiveSplatExplorer(Explorer):
                 bridge = self._bridge(plan, here, node, goal, find_path)
                 if bridge is None:
                     if cfg.retry_unreachable:
-                        self.failures.append({"step": len(self.visited) - 1, "why": "no path, skipped",
-                                              "goal": [round(float(v), 3) for v in goal],
-                                              "failed_now": len(self.failed)})
+                        self._log_failure(goal, "no path, skipped")
                     else:
                         self._mark_failed(goal, "no path")
                     continue

@@ -155,7 +155,7 @@ def gaussians_from_pixels(mask: torch.Tensor, rgb: torch.Tensor, depth: torch.Te
     pixels that sample it, and its radius along the normal is ``init_normal_scale`` times the radius
     (departures, see MapperConfig)."""
     pick = stride_mask(mask, cfg.pixel_stride)
-    fine = torch.zeros_like(mask)
+    fine = None
     if cfg.edge_band_px > 0 and cfg.pixel_stride > 1:  # every pixel near a depth jump, at its own radius
         fine = mask & depth_edge_band(depth, cfg.edge_band_px, cfg.edge_jump)
         pick = (pick & ~fine) | fine
@@ -164,7 +164,9 @@ def gaussians_from_pixels(mask: torch.Tensor, rgb: torch.Tensor, depth: torch.Te
     points = torch.from_numpy(backproject(depth_np, pose, K, v, u).astype(np.float32))
     z = torch.from_numpy(depth_np[v, u])
     focal = 0.5 * (float(K[0, 0]) + float(K[1, 1]))
-    stride = torch.where(fine.cpu()[torch.from_numpy(v), torch.from_numpy(u)], 1.0, float(cfg.pixel_stride))
+    stride = float(cfg.pixel_stride)
+    if fine is not None:
+        stride = torch.where(fine.cpu()[torch.from_numpy(v), torch.from_numpy(u)], 1.0, stride)
     radii = cfg.init_radius_scale * stride * z / focal
     colors = rgb[torch.from_numpy(v), torch.from_numpy(u)]
     frames = factors = None
