@@ -95,7 +95,7 @@ def test_same_seed_same_actions(episode, tmp_path):
 
 
 def test_interrupted_run_leaves_a_consistent_partial_episode(tmp_path, monkeypatch):
-    from activesplat.planning import explorer as explorer_mod
+    from activesplat.planning import activesplat as explorer_mod
 
     original = explorer_mod.ActiveSplatExplorer.act
     calls = {"n": 0}

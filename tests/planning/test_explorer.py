@@ -10,10 +10,11 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "workspace"))
 from layouts import RES, corridor  # noqa: E402
 
-import activesplat.planning.explorer as explorer_module  # noqa: E402
+import activesplat.planning.activesplat as explorer_module  # noqa: E402
 from activesplat.geometry import camera_pose, pose_yaw_pitch, wrap_angle  # noqa: E402
+from activesplat.planning.activesplat import ActiveSplatExplorer  # noqa: E402
 from activesplat.planning.controller import ControllerConfig  # noqa: E402
-from activesplat.planning.explorer import ActiveSplatExplorer, ExplorerConfig  # noqa: E402
+from activesplat.planning.explorer import ExplorerConfig  # noqa: E402
 from activesplat.workspace.clean import extract_workspace  # noqa: E402
 from activesplat.workspace.config import WorkspaceConfig  # noqa: E402
 from activesplat.workspace.paths import path_ahead_clear  # noqa: E402

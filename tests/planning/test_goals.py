@@ -11,8 +11,9 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "workspace"))
 from layouts import RES, corridor  # noqa: E402
 
+from activesplat.planning.activesplat import goal_rules  # noqa: E402
 from activesplat.planning.config import PlanningConfig  # noqa: E402
-from activesplat.planning.explorer import ExplorerConfig, goal_rules  # noqa: E402
+from activesplat.planning.explorer import ExplorerConfig  # noqa: E402
 from activesplat.planning.goals import (  # noqa: E402
     bridge_toward,
     closer_on_the_way,
@@ -22,6 +23,7 @@ from activesplat.planning.goals import (  # noqa: E402
     rank_goals,
     shortest_tour,
     tour_first,
+    worth_a_detour,
 )
 from activesplat.workspace.clean import extract_workspace  # noqa: E402
 from activesplat.workspace.config import WorkspaceConfig  # noqa: E402
@@ -95,6 +97,36 @@ def test_a_goal_cut_off_from_the_agent_is_approached_through_the_nearest_open_no
     assert second is not None and second[0][0] < pos[best][0] and second[0][0] > HERE[0] + 1.0
     # nothing at least `gain_m` nearer to the goal than the agent: no bridge
     assert bridge_toward(plan, HERE, goal, [], [], RADIUS, WCFG, 10.0, find_path) is None
+
+
+def _detour_plan(side_info: float) -> tuple[Plan, int, int]:
+    """A corridor along x from the agent at 0 to the goal at 10 m, a side branch at x = 3 m up to a node
+    2 m off it (a door), and a node 1 m behind the agent."""
+    import networkx as nx
+
+    graph = nx.Graph()
+    points = {0: (0.0, 0.0), 1: (3.0, 0.0), 2: (10.0, 0.0), 3: (3.0, 2.0), 4: (-1.0, 0.0)}
+    for n, p in points.items():
+        graph.add_node(n, pos=np.array(p))
+    for a, b in [(0, 1), (1, 2), (1, 3), (0, 4)]:
+        graph.add_edge(a, b, weight=float(np.hypot(*np.subtract(points[a], points[b]))))
+    plan = Plan(graph=graph, scores={2: 40.0, 3: 10.0 + side_info, 4: 16.0},
+                info={2: 30.0, 3: side_info, 4: 6.0}, travel={0: 0.0, 1: 3.0, 2: 10.0, 3: 5.0, 4: 1.0})
+    return plan, 2, 3
+
+
+def test_a_node_worth_a_detour_on_the_way_to_a_global_goal_comes_first():
+    plan, goal, side = _detour_plan(side_info=12.0)
+    # agent -> side -> goal is 5 + 9 m against 10 m straight: a 4 m detour
+    assert worth_a_detour(plan, goal, [], [], RADIUS, 5.0, 10.0) == side
+    assert worth_a_detour(plan, goal, [], [], RADIUS, 3.0, 10.0) is None  # too far off the way
+    # a node that promises too little (the one behind the agent: 6 < 10) is no reason to stop
+    assert worth_a_detour(plan, goal, [], [], RADIUS, 5.0, 13.0) is None
+    assert worth_a_detour(plan, goal, [np.array([3.0, 2.0])], [], RADIUS, 5.0, 10.0) is None  # visited
+    assert worth_a_detour(plan, goal, [], [np.array([3.0, 2.0])], RADIUS, 5.0, 10.0) is None  # failed
+    # the nearest qualifying node wins: the one behind the agent, once it promises enough
+    plan.info[4] = 11.0
+    assert worth_a_detour(plan, goal, [], [], RADIUS, 5.0, 10.0) == 4
 
 
 def test_distance_to_polyline():

@@ -10,6 +10,7 @@ from activesplat.splat.config import LearningRates, MapperConfig, Schedule
 from activesplat.splat.densify import (
     cap_mask,
     coarse_mask,
+    colour_detail,
     densification_mask,
     depth_edge_band,
     gaussians_from_pixels,
@@ -197,6 +198,34 @@ def test_pixels_near_a_depth_jump_get_one_gaussian_each_of_a_one_pixel_radius():
     assert torch.allclose(z[band], torch.full_like(z[band], 1.5))
     assert torch.allclose(radius[band], cfg.init_radius_scale * 1 * z[band] / 32.0, rtol=1e-5)
     assert torch.allclose(radius[~band], cfg.init_radius_scale * 2 * z[~band] / 32.0, rtol=1e-5)
+
+
+def test_colour_detail_marks_whole_blocks_whose_colours_span_more_than_the_range():
+    rgb = torch.full((5, 7, 3), 0.5)
+    rgb[1, 2, 1] = 0.8  # the block of rows 0-1, columns 2-3: green spans 0.3
+    rgb[4, 5, 0] = 0.6  # the clipped bottom block (row 4, columns 4-5): red spans 0.1 only
+    detail = colour_detail(rgb, 2, 0.2)
+    expected = torch.zeros(5, 7, dtype=torch.bool)
+    expected[0:2, 2:4] = True
+    assert torch.equal(detail, expected)
+    assert colour_detail(rgb, 2, 0.05)[4, 4:6].all() and not colour_detail(rgb, 2, 0.3).any()
+
+
+def test_a_block_with_colour_detail_gets_one_gaussian_per_pixel_of_a_one_pixel_radius():
+    K = np.array([[32.0, 0, 32], [0, 32.0, 32], [0, 0, 1]])
+    depth = torch.full((64, 64), 2.0)
+    rgb = torch.full((64, 64, 3), 0.4)
+    rgb[10:12, 20:22] = torch.tensor([[[0.9, 0.4, 0.4], [0.1, 0.4, 0.4]]] * 2)  # one 2 x 2 block, two colours
+    mask = torch.ones(64, 64, dtype=torch.bool)
+    cfg = MapperConfig(detail_colour_range=0.2)
+    off = gaussians_from_pixels(mask, rgb, depth, np.eye(4), K, MapperConfig())
+    on = gaussians_from_pixels(mask, rgb, depth, np.eye(4), K, cfg)
+    assert len(off["means"]) == 32 * 32 and len(on["means"]) == 32 * 32 + 3  # the block's grid pixel kept
+    radius = torch.exp(on["log_scales"]).max(dim=1).values
+    assert int((radius < cfg.init_radius_scale * 1.5 * 2.0 / 32.0).sum()) == 4
+    # colours are kept per pixel: the block's two reds both appear
+    reds = on["f_dc"][:, 0] * SH_C0 + 0.5
+    assert (reds > 0.8).sum() == 2 and (reds < 0.2).sum() == 2
 
 
 def test_flat_gaussians_lie_in_the_floor_and_are_thin_along_its_normal():

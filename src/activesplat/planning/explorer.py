@@ -1,11 +1,11 @@
-"""The explorers' shared behaviour (paper sec. III-C, III-D) and the ActiveSplat policy.
+"""The explorers' shared behaviour (paper sec. III-C, III-D) and their configuration.
 
 `Explorer` is what every policy does the same way: the bootstrap look-around, path following with a
 re-check of the path ahead, on-the-spot rotations toward targets, and the escape after a collision. A
 policy subclasses it and decides where to go (`replan`), what to do on arrival (`arrive`) and where to stop
-on the way (`stop_on_the_way`). `ActiveSplatExplorer` goes to Voronoi nodes ranked by `planning.goals`
-(eq. 12 scores, local-then-global, the long-path rule) and turns toward panorama and high-loss targets on
-arrival; `planning.frontier.FrontierExplorer` goes to the nearest frontier.
+on the way (`stop_on_the_way`): `planning.activesplat.ActiveSplatExplorer` goes to Voronoi nodes ranked by
+`planning.goals` (eq. 12 scores, local-then-global, the long-path rule) and turns toward panorama and
+high-loss targets on arrival; `planning.frontier.FrontierExplorer` goes to the nearest frontier.
 
 The policy sees the world only through the online map (`WorldModel`: the Gaussians, a renderer and the
 latest high-loss mask) and its own observations; it never reads the ground-truth mesh.
@@ -29,24 +29,15 @@ from activesplat.planning.controller import (
     floor_xz,
     level_actions,
     rotation_actions,
-    yaw_toward,
-)
-from activesplat.planning.goals import (
-    GoalRules,
-    bridge_toward,
-    closer_on_the_way,
-    rank_goals,
-    select_rotation_targets,
-    worth_a_visit,
 )
 from activesplat.planning.observed import ObservedSurface
-from activesplat.planning.panorama import Panorama, render_panorama
-from activesplat.planning.viewpoints import HighLossTracker, RotationTarget, rotation_candidates
+from activesplat.planning.panorama import Panorama
+from activesplat.planning.viewpoints import HighLossTracker, RotationTarget
 from activesplat.timing import Timers
 from activesplat.workspace.clean import Workspace
 from activesplat.workspace.config import WorkspaceConfig
-from activesplat.workspace.paths import path_ahead_clear, path_length, plan_safe_path
-from activesplat.workspace.plan import Plan, build_plan
+from activesplat.workspace.paths import path_ahead_clear
+from activesplat.workspace.plan import Plan
 
 
 class WorldModel(Protocol):
@@ -145,6 +136,16 @@ class ExplorerConfig:
     """Release: a goal path longer than 13 m (200 steps) is kept only if no closer node lies on the way."""
     on_the_way_m: float = 0.5
     """A node lies on the way of a long path when it is within this of the path (ours)."""
+    detour_m: float | None = None
+    """In the global stage, go first to the nearest open node whose information exceeds
+    `detour_min_info`, if it is nearer than the chosen goal and costs at most this many metres of extra
+    travel on the way to it (graph lengths, `goals.worth_a_detour`), instead of straight to the goal (ours;
+    None = off). The door of an unseen room shows little of the room in a panorama, so a node with a large
+    unseen area behind it elsewhere outranks it and the agent walks past the door (fresh medium-109 and
+    medium-104, seed 0: a room never entered)."""
+    detour_min_info: float = 10.0
+    """The information a node must promise to be worth a detour (ours: a third of the best node's 30; a
+    node just above `local_score_threshold` is a corner of a room already seen)."""
     max_panoramas: int = 24
     """Candidate nodes scored by panorama per replan, nearest first, on top of one per subregion (see
     `panorama_every_subregion`; ours: bounds the replan time)."""
@@ -188,6 +189,7 @@ class ExplorerConfig:
                                          "multi_node_radius_m", "local_score_threshold",
                                          "global_distance_weight", "long_path_m", "on_the_way_m",
                                          "escape_forward_steps", "lookahead_m", "ahead_tolerance_m",
+                                         "detour_min_info",
                                          "panorama_height_m"), at_least_one=("max_panoramas",))
         if self.bridge_gain_m is not None and self.bridge_gain_m < 0:
             raise InvalidInputError(f"ExplorerConfig.bridge_gain_m must be >= 0 (or None = off), got "
@@ -456,173 +458,5 @@ class Explorer:
                                     self.cfg.escape_forward_steps, blocked), "escape")
 
 
-class ActiveSplatExplorer(Explorer):
-    """The full method and its ablations (by configuration): Voronoi-node goals ranked by eq. 12 scores from
-    rendered panoramas, local-then-global over UPGMA subregions (sec. III-C), on-the-spot rotations toward
-    panorama and high-loss targets on arrival (sec. III-B3), rotation stops at multi-connected nodes."""
-
-    name = "activesplat"
-
-    def __init__(self, world: WorldModel, floor_height: float, cfg: ExplorerConfig | None = None,
-                 timers: Timers | None = None):
-        super().__init__(world, floor_height, cfg, timers)
-        self.rotated_at: list[np.ndarray] = []
-        self.stopped_multi: list[np.ndarray] = []
-        self.stops: list[dict] = []
-        """Every rotation stop: step, cause (arrival / multi_stop), floor position, the targets chosen
-        (source, yaw / pitch in degrees, weight) and how many candidates each source offered (the
-        episode's stops.json)."""
-        self.replans: list[dict] = []
-        """Every replan: step, floor position, stage (local / global, `Plan.stage`), the goal (None: idle),
-        its eq. 12 score and information part, the path length, and how many candidates promised something
-        to see (the episode's stops.json, under "replans")."""
-
-    def replan(self, pose: np.ndarray) -> None:
-        """Rebuild the workspace and graph, rank the nodes, go to the best one with a safe path."""
-        cfg = self.cfg
-        here = floor_xz(pose)
-        plan = self.plan = build_plan(self.world.gaussians, self.floor_height, here, cfg.workspace,
-                                      self.timers)
-        rules = goal_rules(cfg)
-        goal_order = self.timers.time("position_selection", rank_goals, plan, here, self.world.render,
-                                      self.floor_height, self.visited, self.failed, cfg.planning,
-                                      cfg.workspace, rules, self.rng, self.observed)
-
-        def find_path(goal: np.ndarray) -> np.ndarray | None:
-            return self.timers.time("planner", plan_safe_path, plan.graph, plan.workspace, here, goal,
-                                    cfg.workspace)
-
-        for node in goal_order:
-            goal = np.asarray(plan.graph.nodes[node]["pos"], float)
-            if np.hypot(*(goal - here)) <= cfg.controller.arrive_radius:
-                # already there: arriving again would end in a replan at once, every step (a `hull-only`
-                # agent spun on the spot for 200 steps that way, replanning four times per step)
-                continue
-            path = find_path(goal)
-            if path is None:
-                bridge = self._bridge(plan, here, node, goal, find_path)
-                if bridge is None:
-                    if cfg.retry_unreachable:
-                        self._log_failure(goal, "no path, skipped")
-                    else:
-                        self._mark_failed(goal, "no path")
-                    continue
-                # not marked failed: from the bridge node it may have a path (each bridge is a node not yet
-                # visited and nearer to the goal, so the bridges toward one goal end)
-                self.go_to(*bridge)
-                self._record_replan(here, node, bridge[1], False, bridge=True)
-                return
-            on_the_way = False
-            if path_length(path) > cfg.long_path_m:
-                ranked_goal = goal
-                goal, path = closer_on_the_way(plan, goal, path, self.visited, self.failed,
-                                               cfg.planning.score.unvisited_radius_m, rules, find_path)
-                on_the_way = goal is not ranked_goal
-            self.go_to(goal, path)
-            self._record_replan(here, node, path, on_the_way)
-            return
-        self._record_replan(here, None, None, False)
-        plan.goal, plan.path = None, None
-        stuck = bool(self.failed)
-        self.failed.clear()  # fallback: forget failures, the next replan gives every goal a second chance
-        self.idle(pose, stuck)
-
-    def _bridge(self, plan: Plan, here: np.ndarray, node: int, goal: np.ndarray,
-                find_path) -> tuple[np.ndarray, np.ndarray] | None:
-        """Where to go instead of a goal worth a visit that has no safe path (`bridge_gain_m`)."""
-        cfg = self.cfg
-        if cfg.bridge_gain_m is None:
-            return None
-        if not worth_a_visit(plan.info.get(node, 0.0), True, cfg.local_score_threshold):
-            return None
-        radius = cfg.planning.score.unvisited_radius_m
-        return bridge_toward(plan, here, goal, self.visited, self.failed, radius, cfg.workspace,
-                             cfg.bridge_gain_m, find_path)
-
-    def _record_replan(self, here: np.ndarray, node: int | None, path: np.ndarray | None,
-                       on_the_way: bool, bridge: bool = False) -> None:
-        plan, thr = self.plan, self.cfg.local_score_threshold
-        rec = {"step": len(self.visited) - 1, "xz": [round(float(v), 3) for v in here], "stage": plan.stage,
-               "candidates": len(plan.scores), "promising": sum(v > thr for v in plan.info.values()),
-               "goal": None}
-        if node is not None and path is not None:
-            rec.update(goal=[round(float(v), 3) for v in self.plan.goal], on_the_way=on_the_way,
-                       score=round(plan.scores.get(node, float("nan")), 2),
-                       info=round(plan.info.get(node, float("nan")), 2), path_m=round(path_length(path), 2))
-            if bridge:  # the goal ranked first had no safe path: `plan.goal` is a node on the way to it
-                rec["bridge_to"] = [round(float(v), 3) for v in plan.graph.nodes[node]["pos"]]
-        self.replans.append(rec)
-
-    def arrive(self, pose: np.ndarray, max_views: int | None = None, cause: str = "arrival") -> None:
-        """On-the-spot rotations toward the panorama and high-loss targets (sec. III-B3), at most
-        `max_views` (default `max_rotation_views`); `cause` names them in `last_cause`."""
-        if not self.cfg.rotations:
-            return
-        here = floor_xz(pose)
-        skip = self.cfg.rotation_skip_radii * self.cfg.workspace.agent_radius
-        if cause == "multi_stop" and self.cfg.multi_stop_spacing_m > 0:
-            skip = self.cfg.multi_stop_spacing_m
-            start = self.visited[:1] if self.cfg.bootstrap_yaw_deg > 0 else []  # the look-around turned there
-            spots = self.rotated_at + start
-        else:
-            spots = self.rotated_at
-        if any(np.hypot(*(here - p)) < skip for p in spots):
-            return
-        self.rotated_at.append(here)
-        self.rotation_cause = cause
-        views = self.cfg.max_rotation_views if max_views is None else max_views
-        self.rotation_targets = self.timers.time("rotation_selection", self._rotation_targets, pose, views)
-
-    def stop_on_the_way(self, pose: np.ndarray) -> bool:
-        """Passing a multi-connected node: a short rotation stop there (paper sec. III-D3)."""
-        if not self.cfg.multi_stops:
-            return False
-        here = floor_xz(pose)
-        for _, data in self.plan.graph.nodes(data=True):
-            if not data.get("multi"):
-                continue
-            pos = np.asarray(data["pos"])
-            if np.hypot(*(pos - here)) > self.cfg.multi_node_radius_m:
-                continue
-            if any(np.hypot(*(pos - p)) < self.cfg.multi_node_radius_m for p in self.stopped_multi):
-                continue
-            self.stopped_multi.append(pos)
-            self.arrive(pose, self.cfg.multi_stop_views, cause="multi_stop")
-            return bool(self.rotation_targets)
-        return False
-
-    def _rotation_targets(self, pose: np.ndarray, max_views: int) -> list[RotationTarget]:
-        pcfg = self.cfg.planning
-        origin = pose[:3, 3]
-        pano = self.last_panorama = render_panorama(self.world.render, origin, pcfg.panorama)
-        targets = rotation_candidates(pano, pcfg.rotation) + self.high_loss.targets(origin, max_distance=4.0)
-        yaw, pitch = pose_yaw_pitch(pose)
-        ctrl = self.cfg.controller if self.cfg.fewest_action_tour else None
-        resume = None  # a stop on the way turns back toward the path afterwards: count those turns too
-        if self.follower is not None and not self.follower.done:
-            resume = yaw_toward(floor_xz(pose), self.follower.waypoints[0])
-        chosen = select_rotation_targets(targets, yaw, pcfg, max_views, pitch, ctrl, resume)
-        self.stops.append({
-            "step": len(self.visited) - 1, "cause": self.rotation_cause,
-            "xz": [round(float(v), 3) for v in floor_xz(pose)],
-            "candidates": {src: sum(t.source == src for t in targets) for src in ("panorama", "high_loss")},
-            "targets": [{"source": t.source, "yaw_deg": round(math.degrees(t.yaw), 1),
-                         "pitch_deg": round(math.degrees(t.pitch), 1), "weight": round(float(t.weight), 1)}
-                        for t in chosen]})
-        return chosen
-
-
-def goal_rules(cfg: ExplorerConfig) -> GoalRules:
-    """The goal-selection knobs of an explorer configuration."""
-    return GoalRules(local_score_threshold=cfg.local_score_threshold,
-                     global_distance_weight=cfg.global_distance_weight, max_panoramas=cfg.max_panoramas,
-                     panorama_height_m=cfg.panorama_height_m, hierarchical=cfg.hierarchical,
-                     random_goals=cfg.random_goals, long_path_m=cfg.long_path_m,
-                     on_the_way_m=cfg.on_the_way_m, global_in_horizon=cfg.global_in_horizon,
-                     global_information_first=cfg.global_information_first,
-                     panorama_every_subregion=cfg.panorama_every_subregion,
-                     global_halving_m=cfg.global_halving_m, global_tour=cfg.global_tour)
-
-
-__all__ = ["ActiveSplatExplorer", "Explorer", "ExplorerConfig", "ExplorerView", "Plan", "Timers",
-           "WorldModel", "bootstrap_actions", "build_plan", "escape_actions", "goal_rules", "turns_for"]
+__all__ = ["Explorer", "ExplorerConfig", "ExplorerView", "Plan", "Timers", "WorldModel", "bootstrap_actions",
+           "escape_actions", "turns_for"]

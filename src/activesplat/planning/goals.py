@@ -307,6 +307,7 @@ def rank_goals(plan: Plan, here: np.ndarray, render: RenderFn, floor_height: flo
         inv, vol, unvisited, np.zeros_like(in_horizon), is_failed, score_cfg) + extra
     plan.scores = {n: float(s) for n, s in zip(nodes, scores, strict=True)}
     travel = travel_lengths(graph, here, nodes, pos)
+    plan.travel = {n: float(t) for n, t in zip(nodes, travel, strict=True)}
     # the information terms (w_o s_o + w_c s_c, shares relative to the best node anywhere): what keeps
     # planning local, and what makes a node worth a stop on a long path's way
     info = information_scores(inv, vol, score_cfg) + extra
@@ -391,6 +392,34 @@ def closer_on_the_way(plan: Plan, goal: np.ndarray, path: np.ndarray, visited: S
     return best, closer
 
 
+def worth_a_detour(plan: Plan, goal_node: int, visited: Sequence[np.ndarray], failed: Sequence[np.ndarray],
+                   unvisited_radius: float, detour_m: float, min_info: float) -> int | None:
+    """A node worth a visit on the way to a global goal (ours): among the open nodes whose information
+    exceeds `min_info`, nearer to the agent than the goal, and costing at most `detour_m` of extra
+    travel (agent -> node -> goal along the graph, against agent -> goal), the nearest; None when there is
+    none. A room passed on the way, whose door shows little of it, is looked into then rather than at the
+    end of the episode."""
+    graph = plan.graph
+    if goal_node not in graph or goal_node not in plan.travel:
+        return None
+    to_goal = nx.single_source_dijkstra_path_length(graph, goal_node, weight="weight")
+    direct = plan.travel[goal_node]
+    best, best_travel = None, np.inf
+    for node, info in plan.info.items():
+        if node == goal_node or info <= min_info or node not in to_goal:
+            continue
+        travel = plan.travel.get(node, np.inf)
+        if travel >= direct or travel + to_goal[node] - direct > detour_m:
+            continue
+        pos = np.asarray(graph.nodes[node]["pos"], float)
+        unvisited, is_failed = node_state(pos, visited, failed, unvisited_radius)
+        if not unvisited or is_failed:
+            continue
+        if travel < best_travel:
+            best, best_travel = node, travel
+    return best
+
+
 def select_rotation_targets(targets: Sequence[RotationTarget], yaw: float, pcfg: PlanningConfig,
                             max_views: int, pitch: float = 0.0, ctrl: ControllerConfig | None = None,
                             final_yaw: float | None = None) -> list[RotationTarget]:
@@ -419,4 +448,4 @@ def select_rotation_targets(targets: Sequence[RotationTarget], yaw: float, pcfg:
 
 __all__ = ["GoalRules", "closer_on_the_way", "distance_to_polyline", "goal_candidates", "local_then_global",
            "node_state", "pairwise_travel", "panorama_candidates", "rank_goals", "select_rotation_targets",
-           "shortest_tour", "tour_first", "travel_lengths", "worth_a_visit"]
+           "shortest_tour", "tour_first", "travel_lengths", "worth_a_detour", "worth_a_visit"]

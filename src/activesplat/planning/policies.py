@@ -7,7 +7,8 @@ import dataclasses
 from collections.abc import Callable
 
 from activesplat.errors import InvalidInputError
-from activesplat.planning.explorer import ActiveSplatExplorer, Explorer, ExplorerConfig, WorldModel
+from activesplat.planning.activesplat import ActiveSplatExplorer
+from activesplat.planning.explorer import Explorer, ExplorerConfig, WorldModel
 from activesplat.planning.frontier import FrontierConfig, FrontierExplorer
 from activesplat.timing import Timers
 

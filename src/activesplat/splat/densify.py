@@ -82,6 +82,19 @@ def depth_edge_band(depth: torch.Tensor, band_px: int, jump: float) -> torch.Ten
     return edge & near & valid
 
 
+def colour_detail(rgb: torch.Tensor, stride: int, colour_range: float) -> torch.Tensor:
+    """(H, W) bool: the pixels of the ``stride`` x ``stride`` blocks whose colours span more than
+    ``colour_range`` in some channel (max - min over the block): where one Gaussian per block would blur
+    texture the observation has."""
+    h, w = rgb.shape[:2]
+    x = rgb.to(torch.float32).permute(2, 0, 1)[None]
+    pad = (0, (-w) % stride, 0, (-h) % stride)
+    hi = torch.nn.functional.max_pool2d(torch.nn.functional.pad(x, pad, value=-1.0), stride)
+    lo = -torch.nn.functional.max_pool2d(torch.nn.functional.pad(-x, pad, value=-2.0), stride)
+    block = ((hi - lo) > colour_range).any(dim=1)[0]
+    return block.repeat_interleave(stride, 0).repeat_interleave(stride, 1)[:h, :w]
+
+
 def surface_frame(depth: np.ndarray, v: np.ndarray, u: np.ndarray, K: np.ndarray, stride: int,
                   plane_tol: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The observed surface around pixels (v, u) in the camera frame: ``normal`` (unit, facing the
@@ -158,7 +171,11 @@ def gaussians_from_pixels(mask: torch.Tensor, rgb: torch.Tensor, depth: torch.Te
     fine = None
     if cfg.edge_band_px > 0 and cfg.pixel_stride > 1:  # every pixel near a depth jump, at its own radius
         fine = mask & depth_edge_band(depth, cfg.edge_band_px, cfg.edge_jump)
-        pick = (pick & ~fine) | fine
+    if cfg.detail_colour_range is not None and cfg.pixel_stride > 1:  # and every pixel of a detailed block
+        detail = mask & colour_detail(rgb, cfg.pixel_stride, cfg.detail_colour_range) & (depth > 0)
+        fine = detail if fine is None else fine | detail
+    if fine is not None:
+        pick = pick | fine
     v, u = (t.cpu().numpy() for t in torch.nonzero(pick, as_tuple=True))
     depth_np = depth.detach().cpu().numpy()
     points = torch.from_numpy(backproject(depth_np, pose, K, v, u).astype(np.float32))
