@@ -27,7 +27,7 @@ def _psnr(mapper: Mapper, cam_pose, rgb) -> float:
 
 
 def test_first_frame_initialises_one_gaussian_per_strided_pixel():
-    mapper = _mapper(pixel_stride=2)
+    mapper = _mapper(pixel_stride=2, detail_colour_range=None)  # the grid alone (no colour detail)
     rgb, depth = observe(pose(), S)
     stats = mapper.add_frame(rgb, depth, pose())
     assert stats.mapped and stats.keyframe and stats.added == (S // 2) ** 2 == len(mapper.gaussians)
@@ -56,8 +56,9 @@ def test_map_quality_improves_with_iterations():
 
 
 def test_densification_adds_gaussians_only_where_the_mask_says():
-    # the stride grid alone: the box's silhouette would get one Gaussian per pixel with edge_band_px
-    mapper = _mapper(iterations=0, pixel_stride=2, mask_downscale=1, edge_band_px=0)
+    # the stride grid alone: the box's silhouette would get one Gaussian per pixel with edge_band_px, and
+    # its colour edge with detail_colour_range
+    mapper = _mapper(iterations=0, pixel_stride=2, mask_downscale=1, edge_band_px=0, detail_colour_range=None)
     rgb, depth = observe(pose(), S)
     mapper.add_frame(rgb, depth, pose())
     n0 = len(mapper.gaussians)
@@ -176,7 +177,7 @@ def test_half_resolution_mask_render_finds_the_same_new_surface():
 
 def test_floaters_in_observed_free_space_are_pruned():
     """A box that disappears (seen as free space) is pruned; the wall it hid is then mapped."""
-    mapper = _mapper(iterations=0, pixel_stride=2)
+    mapper = _mapper(iterations=0, pixel_stride=2, detail_colour_range=None)
     rgb_b, depth_b = observe(pose(), S, box=(-0.3, 0.3, -0.3, 0.3, 1.0))
     mapper.add_frame(rgb_b, depth_b, pose())
     z = mapper.gaussians.means[:, 2].detach().numpy()

@@ -218,7 +218,7 @@ def test_a_block_with_colour_detail_gets_one_gaussian_per_pixel_of_a_one_pixel_r
     rgb[10:12, 20:22] = torch.tensor([[[0.9, 0.4, 0.4], [0.1, 0.4, 0.4]]] * 2)  # one 2 x 2 block, two colours
     mask = torch.ones(64, 64, dtype=torch.bool)
     cfg = MapperConfig(detail_colour_range=0.2)
-    off = gaussians_from_pixels(mask, rgb, depth, np.eye(4), K, MapperConfig())
+    off = gaussians_from_pixels(mask, rgb, depth, np.eye(4), K, MapperConfig(detail_colour_range=None))
     on = gaussians_from_pixels(mask, rgb, depth, np.eye(4), K, cfg)
     assert len(off["means"]) == 32 * 32 and len(on["means"]) == 32 * 32 + 3  # the block's grid pixel kept
     radius = torch.exp(on["log_scales"]).max(dim=1).values
