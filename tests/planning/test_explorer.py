@@ -221,3 +221,35 @@ def test_a_goal_with_no_path_is_marked_failed_and_logged(monkeypatch):
     ex.act(obs)
     assert np.allclose(ex.plan.goal, pos[mid]) and ex.failed == []
     assert [f["why"] for f in ex.failures] == ["no path, skipped"]
+
+
+def test_a_global_replan_stops_first_at_a_node_worth_a_detour(monkeypatch):
+    """`detour_m`: the far goal ranked first is reached by way of a nearer node that promises enough (the
+    door of a room passed on the way); with the rule off, or in the local stage, straight to the goal."""
+    ws = extract_workspace(corridor(), HERE, WCFG)
+    graph = build_voronoi_graph(ws, WCFG)
+    pos = {n: np.asarray(d["pos"], float) for n, d in graph.nodes(data=True)}
+    far = max(pos, key=lambda n: pos[n][0])
+    mid = sorted(pos, key=lambda n: pos[n][0])[len(pos) // 2]
+
+    def plan_for(stage):
+        def build(*a, **k):
+            return Plan(workspace=ws, graph=graph)
+
+        def rank(plan, here, *a, **k):
+            plan.stage = stage
+            plan.scores, plan.info = {far: 40.0, mid: 25.0}, {far: 30.0, mid: 12.0}
+            plan.travel = {n: float(abs(pos[n][0] - here[0])) for n in (far, mid)}
+            return [far, mid]
+
+        monkeypatch.setattr(explorer_module, "build_plan", build)
+        monkeypatch.setattr(explorer_module, "rank_goals", rank)
+
+    obs = _obs(HERE)
+    for stage, detour_m, expected in (("global", 5.0, mid), ("global", None, far), ("local", 5.0, far)):
+        plan_for(stage)
+        ex = ActiveSplatExplorer(WORLD, 0.0, ExplorerConfig(workspace=WCFG, detour_m=detour_m))
+        _after_bootstrap(ex, obs)
+        ex.act(obs)
+        assert np.allclose(ex.plan.goal, pos[expected]), (stage, detour_m)
+        assert ex.replans[-1]["on_the_way"] == (expected == mid)
