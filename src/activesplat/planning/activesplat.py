@@ -86,8 +86,8 @@ class ActiveSplatExplorer(Explorer):
                 self._record_replan(here, node, bridge[1], False, bridge=True)
                 return
             on_the_way = False
+            radius = cfg.planning.score.unvisited_radius_m
             if cfg.detour_m is not None and plan.stage == "global":
-                radius = cfg.planning.score.unvisited_radius_m
                 stop = worth_a_detour(plan, node, self.visited, self.failed, radius, cfg.detour_m,
                                       cfg.detour_min_info)
                 stop_pos = None if stop is None else np.asarray(plan.graph.nodes[stop]["pos"], float)
@@ -96,8 +96,8 @@ class ActiveSplatExplorer(Explorer):
                     goal, path, on_the_way = stop_pos, detour, True
             if path_length(path) > cfg.long_path_m:
                 ranked_goal = goal
-                goal, path = closer_on_the_way(plan, goal, path, self.visited, self.failed,
-                                               cfg.planning.score.unvisited_radius_m, rules, find_path)
+                goal, path = closer_on_the_way(plan, goal, path, self.visited, self.failed, radius, rules,
+                                               find_path)
                 on_the_way = on_the_way or goal is not ranked_goal
             self.go_to(goal, path)
             self._record_replan(here, node, path, on_the_way)

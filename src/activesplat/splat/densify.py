@@ -158,7 +158,8 @@ def surface_elongation(cos: np.ndarray, ok: np.ndarray, max_elongation: float) -
 
 def gaussians_from_pixels(mask: torch.Tensor, rgb: torch.Tensor, depth: torch.Tensor, pose: np.ndarray,
                           K: np.ndarray, cfg: MapperConfig) -> dict[str, torch.Tensor]:
-    """Raw parameters of one Gaussian per masked pixel on the ``pixel_stride`` grid: back-projected
+    """Raw parameters of one Gaussian per masked pixel (``mask`` lies on valid observed depth, as eq. 8's
+    mask does) on the ``pixel_stride`` grid: back-projected
     centre, radius = init_radius_scale * stride * depth / focal (projective scale), opacity
     ``init_opacity``, colour = the pixel's colour (docs/protocol.md §2, initialisation). Isotropic as the
     paper when ``init_max_elongation`` and ``init_normal_scale`` are 1. Otherwise, where the observed
@@ -172,7 +173,7 @@ def gaussians_from_pixels(mask: torch.Tensor, rgb: torch.Tensor, depth: torch.Te
     if cfg.edge_band_px > 0 and cfg.pixel_stride > 1:  # every pixel near a depth jump, at its own radius
         fine = mask & depth_edge_band(depth, cfg.edge_band_px, cfg.edge_jump)
     if cfg.detail_colour_range is not None and cfg.pixel_stride > 1:  # and every pixel of a detailed block
-        detail = mask & colour_detail(rgb, cfg.pixel_stride, cfg.detail_colour_range) & (depth > 0)
+        detail = mask & colour_detail(rgb, cfg.pixel_stride, cfg.detail_colour_range)
         fine = detail if fine is None else fine | detail
     if fine is not None:
         pick = pick | fine
