@@ -26,6 +26,10 @@ class EpisodeError(ActiveSplatError, ValueError):
     """A folder that is not a (complete) episode, or one that would be overwritten."""
 
 
+class RecordingError(InvalidInputError):
+    """A recording that cannot be mapped: the message names the topic (or file) and the message."""
+
+
 def check_fields(obj, *, positive: tuple[str, ...] = (), non_negative: tuple[str, ...] = (),
                  unit: tuple[str, ...] = (), at_least_one: tuple[str, ...] = ()) -> None:
     """Validate the named numeric fields of a config dataclass: ``positive`` > 0, ``non_negative`` >= 0,

@@ -9,7 +9,7 @@ import cv2
 import numpy as np
 
 from activesplat.robot.mapping import WORLD_UP
-from activesplat.robot.recording import matrix_tq
+from activesplat.robot.transforms import matrix_tq
 
 T0 = 1_700_000_000 * 10**9
 DT = 100_000_000  # 10 Hz

@@ -32,7 +32,8 @@ import numpy as np
 from activesplat.env import ACTIONS, Observation
 from activesplat.errors import InvalidInputError
 from activesplat.robot.mapping import WORLD_UP
-from activesplat.robot.recording import decode_color, decode_depth, matrix_tq, pose_matrix
+from activesplat.robot.recording import decode_color, decode_depth
+from activesplat.robot.transforms import matrix_tq, pose_matrix
 
 ACTION_TOPIC = "/activesplat/action"
 WAYPOINT_TOPIC = "/activesplat/waypoint"

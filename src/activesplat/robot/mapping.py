@@ -35,7 +35,8 @@ import numpy as np
 from activesplat.episode import write_json_atomic
 from activesplat.errors import EpisodeError, InvalidInputError
 from activesplat.eval.render_eval import HELDOUT_FILE
-from activesplat.robot.recording import Recording, matrix_tq
+from activesplat.robot.recording import Recording
+from activesplat.robot.transforms import matrix_tq
 
 WORLD_UP = {"y": np.eye(4), "z": np.array([[1.0, 0, 0, 0], [0, 0, 1, 0], [0, -1, 0, 0], [0, 0, 0, 1]])}
 """map_T_source per up axis of the source world: z-up (x, y, z) -> (x, z, -y), a proper rotation."""
