@@ -253,3 +253,32 @@ def test_a_global_replan_stops_first_at_a_node_worth_a_detour(monkeypatch):
         ex.act(obs)
         assert np.allclose(ex.plan.goal, pos[expected]), (stage, detour_m)
         assert ex.replans[-1]["on_the_way"] == (expected == mid)
+
+
+def test_a_rotation_stop_on_the_way_keeps_the_travelling_schedule(monkeypatch):
+    """docs/protocol.md §2: the dense schedule while the agent turns on the spot with no path (bootstrap,
+    arrival, escapes); a stop at a multi-connected node turns with its path still waiting and keeps the
+    travelling schedule (the dense one measured within noise on the tuning houses)."""
+    import networkx as nx
+
+    from activesplat.planning.controller import PathFollower
+    from activesplat.planning.viewpoints import RotationTarget
+
+    graph = nx.Graph()
+    graph.add_node(0, pos=(2.0, 1.2), multi=True)
+    ex = ActiveSplatExplorer(WORLD, 0.0, ExplorerConfig(workspace=WCFG, multi_stop_spacing_m=0.0))
+    ex.queue.clear(), ex.queue_causes.clear()  # the bootstrap
+    ex.plan = Plan(graph=graph)
+    ex.follower = PathFollower(np.array([[5.0, 1.2]]), ex.cfg.controller)
+    monkeypatch.setattr(ex, "_rotation_targets", lambda pose, n: [RotationTarget(yaw=np.radians(-60.0),
+                                                                                 pitch=0.0, weight=1.0,
+                                                                                 source="panorama")])
+    yaw, seen = 0.0, []
+    for _ in range(12):  # turns applied as the simulator does
+        action = ex.act(SimpleNamespace(pose=camera_pose([2.1, 1.25, 1.2], yaw), collided=False, step=0))
+        seen.append((ex.last_cause, ex.dense_mapping))
+        if ex.last_cause == "path":
+            break
+        yaw += np.radians(10.0) * {"turn_left": 1, "turn_right": -1}[action]
+    assert seen[:6] == [("multi_stop", False)] * 6  # six right turns to -60 deg, with a path waiting
+    assert seen[-1] == ("path", False) and ex.follower is not None
