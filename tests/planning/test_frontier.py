@@ -70,3 +70,22 @@ def test_fbe_goes_to_the_nearest_frontier_and_not_back_to_a_reached_one():
     assert found and path is not None and path[-1][0] > 2.5  # the frontier is the room's open right side
     again, _ = nearest_frontier_path(grids, ws, here, [path[-1]], cfg, FrontierConfig())  # reached
     assert again is None or np.hypot(*(again[-1] - path[-1])) > 0.5
+
+
+def test_fbe_forgets_its_failed_goals_when_no_frontier_is_reachable(monkeypatch):
+    """Frontiers left but none reachable from here (the failed goals cover the reachable ones): escape,
+    look around, and give every frontier a second chance; keeping the failures trapped the agent."""
+    import activesplat.planning.frontier as frontier_module
+    from activesplat.workspace.plan import Plan
+
+    monkeypatch.setattr(frontier_module, "build_plan", lambda *a, **k: Plan())
+    monkeypatch.setattr(frontier_module, "nearest_frontier_path", lambda *a, **k: (None, True))
+    from types import SimpleNamespace
+
+    p = make_policy("fbe", world=SimpleNamespace(gaussians=None), floor_height=0.0)
+    p.queue.clear(), p.queue_causes.clear()  # the bootstrap
+    p.failed.append(np.array([1.0, 1.0]))
+    p.reached.append(np.array([2.0, 1.0]))
+    p.replan(np.eye(4))
+    assert not p.failed and not p.reached
+    assert p.queue_causes[0] == "escape" and p.queue_causes[-1] == "idle"

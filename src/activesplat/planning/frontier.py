@@ -158,13 +158,15 @@ class FrontierExplorer(Explorer):
         plan = self.plan = build_plan(self.world.gaussians, self.floor_height, here, cfg.workspace,
                                       self.timers, graph=False)
         stuck = bool(self.failed)
-        path, found = self.timers.time("position_selection", nearest_frontier_path, plan.grids,
+        path, _ = self.timers.time("position_selection", nearest_frontier_path, plan.grids,
                                        plan.workspace, here, [*self.failed, *self.reached], cfg.workspace,
                                        self.fcfg)
-        if not found:  # fallback: give every frontier a second chance
+        if path is None:
+            # fallback: give every frontier a second chance, also when frontiers are left but none is
+            # reachable from here (the failed ones covered every reachable frontier; kept, they held the
+            # agent in a corner for 1500 steps, escaping and turning, on fresh medium-101 and medium-105)
             self.reached.clear()
             self.failed.clear()
-        if path is None:
             plan.goal = plan.path = None
             self.idle(pose, stuck)
             return
