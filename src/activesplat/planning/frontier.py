@@ -159,8 +159,8 @@ class FrontierExplorer(Explorer):
                                       self.timers, graph=False)
         stuck = bool(self.failed)
         path, _ = self.timers.time("position_selection", nearest_frontier_path, plan.grids,
-                                       plan.workspace, here, [*self.failed, *self.reached], cfg.workspace,
-                                       self.fcfg)
+                                   plan.workspace, here, [*self.failed, *self.reached], cfg.workspace,
+                                   self.fcfg)
         if path is None:
             # fallback: give every frontier a second chance, also when frontiers are left but none is
             # reachable from here (the failed ones covered every reachable frontier; kept, they held the
