@@ -66,22 +66,22 @@ def test_fbe_goes_to_the_nearest_frontier_and_not_back_to_a_reached_one():
     free = (x > 0.3) & (x < 3.0) & (z > 0.3) & (z < 2.3)
     walls = ((x > 0.15) & (x < 3.0) & (z > 0.15) & (z < 2.45)) & ~free
     grids, ws, here, cfg = _layout(free, walls)
-    path, found = nearest_frontier_path(grids, ws, here, [], cfg, FrontierConfig())
-    assert found and path is not None and path[-1][0] > 2.5  # the frontier is the room's open right side
-    again, _ = nearest_frontier_path(grids, ws, here, [path[-1]], cfg, FrontierConfig())  # reached
+    path = nearest_frontier_path(grids, ws, here, [], cfg, FrontierConfig())
+    assert path is not None and path[-1][0] > 2.5  # the frontier is the room's open right side
+    again = nearest_frontier_path(grids, ws, here, [path[-1]], cfg, FrontierConfig())  # reached
     assert again is None or np.hypot(*(again[-1] - path[-1])) > 0.5
 
 
 def test_fbe_forgets_its_failed_goals_when_no_frontier_is_reachable(monkeypatch):
     """Frontiers left but none reachable from here (the failed goals cover the reachable ones): escape,
     look around, and give every frontier a second chance; keeping the failures trapped the agent."""
+    from types import SimpleNamespace
+
     import activesplat.planning.frontier as frontier_module
     from activesplat.workspace.plan import Plan
 
     monkeypatch.setattr(frontier_module, "build_plan", lambda *a, **k: Plan())
-    monkeypatch.setattr(frontier_module, "nearest_frontier_path", lambda *a, **k: (None, True))
-    from types import SimpleNamespace
-
+    monkeypatch.setattr(frontier_module, "nearest_frontier_path", lambda *a, **k: None)
     p = make_policy("fbe", world=SimpleNamespace(gaussians=None), floor_height=0.0)
     p.queue.clear(), p.queue_causes.clear()  # the bootstrap
     p.failed.append(np.array([1.0, 1.0]))

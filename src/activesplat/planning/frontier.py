@@ -90,10 +90,10 @@ def descend(dist: np.ndarray, goal_rc: tuple[int, int]) -> list[tuple[int, int]]
 
 
 def nearest_frontier_path(grids: TopDownGrids, ws: Workspace, here: np.ndarray, avoid: list[np.ndarray],
-                          wcfg: WorkspaceConfig, fcfg: FrontierConfig) -> tuple[np.ndarray | None, bool]:
-    """(path, found): a safe path (M, 2) from `here` to the nearest reachable frontier cluster, None when
-    none is reachable; `found` is False when no frontier is a goal at all. Frontiers within
-    `skip_radius_m` of the agent or of a point of `avoid` (failed goals, frontiers reached) are not goals."""
+                          wcfg: WorkspaceConfig, fcfg: FrontierConfig) -> np.ndarray | None:
+    """A safe path (M, 2) from `here` to the nearest reachable frontier cluster, None when none is a goal
+    or none is reachable. Frontiers within `skip_radius_m` of the agent or of a point of `avoid` (failed
+    goals, frontiers reached) are not goals."""
     geom = grids.geometry
     passable = ws.clearance >= wcfg.agent_radius
     frontier = frontier_cells(ws.mask, grids.unknown)
@@ -113,7 +113,7 @@ def nearest_frontier_path(grids: TopDownGrids, ws: Workspace, here: np.ndarray, 
         cv2.circle(blocked, (int(c), int(r)), k, 1, -1)
     targets &= blocked == 0
     if not targets.any():
-        return None, False
+        return None
     start = tuple(int(v) for v in geom.pixel_index(here))
     # The agent stands on free floor even where the polished workspace is thin (doorways): let the search
     # leave from a small disc around it, or a door would trap it.
@@ -128,11 +128,11 @@ def nearest_frontier_path(grids: TopDownGrids, ws: Workspace, here: np.ndarray, 
     dist = grid_distances(passable, start)
     cand = np.where(targets, dist, np.inf)
     if not np.isfinite(cand).any():
-        return None, True
+        return None
     goal = np.unravel_index(int(np.argmin(cand)), cand.shape)
     cells = np.array(descend(dist, (int(goal[0]), int(goal[1]))), float) + 0.5
     route = np.vstack([here[None], geom.pixel_to_world(cells)])
-    return shortcut(route, ws, wcfg), True
+    return shortcut(route, ws, wcfg)
 
 
 class FrontierExplorer(Explorer):
@@ -158,9 +158,8 @@ class FrontierExplorer(Explorer):
         plan = self.plan = build_plan(self.world.gaussians, self.floor_height, here, cfg.workspace,
                                       self.timers, graph=False)
         stuck = bool(self.failed)
-        path, _ = self.timers.time("position_selection", nearest_frontier_path, plan.grids,
-                                   plan.workspace, here, [*self.failed, *self.reached], cfg.workspace,
-                                   self.fcfg)
+        path = self.timers.time("position_selection", nearest_frontier_path, plan.grids, plan.workspace,
+                                here, [*self.failed, *self.reached], cfg.workspace, self.fcfg)
         if path is None:
             # fallback: give every frontier a second chance, also when frontiers are left but none is
             # reachable from here (the failed ones covered every reachable frontier; kept, they held the
