@@ -27,7 +27,6 @@ this simple route (no tilts, no stops in the doors).
 from __future__ import annotations
 
 import argparse
-import itertools
 import json
 import math
 from pathlib import Path
@@ -39,7 +38,8 @@ from scipy.sparse.csgraph import dijkstra
 from activesplat.eval.behaviour import BehaviourConfig
 from activesplat.eval.coverage import CoverageAccumulator, CoverageConfig
 from activesplat.geometry import camera_pose, intrinsics
-from activesplat.sim import SimConfig, load_scene
+from activesplat.planning.goals import shortest_tour
+from activesplat.sim import SimConfig, Simulator, load_scene
 
 
 def grid_graph(mask: np.ndarray, resolution: float) -> tuple[sparse.csr_matrix, np.ndarray]:
@@ -71,28 +71,10 @@ def grid_graph(mask: np.ndarray, resolution: float) -> tuple[sparse.csr_matrix, 
 
 
 def shortest_open_walk(dist: np.ndarray) -> tuple[float, list[int]]:
-    """Shortest walk from node 0 through every other node of the distance matrix, ending anywhere."""
-    n = len(dist)
-    if n == 1:
-        return 0.0, [0]
-    rest = n - 1
-    best = {(1 << i, i): (dist[0, i + 1], -1) for i in range(rest)}
-    for size in range(2, rest + 1):
-        for subset in itertools.combinations(range(rest), size):
-            bits = sum(1 << i for i in subset)
-            for last in subset:
-                prev_bits = bits & ~(1 << last)
-                best[(bits, last)] = min((best[(prev_bits, p)][0] + dist[p + 1, last + 1], p)
-                                         for p in subset if p != last)
-    full = (1 << rest) - 1
-    length, last = min((best[(full, i)][0], i) for i in range(rest))
-    order, bits = [], full
-    while last != -1:
-        order.append(last + 1)
-        _, prev = best[(bits, last)]
-        bits &= ~(1 << last)
-        last = prev
-    return float(length), [0, *order[::-1]]
+    """Shortest walk from node 0 through every other node of the (symmetric) distance matrix, ending
+    anywhere: its length and the node order (`planning.goals.shortest_tour`, exact up to 10 stops)."""
+    order = [0, *(1 + i for i in shortest_tour(dist[0, 1:], dist[1:, 1:]))]
+    return float(sum(dist[a, b] for a, b in zip(order[:-1], order[1:], strict=True))), order
 
 
 def room_middles(scene, nav, inset: float) -> dict[str, np.ndarray]:
@@ -189,7 +171,7 @@ def main() -> None:
         if args.ceilings is not None:
             ceiling = json.loads((args.ceilings / name / "sweep.json").read_text())["completion_ratio_pct"]
         for seed in args.seeds:
-            start = nav.sample_navigable(np.random.default_rng(seed))  # the simulator's draw (Simulator)
+            start = Simulator(scene, seed=seed, config=sim).start.position[[0, 2]]  # the episode's start
             six, siz = nav.cell_of(*start)
             nodes = [node_of[(int(six), int(siz))]] + [node_of[tuple(c)] for c in middles.values()]
             dist, pred = dijkstra(graph, indices=nodes, return_predecessors=True)
