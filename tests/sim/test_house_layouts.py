@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from activesplat.sim import HouseConfig, load_scene
-from activesplat.sim.house import MEDIUM_FAMILIES, SMALL_FAMILIES, _shared_edge, make_layout
+from activesplat.sim.house import MEDIUM_FAMILIES, SMALL_FAMILIES, make_layout
+from activesplat.sim.rooms import shared_edge
 
 CFG = HouseConfig()
 SEEDS = list(range(40))
@@ -68,7 +69,7 @@ def test_rectangles_do_not_overlap_and_rooms_are_contiguous(layouts):
             assert min(a.x1 - a.x0, a.z1 - a.z0) >= 1.2 - 1e-9
         for name in house.room_names:  # the rectangles of one room touch along a wall (no wall there)
             rects = [r for r in house.rooms if r.name == name]
-            graph = {i: {j for j in range(len(rects)) if j != i and _shared_edge(rects[i], rects[j])}
+            graph = {i: {j for j in range(len(rects)) if j != i and shared_edge(rects[i], rects[j])}
                      for i in range(len(rects))}
             assert _connected(range(len(rects)), graph), (house.name, name)
 

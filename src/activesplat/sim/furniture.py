@@ -13,7 +13,7 @@ from scipy import ndimage
 from activesplat.sim.walls import box_along, wall_gaps
 
 if TYPE_CHECKING:
-    from activesplat.sim.house import House, HouseConfig, Room
+    from activesplat.sim.rooms import House, HouseConfig, Room
 
 
 def _legs(w, d, h, leg=0.05):

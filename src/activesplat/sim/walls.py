@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
-    from activesplat.sim.house import House, Room
+    from activesplat.sim.rooms import House, Room
 
 
 def subtract_gaps(lo: float, hi: float, gaps) -> list[tuple[float, float]]:
