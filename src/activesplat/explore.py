@@ -266,8 +266,8 @@ def _save_map(mapper, explorer, out_dir: Path, floor_height: float) -> None:
     from activesplat.workspace.plan import build_plan
 
     mapper.save(out_dir)
-    if getattr(explorer, "stops", None) is not None:
-        write_json_atomic(out_dir / "stops.json", {"stops": explorer.stops,
+    if getattr(explorer, "failures", None) is not None:
+        write_json_atomic(out_dir / "stops.json", {"stops": getattr(explorer, "stops", []),
                                                    "replans": getattr(explorer, "replans", []),
                                                    "failures": getattr(explorer, "failures", [])})
     traj = np.array(explorer.visited) if explorer.visited else None

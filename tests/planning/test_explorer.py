@@ -13,11 +13,11 @@ from layouts import RES, corridor  # noqa: E402
 import activesplat.planning.activesplat as explorer_module  # noqa: E402
 from activesplat.geometry import camera_pose, pose_yaw_pitch, wrap_angle  # noqa: E402
 from activesplat.planning.activesplat import ActiveSplatExplorer  # noqa: E402
-from activesplat.planning.controller import ControllerConfig  # noqa: E402
+from activesplat.planning.controller import ControllerConfig, PathFollower  # noqa: E402
 from activesplat.planning.explorer import ExplorerConfig  # noqa: E402
 from activesplat.workspace.clean import extract_workspace  # noqa: E402
 from activesplat.workspace.config import WorkspaceConfig  # noqa: E402
-from activesplat.workspace.paths import path_ahead_clear  # noqa: E402
+from activesplat.workspace.paths import line_of_sight, path_ahead_clear  # noqa: E402
 from activesplat.workspace.plan import Plan  # noqa: E402
 from activesplat.workspace.voronoi import build_voronoi_graph  # noqa: E402
 
@@ -101,6 +101,28 @@ def test_the_path_ahead_is_blocked_only_where_it_gets_narrower_than_the_agent_an
     assert clear(here, graze) and not clear(here, graze, tolerance=0.0)
     assert not clear(here, [2.3, 1.0])
     assert path_ahead_clear(None, here, graze, 0.65, 0.0, WCFG)
+
+
+def test_the_path_ahead_keeps_the_planners_bound_from_within_the_arrival_radius_of_a_waypoint():
+    # a planned segment along the wall (its ends closer to the wall than the agent radius: the planner
+    # relaxes its bound to their clearance); the agent reached its start 8 cm off it, toward the middle.
+    # From there the line to the segment's end is as narrow as the segment, below the bound from here:
+    # without the segment's start the check refused the path at its first step (FBE from tight corners)
+    ws = extract_workspace(corridor(), HERE, WCFG)
+    start, end, here = np.array([2.0, 1.02]), np.array([3.0, 1.02]), np.array([2.0, 1.1])
+    assert line_of_sight(ws, start, end, WCFG)
+    assert np.hypot(*(here - start)) <= ControllerConfig().arrive_radius
+    assert not path_ahead_clear(ws, here, end, 0.65, 0.05, WCFG)
+    assert path_ahead_clear(ws, here, end, 0.65, 0.05, WCFG, segment_start=start)
+    # the relaxation never lets a segment leave the workspace
+    assert not path_ahead_clear(ws, here, np.array([3.0, 0.9]), 0.65, 0.05, WCFG, segment_start=start)
+
+
+def test_the_follower_remembers_the_waypoint_it_reached_last():
+    follower = PathFollower(np.array([[0.0, 0.0], [0.0, 1.0]]))
+    assert follower.passed is None
+    assert follower.next_action(_obs([0.0, 0.0]).pose) is not None
+    np.testing.assert_allclose(follower.passed, [0.0, 0.0])
 
 
 def test_an_agent_whose_goals_all_failed_escapes_before_looking_around():

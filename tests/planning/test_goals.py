@@ -7,12 +7,15 @@ from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
+import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "workspace"))
 from layouts import RES, corridor  # noqa: E402
 
+from activesplat.errors import InvalidInputError  # noqa: E402
 from activesplat.planning.activesplat import goal_rules  # noqa: E402
 from activesplat.planning.config import PlanningConfig  # noqa: E402
+from activesplat.planning.controller import ControllerConfig, tour_actions  # noqa: E402
 from activesplat.planning.explorer import ExplorerConfig  # noqa: E402
 from activesplat.planning.goals import (  # noqa: E402
     bridge_toward,
@@ -21,10 +24,12 @@ from activesplat.planning.goals import (  # noqa: E402
     local_then_global,
     panorama_candidates,
     rank_goals,
+    select_rotation_targets,
     shortest_tour,
     tour_first,
     worth_a_detour,
 )
+from activesplat.planning.viewpoints import RotationTarget  # noqa: E402
 from activesplat.workspace.clean import extract_workspace  # noqa: E402
 from activesplat.workspace.config import WorkspaceConfig  # noqa: E402
 from activesplat.workspace.paths import plan_safe_path  # noqa: E402
@@ -302,3 +307,18 @@ def test_the_sampled_surface_term_adds_to_the_information_of_the_scored_nodes_on
     # node (information above 0) gains the full weight and the others nothing
     for node, info in plain.items():
         assert sampled[node] == (info + 20.0 if info > 0 else info)
+
+
+def test_rotation_targets_tilt_only_until_the_target_is_within_the_given_angle_of_the_centre():
+    targets = [RotationTarget(np.radians(90), np.radians(-60), 50.0),   # floor close by: tilt to -30
+               RotationTarget(np.radians(-90), np.radians(-25), 40.0),  # in the level view: no tilt
+               RotationTarget(np.radians(180), np.radians(50), 30.0, "high_loss")]  # up: to +20
+    ctrl, pcfg = ControllerConfig(), PlanningConfig()
+    plain = select_rotation_targets(targets, 0.0, pcfg, 5, 0.0, ctrl)
+    near = select_rotation_targets(targets, 0.0, pcfg, 5, 0.0, ctrl, tilt_within_deg=30.0)
+    assert sorted(np.degrees([t.pitch for t in near]).round(1)) == [-30.0, 0.0, 20.0]
+    assert sorted(t.yaw for t in near) == sorted(t.yaw for t in plain)  # the same directions
+    cost = [tour_actions(0.0, 0.0, [(t.yaw, t.pitch) for t in ts], ctrl) for ts in (plain, near)]
+    assert cost[1] < cost[0]
+    with pytest.raises(InvalidInputError, match="tilt_within_deg"):
+        ExplorerConfig(tilt_within_deg=120.0)

@@ -182,7 +182,8 @@ class ActiveSplatExplorer(Explorer):
         resume = None  # a stop on the way turns back toward the path afterwards: count those turns too
         if self.follower is not None and not self.follower.done:
             resume = yaw_toward(floor_xz(pose), self.follower.waypoints[0])
-        chosen = select_rotation_targets(targets, yaw, pcfg, max_views, pitch, ctrl, resume)
+        chosen = select_rotation_targets(targets, yaw, pcfg, max_views, pitch, ctrl, resume,
+                                         self.cfg.tilt_within_deg)
         self.stops.append({
             "step": len(self.visited) - 1, "cause": self.rotation_cause,
             "xz": [round(float(v), 3) for v in floor_xz(pose)],

@@ -139,6 +139,8 @@ class PathFollower:
     def __init__(self, waypoints: np.ndarray, cfg: ControllerConfig | None = None):
         self.cfg = cfg or ControllerConfig()
         self.waypoints = [np.asarray(w, float) for w in np.asarray(waypoints, float).reshape(-1, 2)]
+        self.passed: np.ndarray | None = None
+        """The waypoint reached last (None before the first): the start of the segment being followed."""
 
     @property
     def done(self) -> bool:
@@ -154,5 +156,5 @@ class PathFollower:
             action = follow_action(pose, self.waypoints[0], self.cfg)
             if action is not None:
                 return action
-            self.waypoints.pop(0)
+            self.passed = self.waypoints.pop(0)
         return None

@@ -80,6 +80,11 @@ class ExplorerConfig:
     included (ours: every order of the at most 5 targets is tried; False: counter-clockwise from the
     heading, the order this project used before, which often swept a full circle for targets on both
     sides of the heading)."""
+    tilt_within_deg: float | None = None
+    """Tilt toward a rotation target only until it lies within this many degrees of the image centre,
+    vertically (ours; None: tilt to the target's pitch, as the paper and the release do). With the 90 deg
+    vertical field of view, 30 leaves 15 deg between the target and the image border, and a target less
+    than 30 deg off level needs no tilt at all."""
     multi_node_radius_m: float = 0.3
     """Passing within this of a multi-connected node forces a short rotation stop there (ours)."""
     local_score_threshold: float = 5.0
@@ -194,6 +199,9 @@ class ExplorerConfig:
                                          "escape_forward_steps", "lookahead_m", "ahead_tolerance_m",
                                          "detour_min_info",
                                          "panorama_height_m"), at_least_one=("max_panoramas",))
+        if self.tilt_within_deg is not None and not 0 <= self.tilt_within_deg <= 90:
+            raise InvalidInputError(f"ExplorerConfig.tilt_within_deg must be in [0, 90] (or None = off), got "
+                                    f"{self.tilt_within_deg}")
         if self.bridge_gain_m is not None and self.bridge_gain_m < 0:
             raise InvalidInputError(f"ExplorerConfig.bridge_gain_m must be >= 0 (or None = off), got "
                                     f"{self.bridge_gain_m}")
@@ -427,7 +435,8 @@ class Explorer:
         if self.follower is None or self.follower.done:
             return True
         return path_ahead_clear(self.plan.workspace, floor_xz(pose), self.follower.waypoints[0],
-                                self.cfg.lookahead_m, self.cfg.ahead_tolerance_m, self.cfg.workspace)
+                                self.cfg.lookahead_m, self.cfg.ahead_tolerance_m, self.cfg.workspace,
+                                segment_start=self.follower.passed)
 
     def _fail_goal(self) -> None:
         if self.plan.goal is not None:

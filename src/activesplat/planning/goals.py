@@ -422,13 +422,15 @@ def worth_a_detour(plan: Plan, goal_node: int, visited: Sequence[np.ndarray], fa
 
 def select_rotation_targets(targets: Sequence[RotationTarget], yaw: float, pcfg: PlanningConfig,
                             max_views: int, pitch: float = 0.0, ctrl: ControllerConfig | None = None,
-                            final_yaw: float | None = None) -> list[RotationTarget]:
+                            final_yaw: float | None = None,
+                            tilt_within_deg: float | None = None) -> list[RotationTarget]:
     """On-arrival rotation targets (sec. III-B3): the heaviest panorama / high-loss targets, skipping those
     already in view (within their source's minimum offset of the heading, and less than 20 deg off level)
     and those within 20 deg of a chosen one, at most `max_views`. Returned in counter-clockwise order from
     the heading, or, given the controller `ctrl`, in the order that visits them in the fewest turns and
     tilts from (`yaw`, `pitch`), levelling and the turn back to `final_yaw` (if given) included
-    (`controller.fewest_actions_order`)."""
+    (`controller.fewest_actions_order`). Given `tilt_within_deg`, each chosen target's pitch is brought that
+    much closer to level (never past it): the tilt that puts the target that far from the image centre."""
     chosen: list[RotationTarget] = []
     for t in sorted(targets, key=lambda t: -t.weight):
         limit = pcfg.rotation.min_offset_deg if t.source == "panorama" else pcfg.high_loss.min_offset_deg
@@ -439,6 +441,10 @@ def select_rotation_targets(targets: Sequence[RotationTarget], yaw: float, pcfg:
         chosen.append(t)
         if len(chosen) >= max_views:
             break
+    if tilt_within_deg is not None:
+        within = math.radians(tilt_within_deg)
+        chosen = [dataclasses.replace(t, pitch=math.copysign(max(0.0, abs(t.pitch) - within), t.pitch))
+                  for t in chosen]
     chosen.sort(key=lambda t: float(wrap_angle(t.yaw - yaw)) % (2 * math.pi))
     if ctrl is None:
         return chosen

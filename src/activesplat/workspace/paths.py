@@ -106,14 +106,25 @@ def needed_clearance(workspace: Workspace, here: np.ndarray, cfg: WorkspaceConfi
 
 
 def path_ahead_clear(workspace: Workspace | None, here: np.ndarray, waypoint: np.ndarray, lookahead_m: float,
-                     tolerance_m: float, cfg: WorkspaceConfig) -> bool:
+                     tolerance_m: float, cfg: WorkspaceConfig,
+                     segment_start: np.ndarray | None = None) -> bool:
     """Whether the next `lookahead_m` toward `waypoint` is still passable on the current workspace: blocked
     when it gets narrower than `needed_clearance` less `tolerance_m`, and always when it leaves the
-    workspace. No workspace (or an empty one) blocks nothing."""
+    workspace. No workspace (or an empty one) blocks nothing.
+
+    Given `segment_start` (the waypoint the agent last reached), the bound is relaxed as the planner's
+    line of sight relaxes it (:func:`lines_of_sight`): never more than the clearance at the segment's two
+    ends. The agent reaches a waypoint within the arrival radius, not on it, and the segment the planner
+    checked from a tight corner can be a few millimetres wider than the line from where the agent stands;
+    without the relaxation such a path was refused at its first step."""
     if workspace is None or workspace.empty:
         return True
     d = waypoint - here
     n = float(np.hypot(*d))
     ahead = here + d * min(1.0, lookahead_m / max(n, 1e-9))
-    need = max(needed_clearance(workspace, here, cfg) - tolerance_m, 1e-6)
+    need = needed_clearance(workspace, here, cfg)
+    if segment_start is not None:
+        ends = np.stack([np.asarray(segment_start, float), np.asarray(waypoint, float)])
+        need = min(need, float(workspace.clearance_at(ends).min()))
+    need = max(need - tolerance_m, 1e-6)
     return bool(workspace.segments_clearance(here[None], ahead[None])[0] >= need)
