@@ -103,11 +103,12 @@ def test_the_path_ahead_is_blocked_only_where_it_gets_narrower_than_the_agent_an
     assert path_ahead_clear(None, here, graze, 0.65, 0.0, WCFG)
 
 
-def test_the_path_ahead_keeps_the_planners_bound_from_within_the_arrival_radius_of_a_waypoint():
+def test_the_path_ahead_keeps_to_the_planned_segment_from_within_the_arrival_radius_of_a_waypoint():
     # a planned segment along the wall (its ends closer to the wall than the agent radius: the planner
     # relaxes its bound to their clearance); the agent reached its start 8 cm off it, toward the middle.
     # From there the line to the segment's end is as narrow as the segment, below the bound from here:
-    # without the segment's start the check refused the path at its first step (FBE from tight corners)
+    # without the segment's start the check refused the path at its first step (FBE from tight corners);
+    # with it, the planned segment is checked with the planner's bound
     ws = extract_workspace(corridor(), HERE, WCFG)
     start, end, here = np.array([2.0, 1.02]), np.array([3.0, 1.02]), np.array([2.0, 1.1])
     assert line_of_sight(ws, start, end, WCFG)

@@ -105,6 +105,12 @@ def needed_clearance(workspace: Workspace, here: np.ndarray, cfg: WorkspaceConfi
     return min(cfg.agent_radius, float(workspace.clearance_at(here)) - 1e-6)
 
 
+def _toward(start: np.ndarray, target: np.ndarray, length_m: float) -> np.ndarray:
+    """The point `length_m` from `start` toward `target`, or `target` when nearer."""
+    d = target - start
+    return start + d * min(1.0, length_m / max(float(np.hypot(*d)), 1e-9))
+
+
 def path_ahead_clear(workspace: Workspace | None, here: np.ndarray, waypoint: np.ndarray, lookahead_m: float,
                      tolerance_m: float, cfg: WorkspaceConfig,
                      segment_start: np.ndarray | None = None) -> bool:
@@ -112,19 +118,21 @@ def path_ahead_clear(workspace: Workspace | None, here: np.ndarray, waypoint: np
     when it gets narrower than `needed_clearance` less `tolerance_m`, and always when it leaves the
     workspace. No workspace (or an empty one) blocks nothing.
 
-    Given `segment_start` (the waypoint the agent last reached), the bound is relaxed as the planner's
-    line of sight relaxes it (:func:`lines_of_sight`): never more than the clearance at the segment's two
-    ends. The agent reaches a waypoint within the arrival radius, not on it, and the segment the planner
-    checked from a tight corner can be a few millimetres wider than the line from where the agent stands;
-    without the relaxation such a path was refused at its first step."""
+    Given `segment_start` (the waypoint the agent reached last), a line from here that fails is still clear
+    when it stays inside the workspace and the planned segment itself, from `segment_start` toward
+    `waypoint`, passes with the planner's bound (:func:`lines_of_sight`: relaxed to the clearance at the
+    segment's ends). The agent reaches a waypoint within the arrival radius, not on it, and from there the
+    straight line to the next waypoint can graze a corner the planned segment clears: FBE paths that start
+    at the agent's grid cell were refused at their first step, dozens of times per episode."""
     if workspace is None or workspace.empty:
         return True
-    d = waypoint - here
-    n = float(np.hypot(*d))
-    ahead = here + d * min(1.0, lookahead_m / max(n, 1e-9))
     need = needed_clearance(workspace, here, cfg)
-    if segment_start is not None:
-        ends = np.stack([np.asarray(segment_start, float), np.asarray(waypoint, float)])
-        need = min(need, float(workspace.clearance_at(ends).min()))
-    need = max(need - tolerance_m, 1e-6)
-    return bool(workspace.segments_clearance(here[None], ahead[None])[0] >= need)
+    line = workspace.segments_clearance(here[None], _toward(here, waypoint, lookahead_m)[None])[0]
+    if line >= max(need - tolerance_m, 1e-6) or segment_start is None:
+        return bool(line >= max(need - tolerance_m, 1e-6))
+    start = np.asarray(segment_start, float)
+    ends = workspace.clearance_at(np.stack([start, np.asarray(waypoint, float)]))
+    planned_need = max(min(need, float(ends.min())) - tolerance_m, 1e-6)
+    reach = lookahead_m + float(np.hypot(*(here - start)))
+    planned = workspace.segments_clearance(start[None], _toward(start, waypoint, reach)[None])[0]
+    return bool(line >= 1e-6 and planned >= planned_need)
