@@ -269,7 +269,7 @@ def _save_map(mapper, explorer, out_dir: Path, floor_height: float) -> None:
     if getattr(explorer, "failures", None) is not None:
         write_json_atomic(out_dir / "stops.json", {"stops": getattr(explorer, "stops", []),
                                                    "replans": getattr(explorer, "replans", []),
-                                                   "failures": getattr(explorer, "failures", [])})
+                                                   "failures": explorer.failures})
     traj = np.array(explorer.visited) if explorer.visited else None
     here = traj[-1] if traj is not None else floor_xz(np.eye(4))
     if len(mapper.gaussians) == 0:

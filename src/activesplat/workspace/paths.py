@@ -128,8 +128,10 @@ def path_ahead_clear(workspace: Workspace | None, here: np.ndarray, waypoint: np
         return True
     need = needed_clearance(workspace, here, cfg)
     line = workspace.segments_clearance(here[None], _toward(here, waypoint, lookahead_m)[None])[0]
-    if line >= max(need - tolerance_m, 1e-6) or segment_start is None:
-        return bool(line >= max(need - tolerance_m, 1e-6))
+    if line >= max(need - tolerance_m, 1e-6):
+        return True
+    if segment_start is None:
+        return False
     start = np.asarray(segment_start, float)
     ends = workspace.clearance_at(np.stack([start, np.asarray(waypoint, float)]))
     planned_need = max(min(need, float(ends.min())) - tolerance_m, 1e-6)
