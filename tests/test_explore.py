@@ -58,6 +58,15 @@ def test_episode_folder_is_complete(episode):
     assert int(coverage["n"]) == 4000 and n_points <= 4000
     assert 100 * completed.mean() == pytest.approx(saved["completion_ratio_pct"])
     assert (out / "trajectory.png").stat().st_size > 5000
+    # the completion is credited to the actions after which each point was first seen: it adds up
+    gain = saved["completion_gain"]
+    for group in ("by_cause", "by_action"):
+        assert sum(g["completion_pct"] for g in gain[group].values()) == pytest.approx(
+            saved["completion_ratio_pct"])
+        assert sum(g["actions"] for g in gain[group].values()) == 90
+    boot, turn = gain["by_cause"]["bootstrap"], gain["by_action"]["turn"]
+    assert boot["actions"] == 72 and boot["completion_pct"] > 0
+    assert turn["actions"] == ep.actions.count("turn_left") + ep.actions.count("turn_right")
     # every turn toward a rotation target belongs to a logged stop of that cause with targets
     stops = json.loads((out / "stops.json").read_text())["stops"]
     for cause in ("arrival", "multi_stop"):

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from activesplat.episode import EpisodeWriter, write_json_atomic
-from activesplat.eval.behaviour import action_counts, rotation_causes, rotation_pct
+from activesplat.eval.behaviour import action_counts, completion_gain, rotation_causes, rotation_pct
 
 TIMING_KEYS = ("mapper", "workspace", "voronoi", "subregions", "rotation_selection", "position_selection",
                "planner")
@@ -181,6 +181,9 @@ def explore_environment(env, run, out: str | Path, overwrite: bool = False, prog
         "scene": name, "policy": policy, "seed": seed,
         "curve": curve,
     })
+    if evaluator is not None:
+        cov = evaluator.coverage
+        metrics["completion_gain"] = completion_gain(cov.gain_by_frame(), actions, causes, len(cov.gt))
     _save_map(mapper, explorer, out_dir, floor_height)
     if curve:
         from activesplat.viz.plots import draw_completion

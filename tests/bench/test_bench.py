@@ -115,6 +115,12 @@ def test_tab3_and_multi_room_tables(tmp_path):
     for spec, ratio in zip(specs, (90.0, 80.0), strict=True):
         metrics = _metrics(ratio)
         metrics.update({"rotation_pct": 30.0, "rooms_entered": 2, "rooms_total": 3})
+        turn = ratio - 20.0  # the turns found 70 / 60 %, the forward moves 20 % in both runs
+        metrics["completion_gain"] = {
+            "by_cause": {"arrival": {"actions": 100, "completion_pct": turn},
+                         "path": {"actions": 400, "completion_pct": 20.0}},
+            "by_action": {"turn": {"actions": 100, "completion_pct": turn},
+                          "move_forward": {"actions": 400, "completion_pct": 20.0}}}
         _write(spec, metrics)
     records = collect(specs)
     for r in records:  # as write_report does with the scene's sweep ceiling
@@ -126,6 +132,10 @@ def test_tab3_and_multi_room_tables(tmp_path):
     assert "| **100 %** | 90.00 | 2.00 | 80.00 | 2.00 |" in tab3 and "| **25 %** | 0.00 | n/a |" in tab3
     multi = md.split("## Multi-room behaviour")[1].split("##")[0]
     assert "| small-0 | activesplat | 90.00 | 95.00 | 94.7 | 2.0 | 3 | 30.0 | 1000 | n/a |" in multi
+    gain = md.split("## Where the completion came from")[1].split("##")[0]
+    assert "| activesplat | turn | 100 | 70.00 | 70.00 |" in gain
+    assert "| no-hp | arrival | 100 | 60.00 | 60.00 |" in gain
+    assert "| no-hp | path | 400 | 20.00 | 5.00 |" in gain
 
 
 def test_csv_one_row_per_run_with_every_scalar(tmp_path):

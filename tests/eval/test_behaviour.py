@@ -7,6 +7,7 @@ import pytest
 from activesplat.eval.behaviour import (
     BehaviourConfig,
     at_path_fractions,
+    completion_gain,
     episode_behaviour,
     relative_to_ceiling,
     room_completion,
@@ -36,6 +37,21 @@ def test_rotation_causes_count_turns_and_tilts_by_cause():
     actions = ["turn_left", "look_down", "move_forward", "turn_right", "turn_right", "turn_left"]
     causes = ["bootstrap", "bootstrap", "path", "arrival", "arrival", "path"]
     assert rotation_causes(actions, causes) == {"bootstrap": 2, "arrival": 2, "path": 1}
+
+
+def test_completion_gain_attributes_each_frame_to_the_action_before_it():
+    actions = ["turn_left", "move_forward", "look_down", "turn_right"]
+    causes = ["bootstrap", "path", "arrival", "arrival"]
+    gain = completion_gain(np.array([10, 5, 0, 3, 2]), actions, causes, n_gt_points=100)
+    assert gain["by_cause"] == {"start": {"actions": 0, "completion_pct": 10.0},
+                                "arrival": {"actions": 2, "completion_pct": 5.0},
+                                "bootstrap": {"actions": 1, "completion_pct": 5.0},
+                                "path": {"actions": 1, "completion_pct": 0.0}}
+    assert gain["by_action"]["turn"] == {"actions": 2, "completion_pct": 7.0}
+    assert gain["by_action"]["tilt"] == {"actions": 1, "completion_pct": 3.0}
+    assert gain["by_action"]["move_forward"]["actions"] == 1
+    with pytest.raises(ValueError, match="one frame more"):
+        completion_gain(np.zeros(4), actions, causes, 100)
 
 
 def test_rooms_entered_needs_the_inset_and_skips_corridors(house):

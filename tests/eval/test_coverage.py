@@ -58,6 +58,29 @@ def test_running_minimum_is_order_and_batch_independent():
         assert r["completion_ratio_pct"] == results[0]["completion_ratio_pct"]
 
 
+def test_first_frame_of_each_point_is_batch_independent_and_sums_to_the_ratio():
+    rng = np.random.default_rng(2)
+    gt = rng.uniform(-3, 3, (3000, 3))
+    K = intrinsics(48, 48, 90.0)
+    frames = [(rng.uniform(1, 4, (48, 48)).astype(np.float32), camera_pose(rng.uniform(-1, 1, 3), y, 0.1))
+              for y in np.linspace(0, 6, 9)]
+    gains = []
+    for batch in (1, 4, 100):
+        acc = CoverageAccumulator(gt, CoverageConfig(batch_frames=batch, threshold_m=0.2))
+        ratios = []
+        for d, p in frames:
+            acc.add_frame(d, p, K)
+            ratios.append(acc.metrics(uncapped=False)["completion_ratio_pct"])
+        gain = acc.gain_by_frame()
+        assert gain.shape == (len(frames),) and gain.sum() == acc.completed().sum()
+        # the cumulative gain is the completion curve at every frame
+        assert np.allclose(100.0 * np.cumsum(gain) / len(gt), ratios)
+        gains.append(gain)
+    assert gains[0].min() > 0  # every frame completed something, so the test says something
+    for g in gains[1:]:
+        assert np.array_equal(g, gains[0])
+
+
 def test_invalid_depth_is_ignored():
     gt = np.zeros((10, 3))
     acc = CoverageAccumulator(gt)

@@ -287,6 +287,25 @@ def behaviour_table(res: Results) -> list[str]:
     return _table(["scene", "policy", *(name for _, name, _ in keys)], rows)
 
 
+def gain_table(res: Results, group: str = "by_cause") -> list[str]:
+    """Where the completion came from (`eval.behaviour.completion_gain`): per policy and cause (`group` =
+    "by_cause") or action kind ("by_action"), the actions per run, the completion ratio (points) they added
+    per run and that per 100 actions, means over every complete run of the policy."""
+    rows = []
+    for p in res.policies:
+        runs = [m["completion_gain"][group] for m in res.complete(None, p) if "completion_gain" in m]
+        if not runs:
+            continue
+        names = sorted({n for r in runs for n in r},
+                       key=lambda n: -sum(r.get(n, {}).get("completion_pct", 0.0) for r in runs))
+        for n in names:
+            acts = float(np.mean([r.get(n, {}).get("actions", 0) for r in runs]))
+            pct = float(np.mean([r.get(n, {}).get("completion_pct", 0.0) for r in runs]))
+            rows.append([p, n, f"{acts:.0f}", f"{pct:.2f}", f"{100 * pct / acts:.2f}" if acts else "–"])
+    return _table(["policy", "cause" if group == "by_cause" else "action", "actions per run",
+                   "completion % per run", "per 100 actions"], rows) if rows else []
+
+
 def path_fraction_table(res: Results) -> list[str]:
     """The paper's Tab. III: completion ratio / completion at 25-100 % of each run's path length, one pair
     of columns per policy, averaged over scenes."""
@@ -333,6 +352,13 @@ def markdown_report(records: Sequence[RunRecord], cfg: TableConfig | None = None
                 "agent stood 0.5 m inside (corridors not counted); rotations: share of turn / tilt actions; "
                 "steps to 90 / 95 %: first curve step at that share of the ceiling (n/a: some trial never "
                 "got there). Means over trials; average rows: means over scenes.", ""]
+    if any(r.metrics and "completion_gain" in r.metrics for r in res.records):
+        out += ["## Where the completion came from", "", *gain_table(res, "by_action"), "",
+                *gain_table(res, "by_cause"), "",
+                "Each ground-truth point is credited to the action after which it was first observed within "
+                "5 cm (start: the first frame); causes are the explorer's reasons for its actions "
+                "(bootstrap, arrival and multi_stop rotations, path following, level, escape, idle). "
+                "Means over all complete runs of a policy.", ""]
     out += ["## Per scene (supplementary Tab. S1 / S2 style)", "", *per_scene_table(res), "",
             "## Tab. VI: mean processing time per step (ms)", "", *timing_table(res), "",
             "Module times are means over all complete runs of a policy; `evaluation` is the live completion "

@@ -60,6 +60,42 @@ def rotation_causes(actions: Sequence[str], causes: Sequence[str]) -> dict[str, 
     return dict(counts.most_common())
 
 
+def action_kind(action: str) -> str:
+    """"turn", "tilt", or the action's own name (move_forward, ...)."""
+    if action in ("turn_left", "turn_right"):
+        return "turn"
+    if action in ("look_up", "look_down"):
+        return "tilt"
+    return action
+
+
+def completion_gain(gain_by_frame: np.ndarray, actions: Sequence[str], causes: Sequence[str],
+                    n_gt_points: int) -> dict:
+    """Where the completion came from. `gain_by_frame` (frames,): the ground-truth points each frame observed
+    first (`CoverageAccumulator.gain_by_frame`); frame 0 is the start's, frame k the one after action k-1.
+    Returns ``by_cause`` (the explorer's `last_cause` of each action, plus "start" for frame 0) and
+    ``by_action`` (turn / tilt / move_forward), each {name: {"actions": n, "completion_pct": share of the
+    ground-truth points first observed after those actions}}, most completion first: a rotation that shows
+    nothing new costs a step for nothing, and a cause whose share is small for its actions is where steps
+    go to waste."""
+    gain = np.asarray(gain_by_frame, np.int64)
+    if len(gain) != len(actions) + 1 or len(causes) != len(actions):
+        raise ValueError(f"completion_gain needs one frame more than actions and one cause per action, got "
+                         f"{len(gain)} frames, {len(actions)} actions, {len(causes)} causes")
+
+    def table(names: Sequence[str]) -> dict:
+        out: dict = {}
+        for name, g in zip(["start", *names], gain, strict=True):
+            entry = out.setdefault(name, {"actions": 0, "points": 0})
+            entry["actions"] += name != "start"
+            entry["points"] += int(g)
+        scale = 100.0 / max(1, n_gt_points)
+        return {name: {"actions": e["actions"], "completion_pct": e["points"] * scale}
+                for name, e in sorted(out.items(), key=lambda kv: -kv[1]["points"])}
+
+    return {"by_cause": table(list(causes)), "by_action": table([action_kind(a) for a in actions])}
+
+
 def rooms_entered(house, positions_xz: np.ndarray, inset_m: float) -> list[str]:
     """Names of the (non-corridor) rooms whose floor-plan rectangles, shrunk by `inset_m`, held the agent
     at some step, in the order first entered."""
@@ -163,6 +199,7 @@ def episode_behaviour(actions: Sequence[str], positions_xz: np.ndarray, house=No
     return out
 
 
-__all__ = ["ROTATION_ACTIONS", "BehaviourConfig", "action_counts", "at_path_fractions", "episode_behaviour",
+__all__ = ["ROTATION_ACTIONS", "BehaviourConfig", "action_counts", "action_kind", "at_path_fractions",
+           "completion_gain", "episode_behaviour",
            "relative_to_ceiling", "room_behaviour", "room_completion", "rooms_entered", "rotation_causes",
            "rotation_pct", "steps_to_reach"]

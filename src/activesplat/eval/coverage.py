@@ -65,6 +65,10 @@ class CoverageAccumulator:
         self.gt = np.asarray(gt_points, np.float64)
         self.min_dist = np.full(len(self.gt), np.inf)
         self._pending: list[np.ndarray] = []
+        self._pending_frames: list[int] = []
+        self.first_frame = np.full(len(self.gt), -1, np.int64)
+        """Per ground-truth point: the index of the frame (0 = the first added) that first observed it within
+        the threshold, -1 while none has (`gain_by_frame`)."""
         self._voxels = np.zeros(0, np.int64)
         self._thinned: list[np.ndarray] = []
         self.frames = 0
@@ -73,6 +77,7 @@ class CoverageAccumulator:
         pts = backproject(depth, pose, K)
         if len(pts):
             self._pending.append(pts)
+            self._pending_frames.append(self.frames)
         self.frames += 1
         if len(self._pending) >= self.cfg.batch_frames:
             self.flush()
@@ -81,17 +86,32 @@ class CoverageAccumulator:
         """Fold the buffered frames into the running minimum."""
         if not self._pending:
             return
+        owner = np.repeat(self._pending_frames, [len(p) for p in self._pending])
         pts = np.concatenate(self._pending)
-        self._pending = []
+        self._pending, self._pending_frames = [], []
         # Exact within the cap: only GT points within the cap of the batch's bounding box can get closer
         # than the cap, and a bounded search returns inf beyond it.
         cap = self.cfg.cap_m
         lo, hi = pts.min(axis=0) - cap, pts.max(axis=0) + cap
         near = np.flatnonzero(np.all((self.gt >= lo) & (self.gt <= hi), axis=1))
         if len(near):
-            dist, _ = _tree(pts).query(self.gt[near], k=1, distance_upper_bound=cap, workers=-1)
+            tree = _tree(pts)
+            dist, idx = tree.query(self.gt[near], k=1, distance_upper_bound=cap, workers=-1)
+            thr = self.cfg.threshold_m
+            is_fresh = (dist < thr) & ~(self.min_dist[near] < thr)
             self.min_dist[near] = np.minimum(self.min_dist[near], dist)
+            if is_fresh.any():
+                self._first_frames(tree, owner, near[is_fresh], owner[idx[is_fresh]])
         self._keep_thinned(pts)
+
+    def _first_frames(self, tree: cKDTree, owner: np.ndarray, fresh: np.ndarray, nearest: np.ndarray) -> None:
+        """Record which frame of the batch first came within the threshold of the `fresh` GT points (those
+        completed by this batch): the earliest frame owning a batch point that close (`nearest`: the frame
+        of each one's nearest point, which is that close by definition)."""
+        hits = tree.query_ball_point(self.gt[fresh], r=np.nextafter(self.cfg.threshold_m, 0.0), workers=-1)
+        first = np.array([owner[h].min() if len(h) else n for h, n in zip(hits, nearest, strict=True)],
+                         np.int64)
+        self.first_frame[fresh] = np.minimum(first, nearest)
 
     def _keep_thinned(self, pts: np.ndarray) -> None:
         """One observed point per 2 cm voxel, for the uncapped distances beyond the cap."""
@@ -115,6 +135,14 @@ class CoverageAccumulator:
         """Per ground-truth point: observed within the threshold (the points the completion ratio counts)."""
         self.flush()
         return self.min_dist < self.cfg.threshold_m
+
+    def gain_by_frame(self) -> np.ndarray:
+        """(frames,) how many ground-truth points each frame completed first: its cumulative sum is the
+        completion curve at every frame, and it attributes the completion to the actions that led to each
+        frame (`eval.behaviour.gain_by_cause`)."""
+        self.flush()
+        seen = self.first_frame[self.first_frame >= 0]
+        return np.bincount(seen, minlength=self.frames)
 
     def metrics(self, uncapped: bool = True) -> dict:
         """completion_ratio_pct, completion_cm (capped at 1 m), completion_cm_uncapped (None until something
