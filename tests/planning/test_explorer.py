@@ -6,11 +6,13 @@ from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
+import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "workspace"))
 from layouts import RES, corridor  # noqa: E402
 
 import activesplat.planning.activesplat as explorer_module  # noqa: E402
+from activesplat.errors import InvalidInputError  # noqa: E402
 from activesplat.geometry import camera_pose, pose_yaw_pitch, wrap_angle  # noqa: E402
 from activesplat.planning.activesplat import ActiveSplatExplorer  # noqa: E402
 from activesplat.planning.controller import ControllerConfig, PathFollower  # noqa: E402
@@ -305,3 +307,28 @@ def test_a_rotation_stop_on_the_way_keeps_the_travelling_schedule(monkeypatch):
         yaw += np.radians(10.0) * {"turn_left": 1, "turn_right": -1}[action]
     assert seen[:6] == [("multi_stop", False)] * 6  # six right turns to -60 deg, with a path waiting
     assert seen[-1] == ("path", False) and ex.follower is not None
+
+
+def test_the_camera_travels_at_the_travel_pitch_and_returns_to_it_after_a_stop():
+    import math
+
+    from activesplat.planning.viewpoints import RotationTarget
+
+    def pose(pitch_deg):
+        return SimpleNamespace(pose=camera_pose([1.0, 1.25, 1.5], 0.0, math.radians(pitch_deg)),
+                               collided=False, step=0)
+
+    path = np.array([[1.0, 1.5], [1.0, 3.0]])  # straight ahead (+z, yaw 0)
+    for travel, level_first, down_first in ((0.0, "move_forward", "move_forward"),
+                                            (-15.0, "look_down", "move_forward")):
+        ex = ActiveSplatExplorer(WORLD, 0.0, ExplorerConfig(workspace=WCFG, travel_pitch_deg=travel))
+        ex.queue.clear(), ex.queue_causes.clear()
+        ex.go_to(path[-1], path)
+        assert ex.act(pose(0.0)) == level_first and ex.last_cause == "path"
+        assert ex.act(pose(-15.0)) == down_first
+        # the last rotation target reached (looking 45 deg up): the camera goes back to the travel pitch
+        ex.rotation_targets = [RotationTarget(yaw=0.0, pitch=math.radians(45.0), weight=1.0)]
+        assert [ex.act(pose(45.0)), *ex.queue] == ["look_down"] * (3 if travel == 0 else 4)
+        assert ex.last_cause == "level"
+    with pytest.raises(InvalidInputError, match="travel_pitch_deg"):
+        ExplorerConfig(travel_pitch_deg=-90.0)

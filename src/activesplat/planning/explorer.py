@@ -27,8 +27,8 @@ from activesplat.planning.controller import (
     ControllerConfig,
     PathFollower,
     floor_xz,
-    level_actions,
     rotation_actions,
+    tilt_toward,
 )
 from activesplat.planning.observed import ObservedSurface
 from activesplat.planning.panorama import Panorama
@@ -85,6 +85,11 @@ class ExplorerConfig:
     vertically (ours; None: tilt to the target's pitch, as the paper and the release do). With the 90 deg
     vertical field of view, 30 leaves 15 deg between the target and the image border, and a target less
     than 30 deg off level needs no tilt at all."""
+    travel_pitch_deg: float = 0.0
+    """Camera pitch while following a path, and the pitch the camera returns to after a stop's rotation
+    targets (ours; 0 = level, as the paper and the release travel; negative = down, whole `look_deg` steps).
+    A level camera at 1.25 m sees no floor within 1.25 m of the agent, and the floor and low furniture
+    beside its path go unobserved although it passed within a metre or two of them."""
     multi_node_radius_m: float = 0.3
     """Passing within this of a multi-connected node forces a short rotation stop there (ours)."""
     local_score_threshold: float = 5.0
@@ -202,6 +207,9 @@ class ExplorerConfig:
         if self.tilt_within_deg is not None and not 0 <= self.tilt_within_deg <= 90:
             raise InvalidInputError(f"ExplorerConfig.tilt_within_deg must be in [0, 90] (or None = off), got "
                                     f"{self.tilt_within_deg}")
+        if not -90 < self.travel_pitch_deg < 90:
+            raise InvalidInputError(f"ExplorerConfig.travel_pitch_deg must be in (-90, 90) degrees, got "
+                                    f"{self.travel_pitch_deg}")
         if self.bridge_gain_m is not None and self.bridge_gain_m < 0:
             raise InvalidInputError(f"ExplorerConfig.bridge_gain_m must be >= 0 (or None = off), got "
                                     f"{self.bridge_gain_m}")
@@ -417,7 +425,16 @@ class Explorer:
         if action == "move_forward" and not self._path_ahead_clear(pose):
             self._fail_goal()
             return None
+        if action == "move_forward" and self.cfg.travel_pitch_deg:
+            tilt = self._travel_tilt(pose)
+            if tilt:
+                return tilt[0]
         return action
+
+    def _travel_tilt(self, pose: np.ndarray) -> list[str]:
+        """Tilts that bring the camera to the travel pitch (`travel_pitch_deg`)."""
+        return tilt_toward(pose_yaw_pitch(pose)[1], math.radians(self.cfg.travel_pitch_deg),
+                           self.cfg.controller)
 
     def _rotation_action(self, pose: np.ndarray) -> str | None:
         ctrl = self.cfg.controller
@@ -427,7 +444,7 @@ class Explorer:
             return actions[0]
         self.rotation_targets.pop(0)
         if not self.rotation_targets:
-            self.enqueue(level_actions(pose, ctrl), "level")
+            self.enqueue(self._travel_tilt(pose), "level")
         return None
 
     def _path_ahead_clear(self, pose: np.ndarray) -> bool:
