@@ -63,11 +63,12 @@ def sweep_poses(scene, sim_config=None, cfg: SweepConfig | None = None) -> np.nd
 
 
 def exhaustive_sweep(scene, sim_config=None, cfg: SweepConfig | None = None, coverage_config=None,
-                     progress: bool = False) -> dict:
+                     progress: bool = False, with_completed: bool = False) -> dict:
     """Coverage metrics (the episode keys ``completion_ratio_pct``, ``completion_cm``,
     ``completion_cm_uncapped``) of the exhaustive sweep of ``scene`` (a built-in name or a `Scene`),
     plus ``n_positions`` and ``n_views``; for a built-in house ``rooms``: per room name its ground-truth
-    point count and completion ratio (eval/behaviour.py)."""
+    point count and completion ratio (eval/behaviour.py). `with_completed`: add ``completed``, the
+    per-ground-truth-point mask the sweep observed (the ceiling point by point, in sample order)."""
     from activesplat.eval.coverage import CoverageAccumulator, CoverageConfig
     from activesplat.geometry import intrinsics
     from activesplat.sim import Scene, SimConfig, load_scene
@@ -96,6 +97,8 @@ def exhaustive_sweep(scene, sim_config=None, cfg: SweepConfig | None = None, cov
     out.update({"scene": scene.name, "n_views": int(len(poses)),
                 "n_positions": int(len(poses) // views_per_spot),
                 "sweep": asdict(cfg)})
+    if with_completed:
+        out["completed"] = coverage.completed()
     return out
 
 
