@@ -58,3 +58,29 @@ def test_a_look_around_leaves_only_what_it_did_not_sample_poorly_observed():
     assert 0.05 < after < 0.5 * before  # the caps above and below the band remain
     # surface beyond the radius does not count: a visit to the node would not sample it densely
     assert poorly_observed_share(pano, ObservedSurface(), radius_m=1.5) == 0.0
+
+
+def test_views_toward_unsampled_surface_cover_it_greedily_and_stop_when_it_is_covered():
+    from activesplat.geometry import wrap_angle
+    from activesplat.planning.observed import unsampled_views
+
+    pano = render_panorama(sphere_renderer(2.0), ORIGIN)
+    seen = ObservedSurface(voxel_m=0.1)
+    for k in range(3):  # level looks at 0, 90 and 180 deg: only the quarter around -90 deg is unsampled
+        for pitch in (-math.pi / 4, 0.0, math.pi / 4):
+            seen.add(sphere_depth(2.0), camera_pose(ORIGIN, k * math.pi / 2, pitch), K_128)
+    views = unsampled_views(pano, seen, radius_m=2.5, max_views=3, min_weight=25.0)
+    assert views and all(v.source == "unsampled" for v in views)
+    first = views[0]
+    assert abs(math.degrees(float(wrap_angle(first.yaw + math.pi / 2)))) <= 10.0  # looks into the gap
+    assert abs(math.degrees(first.pitch)) <= 15.0 and first.weight > 100.0
+    assert all(v.weight < first.weight for v in views[1:])  # greedy: each covers less than the one before
+    # the others cover what the first one's 40 deg half-field leaves of the same quarter, above and below
+    assert all(abs(math.degrees(float(wrap_angle(v.yaw + math.pi / 2)))) <= 50.0 for v in views)
+    assert {round(math.degrees(v.pitch)) for v in views[1:]} <= {-45, -30, -15, 15, 30, 45}
+    everywhere = ObservedSurface(voxel_m=0.1)
+    for k in range(4):
+        for pitch in (-math.pi / 3, 0.0, math.pi / 3):
+            everywhere.add(sphere_depth(2.0), camera_pose(ORIGIN, k * math.pi / 2, pitch), K_128)
+    assert unsampled_views(pano, everywhere, 2.5, 3, 25.0) == []
+    assert unsampled_views(pano, seen, 2.5, 0, 25.0) == []

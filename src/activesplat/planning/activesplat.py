@@ -22,6 +22,7 @@ from activesplat.planning.goals import (
     worth_a_detour,
     worth_a_visit,
 )
+from activesplat.planning.observed import unsampled_views
 from activesplat.planning.panorama import render_panorama
 from activesplat.planning.viewpoints import RotationTarget, rotation_candidates
 from activesplat.timing import Timers
@@ -177,17 +178,23 @@ class ActiveSplatExplorer(Explorer):
         origin = pose[:3, 3]
         pano = self.last_panorama = render_panorama(self.world.render, origin, pcfg.panorama)
         targets = rotation_candidates(pano, pcfg.rotation) + self.high_loss.targets(origin, max_distance=4.0)
+        if self.sampled is not None:
+            c, e = self.cfg.controller, self.cfg
+            targets += unsampled_views(pano, self.sampled, e.unsampled_radius_m, e.unsampled_views,
+                                       e.unsampled_min_weight, turn_deg=c.turn_deg, look_deg=c.look_deg,
+                                       max_pitch_deg=c.max_pitch_deg)
         yaw, pitch = pose_yaw_pitch(pose)
         ctrl = self.cfg.controller if self.cfg.fewest_action_tour else None
         resume = None  # a stop on the way turns back toward the path afterwards: count those turns too
         if self.follower is not None and not self.follower.done:
             resume = yaw_toward(floor_xz(pose), self.follower.waypoints[0])
+        sources = ("panorama", "high_loss", *(("unsampled",) if self.sampled is not None else ()))
         chosen = select_rotation_targets(targets, yaw, pcfg, max_views, pitch, ctrl, resume,
                                          self.cfg.tilt_within_deg)
         self.stops.append({
             "step": len(self.visited) - 1, "cause": self.rotation_cause,
             "xz": [round(float(v), 3) for v in floor_xz(pose)],
-            "candidates": {src: sum(t.source == src for t in targets) for src in ("panorama", "high_loss")},
+            "candidates": {src: sum(t.source == src for t in targets) for src in sources},
             "targets": [{"source": t.source, "yaw_deg": round(math.degrees(t.yaw), 1),
                          "pitch_deg": round(math.degrees(t.pitch), 1), "weight": round(float(t.weight), 1)}
                         for t in chosen]})

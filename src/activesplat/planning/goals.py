@@ -433,7 +433,7 @@ def select_rotation_targets(targets: Sequence[RotationTarget], yaw: float, pcfg:
     much closer to level (never past it): the tilt that puts the target that far from the image centre."""
     chosen: list[RotationTarget] = []
     for t in sorted(targets, key=lambda t: -t.weight):
-        limit = pcfg.rotation.min_offset_deg if t.source == "panorama" else pcfg.high_loss.min_offset_deg
+        limit = pcfg.high_loss.min_offset_deg if t.source == "high_loss" else pcfg.rotation.min_offset_deg
         if abs(math.degrees(float(wrap_angle(t.yaw - yaw)))) <= limit and abs(math.degrees(t.pitch)) < 20:
             continue
         if any(abs(float(wrap_angle(t.yaw - c.yaw))) < math.radians(20) for c in chosen):

@@ -11,10 +11,18 @@ that the invisibility of eq. 12 does not see.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
-from activesplat.geometry import backproject, in_sorted, merge_sorted, voxel_keys
+from activesplat.geometry import backproject, in_sorted, merge_sorted, voxel_keys, wrap_angle
 from activesplat.planning.panorama import Panorama
+from activesplat.planning.viewpoints import RotationTarget
+
+WEIGHT_UNIT_SR = math.radians(2.0) ** 2
+"""Solid angle of one weight unit of `unsampled_views`: a pixel of the half-resolution panorama (~2 deg
+square), the unit of the rotation candidates' invisibility masses, so that both kinds of target rank on
+one scale."""
 
 
 class ObservedSurface:
@@ -42,18 +50,61 @@ class ObservedSurface:
         return in_sorted(self.keys, voxel_keys(np.asarray(points, np.float64).reshape(-1, 3), self.voxel_m))
 
 
-def poorly_observed_share(pano: Panorama, observed: ObservedSurface, radius_m: float) -> float:
-    """Share of the panorama's solid angle that shows mapped surface (a median depth) within `radius_m` of
+def poorly_observed_pixels(pano: Panorama, observed: ObservedSurface, radius_m: float
+                           ) -> tuple[np.ndarray, np.ndarray]:
+    """(rows, cols) of the panorama pixels that show mapped surface (a median depth) within `radius_m` of
     the panorama's centre in a voxel no observed depth point has fallen into."""
     rows, cols = np.nonzero(pano.median_depth > 0)
     if not len(rows):
-        return 0.0
+        return rows, cols
     pts = pano.points(rows, cols)
     near = np.linalg.norm(pts - pano.origin[None, :], axis=1) <= radius_m
     poor = np.zeros(len(rows), bool)
     poor[near] = ~observed.contains(pts[near])
+    return rows[poor], cols[poor]
+
+
+def poorly_observed_share(pano: Panorama, observed: ObservedSurface, radius_m: float) -> float:
+    """Share of the panorama's solid angle that `poorly_observed_pixels` cover."""
+    rows, cols = poorly_observed_pixels(pano, observed, radius_m)
     w = pano.solid_angle
-    return float(w[rows[poor], cols[poor]].sum() / w.sum())
+    return float(w[rows, cols].sum() / w.sum())
 
 
-__all__ = ["ObservedSurface", "poorly_observed_share"]
+def unsampled_views(pano: Panorama, observed: ObservedSurface, radius_m: float, max_views: int,
+                    min_weight: float, half_fov_deg: float = 40.0, turn_deg: float = 10.0,
+                    look_deg: float = 15.0, max_pitch_deg: float = 45.0) -> list[RotationTarget]:
+    """Camera directions that would sample the surface near the agent that its depth has not sampled yet
+    (`poorly_observed_pixels` within `radius_m`), source "unsampled": greedily, the heading (whole turns)
+    and pitch (whole tilts within +-`max_pitch_deg`) whose view, `half_fov_deg` either way of its centre
+    in yaw and pitch, covers the most of that surface's solid angle not covered by a view chosen before, at
+    most `max_views`, each while it covers at least `min_weight` (in `WEIGHT_UNIT_SR`). The map shows such
+    surface as seen (no invisibility for eq. 12's panorama targets) once a glance from afar put Gaussians
+    there, but the glance sampled it too sparsely for the completion measure."""
+    rows, cols = poorly_observed_pixels(pano, observed, radius_m)
+    if max_views <= 0 or not len(rows):
+        return []
+    yaw, pitch = pano.yaw[rows, cols], pano.pitch[rows, cols]
+    weight = pano.solid_angle[rows, cols] / WEIGHT_UNIT_SR
+    half = math.radians(half_fov_deg)
+    headings = np.radians(np.arange(0.0, 360.0, turn_deg))
+    limit = look_deg * math.floor(max_pitch_deg / look_deg)
+    pitches = np.radians(np.arange(-limit, limit + 1e-9, look_deg))
+    in_yaw = np.abs(wrap_angle(yaw[None, :] - headings[:, None])) <= half  # (headings, pixels)
+    in_pitch = np.abs(pitch[None, :] - pitches[:, None]) <= half  # (pitches, pixels)
+    yaw_f = in_yaw.T.astype(np.float64)
+    left = weight.astype(np.float64)
+    views: list[RotationTarget] = []
+    for _ in range(max_views):
+        covered = (in_pitch * left[None, :]) @ yaw_f  # (pitches, headings)
+        p, h = np.unravel_index(int(np.argmax(covered)), covered.shape)
+        if covered[p, h] < min_weight:
+            break
+        views.append(RotationTarget(float(wrap_angle(headings[h])), float(pitches[p]), float(covered[p, h]),
+                                    "unsampled"))
+        left[in_pitch[p] & in_yaw[h]] = 0.0
+    return views
+
+
+__all__ = ["WEIGHT_UNIT_SR", "ObservedSurface", "poorly_observed_pixels", "poorly_observed_share",
+           "unsampled_views"]
