@@ -31,8 +31,8 @@ import numpy as np
 
 from activesplat.env import ACTIONS, Observation
 from activesplat.errors import InvalidInputError
+from activesplat.robot.bags import decode_color, decode_depth
 from activesplat.robot.mapping import WORLD_UP
-from activesplat.robot.recording import decode_color, decode_depth
 from activesplat.robot.transforms import matrix_tq, pose_matrix
 
 ACTION_TOPIC = "/activesplat/action"
