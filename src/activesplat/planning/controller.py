@@ -105,9 +105,9 @@ def fewest_actions_order(yaw: float, pitch: float, stops: Sequence[tuple[float, 
     return best
 
 
-def level_actions(pose: np.ndarray, cfg: ControllerConfig) -> list[str]:
-    """Tilts back to a level camera."""
-    return tilt_toward(pose_yaw_pitch(pose)[1], 0.0, cfg)
+def level_actions(pose: np.ndarray, cfg: ControllerConfig, pitch: float = 0.0) -> list[str]:
+    """Tilts back to a level camera, or to `pitch` (radians) when given."""
+    return tilt_toward(pose_yaw_pitch(pose)[1], pitch, cfg)
 
 
 def floor_xz(pose: np.ndarray) -> np.ndarray:

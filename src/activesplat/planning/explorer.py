@@ -27,8 +27,8 @@ from activesplat.planning.controller import (
     ControllerConfig,
     PathFollower,
     floor_xz,
+    level_actions,
     rotation_actions,
-    tilt_toward,
 )
 from activesplat.planning.observed import ObservedSurface
 from activesplat.planning.panorama import Panorama
@@ -458,8 +458,7 @@ class Explorer:
 
     def _travel_tilt(self, pose: np.ndarray) -> list[str]:
         """Tilts that bring the camera to the travel pitch (`travel_pitch_deg`)."""
-        return tilt_toward(pose_yaw_pitch(pose)[1], math.radians(self.cfg.travel_pitch_deg),
-                           self.cfg.controller)
+        return level_actions(pose, self.cfg.controller, math.radians(self.cfg.travel_pitch_deg))
 
     def _rotation_action(self, pose: np.ndarray) -> str | None:
         ctrl = self.cfg.controller
