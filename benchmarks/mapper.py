@@ -40,7 +40,7 @@ import torch
 
 from activesplat.episode import read_episode
 from activesplat.geometry import backproject
-from activesplat.sim import Simulator, load_scene
+from activesplat.sim import SimConfig, Simulator, load_scene
 from activesplat.splat import Mapper, MapperConfig
 
 TILTS = ("look_down", "look_down", "look_down", "look_up", "look_up", "look_up")
@@ -91,12 +91,13 @@ def scripted_poses(sim: Simulator, steps: int, seed: int) -> tuple[list[np.ndarr
     return poses, dense
 
 
-def episode_poses(episode_dir: Path, steps: int | None) -> tuple[Simulator, list[np.ndarray], list[bool]]:
+def episode_poses(episode_dir: Path, steps: int | None,
+                  sim_overrides: dict | None = None) -> tuple[Simulator, list[np.ndarray], list[bool]]:
     episode = read_episode(episode_dir)
     from activesplat.eval.evaluate import _sim_config
 
     scene = load_scene(episode.meta["scene"], z_up=bool(episode.meta.get("z_up", False)))
-    sim = Simulator(scene, start=episode.start_pose, config=_sim_config(episode.meta))
+    sim = Simulator(scene, start=episode.start_pose, config=_sim_config(episode.meta, sim_overrides))
     n = len(episode.actions) if steps is None else min(steps, len(episode.actions))
     dense = [True] + [a != "move_forward" for a in episode.actions[:n]]
     return sim, list(episode.poses[: n + 1]), dense
@@ -148,16 +149,21 @@ def main() -> None:
     parser.add_argument("--out", type=Path, help="write the map (and render-eval, with --episode) here")
     parser.add_argument("--set", nargs="*", default=[], metavar="FIELD=VALUE",
                         help="MapperConfig overrides, e.g. sparse_adam=False schedule.iterations=4")
+    parser.add_argument("--sim", nargs="*", default=[], metavar="FIELD=VALUE",
+                        help="SimConfig overrides of the replayed (or scripted) camera and of render-eval's "
+                             "ground truth, e.g. texture_filter=nearest")
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
     numba.set_num_threads(min(args.threads, numba.config.NUMBA_NUM_THREADS))  # the kernels' threads too
     config = config_with(args.set)
+    sim_overrides = {k: ast.literal_eval(v) if v[:1] in "0123456789-.([" else v
+                     for k, v in (item.split("=", 1) for item in args.sim)}
 
     if args.episode is not None:
-        sim, poses, dense = episode_poses(args.episode, args.steps)
+        sim, poses, dense = episode_poses(args.episode, args.steps, sim_overrides)
         label = f"replay of {args.episode} ({len(poses) - 1} actions)"
     else:
-        sim = Simulator(load_scene(args.scene), seed=args.seed)
+        sim = Simulator(load_scene(args.scene), seed=args.seed, config=SimConfig(**sim_overrides))
         poses, dense = scripted_poses(sim, args.steps or 300, args.seed)
         label = f"scripted walk in {args.scene}, {len(poses) - 1} actions"
 
@@ -244,7 +250,7 @@ def main() -> None:
             from activesplat.eval.render_eval import render_eval
 
             r = render_eval(args.episode, gaussians_path=args.out / "gaussians.ply", out_dir=args.out,
-                            progress=False)
+                            progress=False, sim_overrides=sim_overrides)
             print("\n### render-eval (train: 50 trajectory views, test: 50 random free-space views)\n")
             print("| split | PSNR | SSIM | LPIPS | depth L1 cm | unmapped % |\n|---|---|---|---|---|---|")
             for split in ("train", "test"):

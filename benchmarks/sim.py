@@ -38,19 +38,20 @@ def _median_ms(fn, repeats: int) -> float:
     return 1e3 * statistics.median(times)
 
 
-def step_vs_raycast(scene: str | Scene, repeats: int) -> list[tuple[str, str, str]]:
+def step_vs_raycast(scene: str | Scene, repeats: int,
+                    texture_filter: str = "area") -> list[tuple[str, str, str]]:
     """Per-frame ms: the full step (action + Embree hit + z-depth + texture lookup + shading), the
     render alone, and the bare Embree distance query over the same rays of the same pose."""
     scene = load_scene(scene) if isinstance(scene, str) else scene
     scene_name = Path(scene.name).name
-    sim = Simulator(scene, seed=0)
+    sim = Simulator(scene, seed=0, config=SimConfig(texture_filter=texture_filter))
     sim.reset()
     step_ms = _median_ms(lambda: sim.step("turn_left"), repeats)
     pose = sim.pose
     render_ms = _median_ms(lambda: sim.render(pose), repeats)
     origins, dirs = sim.sensor.world_rays(pose, sim.K, sim.width, sim.height)
     bare_ms = _median_ms(lambda: sim.sensor.distance(origins, dirs), repeats)
-    step_name = f"RGB-D step 256x256 ({scene_name}, turn_left)"
+    step_name = f"RGB-D step 256x256 ({scene_name}, turn_left, {texture_filter} texture filter)"
     return [
         (step_name, f"{step_ms:.1f} ms", f"{step_ms / bare_ms:.2f}x bare (target <= 2x)"),
         ("  render only", f"{render_ms:.1f} ms", f"{render_ms / bare_ms:.2f}x bare"),
@@ -139,11 +140,12 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scene", default="small-0", help="scene of the step timing")
     parser.add_argument("--repeats", type=int, default=50)
+    parser.add_argument("--texture-filter", default="area", choices=["area", "nearest"])
     parser.add_argument("--houses", nargs="+", default=["medium-0", "medium-1", "medium-2"])
     parser.add_argument("--faces", type=int, default=1_000_000, help="faces of the generated glb (0: skip)")
     parser.add_argument("--materials", type=int, default=50, help="materials of the generated glb")
     args = parser.parse_args()
-    rows = step_vs_raycast(args.scene, args.repeats) + build_times(args.houses)
+    rows = step_vs_raycast(args.scene, args.repeats, args.texture_filter) + build_times(args.houses)
     if args.faces > 0:
         rows += mesh_load(args.faces, args.materials, args.repeats)
     print("| measurement | time | note |")

@@ -1,7 +1,7 @@
-"""render-eval on a hand-made episode: a box room (exported to .glb), a 360 degree look-around at 64 x 64,
-and a map built directly from the ground-truth RGB-D (one Gaussian per 2x2 pixels of every third frame)."""
+"""render-eval on a hand-made episode (tests/eval/conftest.py): a box room (exported to .glb), a 360 degree
+look-around at 64 x 64, and a map built directly from the ground-truth RGB-D (one Gaussian per 2x2 pixels
+of every third frame)."""
 
-import dataclasses
 import json
 import shutil
 
@@ -10,7 +10,6 @@ import pytest
 import torch
 
 from activesplat.cli import main
-from activesplat.episode import EpisodeWriter
 from activesplat.errors import ActiveSplatError
 from activesplat.eval.render_eval import (
     METRIC_KEYS,
@@ -19,47 +18,13 @@ from activesplat.eval.render_eval import (
     sample_test_poses,
     train_indices,
 )
-from activesplat.sim import SimConfig, Simulator, box_room, load_scene
-from activesplat.splat.config import MapperConfig
-from activesplat.splat.densify import gaussians_from_pixels
+from activesplat.sim import SimConfig, Simulator, load_scene
 from activesplat.splat.gaussians import GaussianMap
 from activesplat.splat.ply import save_ply
 
-SIM = SimConfig(width=64, height=64)
+SIM = SimConfig(width=64, height=64)  # as the episode fixture's (tests/eval/conftest.py)
+
 FAST = dict(n_train=3, n_test=3, progress=False, backend="numba")
-
-
-def _map_from_ground_truth(frames, K) -> GaussianMap:
-    cfg = MapperConfig()
-    parts = []
-    for rgb, depth, pose in frames:
-        obs_rgb = torch.from_numpy(rgb).float() / 255.0
-        obs_depth = torch.from_numpy(depth)
-        parts.append(gaussians_from_pixels(obs_depth > 0, obs_rgb, obs_depth, pose, K, cfg))
-    return GaussianMap({k: torch.cat([p[k] for p in parts]) for k in parts[0]})
-
-
-@pytest.fixture(scope="module")
-def episode(tmp_path_factory):
-    root = tmp_path_factory.mktemp("render_eval")
-    scene_file = box_room().export(root / "box.glb")
-    scene = load_scene(str(scene_file))
-    sim = Simulator(scene, seed=0, config=SIM)
-    out = root / "episode"
-    writer = EpisodeWriter(out)
-    obs = sim.reset()
-    meta = {"scene": str(scene_file), "z_up": False, "seed": 0, "policy": "scripted",
-            "start_pose": sim.start_pose.tolist(), "config": {"sim": dataclasses.asdict(SIM)}}
-    writer.start(meta, obs.pose)
-    frames = [(obs.rgb, obs.depth, obs.pose)]
-    for step in range(1, 37):
-        obs = sim.step("turn_left")
-        writer.record(step, "turn_left", obs.pose)
-        frames.append((obs.rgb, obs.depth, obs.pose))
-    writer.finish({"steps": 36})
-    gmap = _map_from_ground_truth(frames[::3], sim.K)
-    save_ply(gmap, out / "gaussians.ply")
-    return out, gmap
 
 
 @pytest.fixture(scope="module")

@@ -16,7 +16,7 @@ from PIL import Image
 
 from activesplat.errors import SceneError
 from activesplat.geometry import intrinsics
-from activesplat.sim import Simulator, load_scene
+from activesplat.sim import SimConfig, Simulator, load_scene
 from activesplat.sim.gltf import GltfWarning, read_gltf, write_glb
 from activesplat.sim.materials import CLAMP_TO_EDGE, MIRRORED_REPEAT, REPEAT
 from activesplat.sim.scene import Scene
@@ -100,11 +100,13 @@ def quad_uv(lo: float, hi: float) -> np.ndarray:
 
 
 def view_quad(path, width=48):
-    """Render the quad of `path` from (0.5, 0.5, 1) looking at -z: (rgb, face shade, hit x, hit y)."""
+    """Render the quad of `path` from (0.5, 0.5, 1) looking at -z with the nearest-texel filter (the one
+    the numpy reference implements): (rgb, face shade, hit x, hit y)."""
     vertices, faces, surface = read_gltf(path)
     import trimesh
 
-    sensor = RGBDSensor(trimesh.Trimesh(vertices, faces, process=False), surface=surface)
+    sensor = RGBDSensor(trimesh.Trimesh(vertices, faces, process=False), surface=surface,
+                        config=SimConfig(texture_filter="nearest"))
     pose = np.eye(4)
     pose[:3, :3] = np.diag([1.0, -1.0, -1.0])  # OpenCV camera: x right, y down, z forward = -z world
     pose[:3, 3] = [0.5, 0.5, 1.0]

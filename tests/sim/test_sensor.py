@@ -117,11 +117,11 @@ def test_explicit_start_pose_is_kept(box):
 
 @pytest.mark.parametrize("name", ["small0", "plain"])
 def test_compiled_render_equals_numpy_reference(small0, name):
-    """The numba kernel of RGBDSensor.render gives the same bytes as `shade` in numpy."""
+    """The numba kernel of RGBDSensor.render gives the same bytes as `shade` in numpy (nearest texels)."""
     from activesplat.sim import load_scene
 
     scene = small0 if name == "small0" else load_scene("small-0-plain")
-    sim = Simulator(scene, seed=1)
+    sim = Simulator(scene, seed=1, config=SimConfig(texture_filter="nearest"))
     sim.reset()
     for action in ("turn_left", "look_down", "turn_left", "turn_left", "look_up", "look_up"):
         sim.act(action)

@@ -14,13 +14,16 @@ COMPLETION_KEYS = ("completion_ratio_pct", "completion_cm", "completion_cm_uncap
                    "n_gt_points", "path_length_m", "steps")
 
 
-def _sim_config(meta: dict):
+def _sim_config(meta: dict, overrides: dict | None = None):
+    """The SimConfig an episode was recorded with (episode.json's config.sim; fields it lacks take the
+    defaults of today, e.g. texture_filter "area" for episodes recorded before it existed), with
+    ``overrides`` on top."""
     from activesplat.sim import SimConfig
 
     saved = meta.get("config", {}).get("sim", {})
     fields = SimConfig.__dataclass_fields__
     kwargs = {k: tuple(v) if isinstance(v, list) else v for k, v in saved.items() if k in fields}
-    return SimConfig(**kwargs)
+    return SimConfig(**{**kwargs, **(overrides or {})})
 
 
 def evaluate_episode(path: str | Path, write: bool = True) -> dict:

@@ -167,12 +167,14 @@ def summarise(views: list[dict]) -> dict:
 def render_eval(episode_dir: str | Path, gaussians_path: str | Path | None = None,
                 out_dir: str | Path | None = None, n_train: int = 50, n_test: int = 50, seed: int = 0,
                 backend: str = "auto", progress: bool = True, config: RenderEvalConfig | None = None,
-                renderer: Renderer | None = None) -> dict:
+                renderer: Renderer | None = None, sim_overrides: dict | None = None) -> dict:
     """Evaluate a map's renders on the train and test splits (module docstring); writes
     ``render_metrics.json`` and ``render_grid.png`` into ``out_dir`` (default: the map's folder) and
     returns the metrics. ``episode_dir`` may also be a ``refined_<method>`` folder inside an episode.
     ``renderer(gmap, pose, K, width, height, backend) -> (rgb, depth, alpha)`` replaces the 3DGS
-    rasterizer (:func:`render_gaussians_view`) for maps of another kind (e.g. 2DGS surfels)."""
+    rasterizer (:func:`render_gaussians_view`) for maps of another kind (e.g. 2DGS surfels).
+    ``sim_overrides`` changes fields of the episode's SimConfig for the ground truth (e.g.
+    ``{"texture_filter": "nearest"}`` to evaluate as the simulator rendered before the area filter)."""
     from activesplat.eval.lpips import LPIPS
     from activesplat.splat.ply import load_ply
     from activesplat.splat.rasterize import gsplat_available
@@ -193,7 +195,7 @@ def render_eval(episode_dir: str | Path, gaussians_path: str | Path | None = Non
     if meta.get("source") == "recording":
         setup = _recorded_setup(episode_dir, meta, cfg)
     else:
-        setup = _simulated_setup(episode_dir, cfg)
+        setup = _simulated_setup(episode_dir, cfg, sim_overrides)
     width, height, K, poses, steps = setup.width, setup.height, setup.K, setup.poses, setup.steps
     grid_rows = {s: set(train_indices(len(poses[s]), cfg.grid_views).tolist()) for s in SPLITS}
     views: dict[str, list[dict]] = {s: [] for s in SPLITS}
@@ -267,6 +269,8 @@ class _Setup:
     ground_truth: Callable
     train_text: str
     test_text: str
+    floor_height: float = 0.0
+    """Height (y) of the scene's floor: the simulator's storey; 0 for recordings."""
 
 
 def _read_meta(episode_dir: Path) -> dict:
@@ -281,7 +285,7 @@ def _read_meta(episode_dir: Path) -> dict:
     return meta
 
 
-def _simulated_setup(episode_dir: Path, cfg: RenderEvalConfig) -> _Setup:
+def _simulated_setup(episode_dir: Path, cfg: RenderEvalConfig, sim_overrides: dict | None = None) -> _Setup:
     """Train views on the trajectory, test views at random free-space poses, both rendered by the
     simulator."""
     from activesplat.eval.evaluate import _sim_config
@@ -292,7 +296,7 @@ def _simulated_setup(episode_dir: Path, cfg: RenderEvalConfig) -> _Setup:
     meta = episode.meta
     if "scene" not in meta:
         raise EpisodeError(f"{episode_dir}/episode.json names no scene")
-    sim_config = _sim_config(meta)
+    sim_config = _sim_config(meta, sim_overrides)
     scene = load_scene(meta["scene"], z_up=bool(meta.get("z_up", False)), floor=meta.get("floor"))
     sim = Simulator(scene, start=episode.start_pose, config=sim_config)
     width, height = sim.width, sim.height
@@ -304,7 +308,7 @@ def _simulated_setup(episode_dir: Path, cfg: RenderEvalConfig) -> _Setup:
         sim_config.hfov_deg, poses, steps, lambda split, i, pose: sim.render(pose, width, height),
         f"{len(steps)} observations uniformly spread over poses.txt (reset included)",
         f"{cfg.n_test} seeded random navigable positions, sensor height {sim_config.sensor_height} m, random "
-        f"yaw, pitch {cfg.test_pitch_deg} deg")
+        f"yaw, pitch {cfg.test_pitch_deg} deg", float(scene.floor_height))
 
 
 HELDOUT_FILE = "heldout.npz"

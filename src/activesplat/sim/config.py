@@ -51,12 +51,24 @@ class SimConfig:
     light_dir: tuple[float, float, float] = (0.3, 0.8, 0.5)
     """Fixed world-space directional light (normalised in the sensor); no headlight, no specular, so
     colours do not depend on the viewpoint."""
+    texture_filter: str = "area"
+    """"area": a pixel's colour is its texture integrated over the pixel's footprint on the surface
+    (anisotropic mip-mapping, as Habitat's OpenGL renderer and a real camera pixel do); "nearest": the one
+    texel under the pixel centre (the project's renderer before; textures finer than a pixel alias).
+    docs/protocol.md §1, "Texture filtering"."""
+    texture_max_anisotropy: int = 16
+    """Most texture taps along a footprint's long axis with the "area" filter (ours; 16 is a common GPU
+    maximum). Beyond this ratio of its long to its short axis, the footprint is blurred along the short
+    axis too."""
 
     def __post_init__(self) -> None:
         check_fields(self, positive=("width", "height", "hfov_deg", "sensor_height", "max_depth",
                                      "agent_radius", "agent_height", "forward_step", "turn_deg", "look_deg",
-                                     "nav_cell"),
+                                     "nav_cell", "texture_max_anisotropy"),
                      non_negative=("step_margin", "floor_hole_cells"), unit=("ambient",))
+        if self.texture_filter not in ("area", "nearest"):
+            raise InvalidInputError(f"SimConfig.texture_filter must be 'area' or 'nearest', got "
+                                    f"{self.texture_filter!r}")
         if not self.hfov_deg < 180:
             raise InvalidInputError(f"SimConfig.hfov_deg must be < 180, got {self.hfov_deg}")
         if not -90 <= self.pitch_min_deg <= 0 <= self.pitch_max_deg <= 90:

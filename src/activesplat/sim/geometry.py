@@ -8,7 +8,7 @@ import numpy as np
 import trimesh
 from PIL import Image
 
-from activesplat.sim.textures import TILE_METRES, Atlas
+from activesplat.sim.textures import ATLAS_MATERIAL, TILE_METRES, Atlas
 
 # Box faces: (outward normal, in-plane edge a, in-plane edge b) as axis indices with signs, chosen
 # so that a x b = outward normal (counter-clockwise winding seen from outside).
@@ -78,8 +78,8 @@ class MeshBuilder:
             return trimesh.Trimesh(vertices=verts, faces=faces, face_colors=colours, process=False)
         uvs = np.concatenate(self._uvs).astype(np.float32).astype(np.float64)
         material = trimesh.visual.material.PBRMaterial(
-            baseColorTexture=Image.fromarray(self.atlas.image), metallicFactor=0.0, roughnessFactor=1.0,
-            doubleSided=True,
+            name=ATLAS_MATERIAL, baseColorTexture=Image.fromarray(self.atlas.image), metallicFactor=0.0,
+            roughnessFactor=1.0, doubleSided=True,
         )
         visual = trimesh.visual.TextureVisuals(uv=uvs, material=material)
         return trimesh.Trimesh(vertices=verts, faces=faces, visual=visual, process=False)

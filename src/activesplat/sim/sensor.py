@@ -1,6 +1,13 @@
 """Embree RGB-D sensor: one ray per pixel centre, z-depth in metres, colour from each face's
 material (own texture and sampler, base colour factor, vertex colours; see sim/materials.py) with
-view-independent shading (fixed directional light, |n . l|)."""
+view-independent shading (fixed directional light, |n . l|).
+
+Texture filtering (``SimConfig.texture_filter``): "area" (default) integrates the texture over the
+pixel's footprint on the hit face (anisotropic mip-mapping, as a GPU or the paper's Habitat renderer
+filters textures, and as a camera pixel integrates light), "nearest" reads the one texel under the
+pixel centre (the project's renderer before; its numpy reference is ``render_reference``). With
+"nearest", textures finer than the pixels alias: the image changes from one frame to the next in a way
+no 3D map can reproduce (docs/protocol.md §1, "Texture filtering")."""
 
 from __future__ import annotations
 
@@ -11,9 +18,10 @@ import trimesh
 from embreex import rtcore_scene
 from embreex.mesh_construction import TriangleMesh
 
-from activesplat.sim._shade_numba import shade_pixels
+from activesplat.sim._shade_numba import shade_pixels, shade_pixels_area
 from activesplat.sim.config import SimConfig
 from activesplat.sim.materials import CLAMP_TO_EDGE, MIRRORED_REPEAT, Surface, surface_from_trimesh
+from activesplat.sim.textures import tile_surface
 
 FLOAT_TEXELS = 4_000_000
 """Scenes with at most this many texels keep them as float32 (48 MB); larger ones as uint8."""
@@ -48,9 +56,14 @@ class RGBDSensor:
         self.faces = np.ascontiguousarray(mesh.faces, dtype=np.int32)
         self._scene = rtcore_scene.EmbreeScene()
         TriangleMesh(self._scene, self.vertices, self.faces)
-        self.surface = surface = surface if surface is not None else surface_from_trimesh(mesh)
+        surface = surface if surface is not None else surface_from_trimesh(mesh)
         if len(surface) != len(self.faces):
             raise ValueError(f"surface has {len(surface)} faces, mesh {len(self.faces)}")
+        # the built-in houses' atlas as one texture per tile: same nearest texels, no bleeding when filtered
+        self.surface = surface = tile_surface(surface)
+        tri = self.vertices[self.faces].astype(np.float64)
+        normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        self.face_normal = normal / np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-12)
         self._store_textures(surface)
         self.face_shade = self._face_shading()
         self._rays: dict[tuple, np.ndarray] = {}
@@ -84,11 +97,14 @@ class RGBDSensor:
             sizes.append(m.texture.shape[:2])
             blocks.append(m.texture.reshape(-1, 3))
             offset += blocks[-1].shape[0]
+        tex_offset = np.asarray(offsets, np.int64)
+        tex_h, tex_w = (np.asarray(v, np.int64) for v in zip(*sizes, strict=True))
+        if self.config.texture_filter == "area":
+            pyramids, self._levels, self._nlevels = mip_pyramids(mats, tex_offset, offset)
+            blocks += pyramids
         texels = np.concatenate(blocks)
         # float32 texels (the values texel / 255 the shading uses) when small: one gather, no convert
         self.texels = texels.astype(np.float32) / np.float32(255.0) if len(texels) <= FLOAT_TEXELS else texels
-        tex_offset = np.asarray(offsets, np.int64)
-        tex_h, tex_w = (np.asarray(v, np.int64) for v in zip(*sizes, strict=True))
         wrap = np.asarray([(m.wrap_s, m.wrap_t) for m in mats], np.int32)
         used = np.unique(self.face_material)
         sizes = np.concatenate([tex_w[used], tex_h[used]])
@@ -107,12 +123,13 @@ class RGBDSensor:
         r = uv[:, :, 1] * tex_h[self.face_material, None]
         planes = [x for t in (c, r) for x in (t[:, 0], t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])]
         self._texel_planes = np.stack(planes, axis=1).astype(np.float32)
+        if self.config.texture_filter == "area":
+            self._texel_jacobian = texel_jacobians(self.vertices[self.faces].astype(np.float64),
+                                                   self.face_normal, np.stack(planes, axis=1))
 
     def _face_shading(self) -> np.ndarray:
         """ambient + (1 - ambient) * |n . l| per face: fixed world light, view-independent."""
-        tri = self.vertices[self.faces].astype(np.float64)
-        n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-        n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
+        n = self.face_normal
         light = np.asarray(self.config.light_dir, dtype=np.float64)
         light /= np.linalg.norm(light)
         a = self.config.ambient
@@ -147,9 +164,23 @@ class RGBDSensor:
         hit = self.cast(origins, dirs)
         rgb = np.empty((width * height, 3), dtype=np.uint8)
         depth = np.empty(width * height, dtype=np.float32)
-        shade_pixels(hit["primID"], hit["tfar"], hit["u"], hit["v"], np.float32(self.config.max_depth),
-                     self.textured, *self._kernel_arrays, self.face_shade, rgb, depth)
+        max_depth = np.float32(self.config.max_depth)
+        if self.textured and self.config.texture_filter == "area":
+            rot = np.asarray(pose[:3, :3], dtype=np.float32)
+            step_x, step_y = rot[:, 0] / np.float32(K[0, 0]), rot[:, 1] / np.float32(K[1, 1])
+            shade_pixels_area(hit["primID"], hit["tfar"], hit["u"], hit["v"], dirs, step_x, step_y,
+                              max_depth, True, *self._kernel_arrays,
+                              self.face_shade, self._face_normal32, self._texel_jacobian, self.face_material,
+                              self._levels, self._nlevels, np.int64(self.config.texture_max_anisotropy), rgb,
+                              depth)
+        else:
+            shade_pixels(hit["primID"], hit["tfar"], hit["u"], hit["v"], max_depth, self.textured,
+                         *self._kernel_arrays, self.face_shade, rgb, depth)
         return rgb.reshape(height, width, 3), depth.reshape(height, width)
+
+    @cached_property
+    def _face_normal32(self) -> np.ndarray:
+        return self.face_normal.astype(np.float32)
 
     @cached_property
     def _kernel_arrays(self) -> tuple:
@@ -168,7 +199,8 @@ class RGBDSensor:
                 present(self.face_base, (0, 3)))
 
     def render_reference(self, pose: np.ndarray, K: np.ndarray, width: int, height: int):
-        """`render` in plain numpy (`shade` on the hits): the slow, readable reference of the kernel."""
+        """`render` in plain numpy (`shade` on the hits): the slow, readable reference of the kernel with
+        texture_filter "nearest" (the nearest texel under each pixel centre, whatever the config says)."""
         origins, dirs = self.world_rays(pose, K, width, height)
         hit = self.cast(origins, dirs)
         prim = hit["primID"]
@@ -205,6 +237,51 @@ class RGBDSensor:
         elif self.face_base is not None:
             colour = colour * self.face_base[face]
         return colour * self.face_shade[face, None]
+
+
+def mip_pyramids(materials, tex_offset: np.ndarray, start: int) -> tuple[list, np.ndarray, np.ndarray]:
+    """Mip levels 1, 2, ... of every material's texture (each half the size of the one before, box
+    filtered with cv2's INTER_AREA, down to 1 x 1), as uint8 texel blocks to append to the texel array at
+    ``start``; with the table of every level (M, L, 3) [texel offset, width, height] (level 0: the
+    texture itself at ``tex_offset``; untextured materials: the white texel 0) and the level counts (M,)."""
+    import cv2
+
+    blocks, tables, offset = [], [], start
+    for m, base in zip(materials, tex_offset, strict=True):
+        if m.texture is None:
+            tables.append([(0, 1, 1)])
+            continue
+        image = m.texture.astype(np.float32)
+        h, w = image.shape[:2]
+        table = [(int(base), w, h)]
+        while w > 1 or h > 1:
+            w, h = max(1, w // 2), max(1, h // 2)
+            image = cv2.resize(image, (w, h), interpolation=cv2.INTER_AREA).reshape(h, w, 3)
+            blocks.append(np.clip(np.rint(image), 0, 255).astype(np.uint8).reshape(-1, 3))
+            table.append((offset, w, h))
+            offset += w * h
+        tables.append(table)
+    n = max(len(t) for t in tables)
+    levels = np.zeros((len(tables), n, 3), np.int64)
+    for i, table in enumerate(tables):
+        levels[i, :len(table)] = table
+        levels[i, len(table):] = table[-1]
+    return blocks, levels, np.asarray([len(t) for t in tables], np.int64)
+
+
+def texel_jacobians(triangles: np.ndarray, normals: np.ndarray, planes: np.ndarray) -> np.ndarray:
+    """(F, 6) float32 d(texel column, texel row) / d(world point) of each face, rows flattened: the
+    texel coordinates are affine in Embree's barycentrics (u, v) (``planes`` (F, 6): column at corner 0,
+    d/du, d/dv, row at corner 0, d/du, d/dv), and (u, v) are the coordinates of the point along the
+    edges V1 - V0 and V2 - V0; nothing changes along the normal. Degenerate faces get zeros."""
+    edges = np.stack([triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0], normals], axis=2)
+    ok = np.abs(np.linalg.det(edges)) > 1e-18
+    tex = np.zeros((len(triangles), 2, 3))
+    tex[:, 0, :2] = planes[:, 1:3]
+    tex[:, 1, :2] = planes[:, 4:6]
+    jac = np.zeros((len(triangles), 2, 3))
+    jac[ok] = tex[ok] @ np.linalg.inv(edges[ok])
+    return jac.reshape(-1, 6).astype(np.float32)
 
 
 def _wrap(index: np.ndarray, size: np.ndarray, mode, pow2: bool) -> np.ndarray:

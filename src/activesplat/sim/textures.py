@@ -17,6 +17,9 @@ TILE_METRES = 0.5
 """Surface size one tile covers (TILE_PX / TILE_METRES = 128 px per metre)."""
 ATLAS_TILES = 4
 """The atlas is ATLAS_TILES x ATLAS_TILES tiles."""
+ATLAS_MATERIAL = "activesplat texture atlas"
+"""Name of the material whose texture is the atlas (kept by glTF export, so a reloaded house is
+recognised as one)."""
 BRIGHTNESS_JITTER = (0.92, 1.08)
 """Per-scene brightness factor range of each material's base colour."""
 CHANNEL_JITTER = (0.97, 1.03)
@@ -146,3 +149,30 @@ def build_atlas(seed: int) -> Atlas:
         image[r : r + TILE_PX, c : c + TILE_PX] = np.round(pattern(rng, colour) * 255).astype(np.uint8)
         tile_of[name] = k
     return Atlas(image=image, tile_of=tile_of)
+
+
+def tile_surface(surface):
+    """The surface of a MeshBuilder mesh (one material named ATLAS_MATERIAL whose texture is the atlas,
+    as built or reloaded from an exported .glb) as one material per atlas tile, each with its own
+    TILE_PX x TILE_PX texture and REPEAT wrap, and UVs in tile units. Reading the nearest texel gives the
+    same image as the atlas (the same texel under every pixel), but a filter that reads neighbouring
+    texels or coarser mip levels (SimConfig.texture_filter "area") wraps around within the tile, which is
+    seamless, instead of bleeding into the next tile of the atlas. Any other surface is returned unchanged."""
+    from activesplat.sim.materials import REPEAT, Material, Surface
+
+    size = TILE_PX * ATLAS_TILES
+    atlas = surface.materials[0] if len(surface.materials) == 1 else None
+    if (atlas is None or atlas.name != ATLAS_MATERIAL or surface.face_uv is None or atlas.texture is None
+            or atlas.texture.shape[:2] != (size, size)):
+        return surface
+    px = surface.face_uv.astype(np.float64) * size  # (F, 3, 2) texel columns and rows, rows down
+    tile = np.floor(px.mean(axis=1) / TILE_PX).astype(np.int64).clip(0, ATLAS_TILES - 1)
+    index = tile[:, 1] * ATLAS_TILES + tile[:, 0]
+    used, face_material = np.unique(index, return_inverse=True)
+    materials = []
+    for k in used:
+        r, c = (k // ATLAS_TILES) * TILE_PX, (k % ATLAS_TILES) * TILE_PX
+        materials.append(Material(f"{atlas.name} tile {k}", atlas.base_colour,
+                                  atlas.texture[r : r + TILE_PX, c : c + TILE_PX], REPEAT, REPEAT))
+    uv = (px - TILE_PX * tile[:, None, :]) / TILE_PX
+    return Surface(materials, face_material, uv.astype(np.float32), surface.face_colour)

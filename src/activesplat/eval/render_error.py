@@ -1,0 +1,285 @@
+"""Where a map's rendering error comes from: every pixel of the render-eval views gets one class, and the
+budget says how many dB of PSNR each class costs (docs/protocol.md §6, "Error budget").
+
+The views, ground truth and renders are exactly those of :func:`activesplat.eval.render_eval.render_eval`
+(same train and test poses, same seed). Each pixel falls in the first class whose test it passes:
+
+1. ``hole_unobserved``: the map renders it with opacity below 0.5 (render-eval's ``unmapped``), and no
+   frame of the trajectory saw its ground-truth surface point (projected into every ``poses.txt`` camera:
+   inside the image, in front of it, and within 5 cm of that camera's ground-truth depth). The mapper
+   never had an observation of it: this error belongs to the explorer.
+2. ``hole_observed``: a hole whose surface point some frame of the trajectory did see.
+3. ``translucent``: opacity in [0.5, 0.95): the background shows through gaps between Gaussians.
+4. ``depth_front`` / ``depth_behind``: the rendered depth (sum w_i z_i / O) is more than 10 cm in front of
+   / behind the ground truth: floaters, surfaces bleeding over silhouettes, missing objects.
+5. ``depth_edge``: within 2 px of a depth jump of the ground truth (a kink of more than 5 % in the
+   inverse depth, which is affine on a plane): silhouettes the map renders at the right depth.
+6. ``floor`` / ``ceiling``: ground-truth surface facing up within 5 cm of the floor height / facing down
+   above the camera; ``rest``: everything else (walls, furniture).
+
+For each class the budget reports its share of the pixels, its share of the summed squared colour error
+of the split, and ``gain_db``: how much the split's PSNR (the mean over views of each view's PSNR, as
+render-eval computes it) would rise if that class's squared error were halved in every view. Halving, not
+removing: a view whose error is nearly all one class would otherwise jump to the 100 dB cap and swamp the
+mean. The gain of a view is at most 10 log10 2 = 3.01 dB (all its error in the class); for a class holding
+a share s of a view's error it is -10 log10(1 - s / 2). Gains of different classes do not add up, but they
+rank what to fix.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from activesplat.errors import EpisodeError
+
+PIXEL_CLASSES = ("hole_unobserved", "hole_observed", "translucent", "depth_front", "depth_behind",
+                 "depth_edge", "floor", "ceiling", "rest")
+"""Pixel classes in the order their tests are applied (module docstring)."""
+
+
+@dataclass(frozen=True)
+class ErrorBudgetConfig:
+    """Thresholds of the pixel classes (ours; module docstring)."""
+
+    hole_alpha: float = 0.5
+    """Opacity below which a pixel is a hole (render-eval's ``unmapped_alpha``)."""
+    translucent_alpha: float = 0.95
+    """Opacity below which a mapped pixel is translucent."""
+    depth_margin_m: float = 0.1
+    """Rendered depth (sum w_i z_i / O) this far in front of / behind the ground truth is a depth error."""
+    edge_jump: float = 0.05
+    """A depth jump: the inverse depth's Laplacian above this fraction of the inverse depth."""
+    edge_px: int = 2
+    """Pixels within this distance of a depth jump are depth-edge pixels."""
+    observed_tol_m: float = 0.05
+    """A trajectory camera saw a surface point when its ground-truth depth there is within this of the
+    point's depth (the completion metric's 5 cm)."""
+    floor_tol_m: float = 0.05
+    """Upward-facing surface within this of the floor height is floor."""
+    horizontal_cos: float = 0.9
+    """|n_y| above this makes a surface horizontal (floor or ceiling)."""
+
+
+# --------------------------------------------------------------------------- per-pixel pieces
+def surface_normals(points: np.ndarray) -> np.ndarray:
+    """(H, W, 3) unit normals of an (H, W, 3) image of world points, from central differences (the border
+    pixels copy their neighbours; pixels without neighbours get zero)."""
+    dx = np.zeros_like(points)
+    dy = np.zeros_like(points)
+    dx[:, 1:-1] = points[:, 2:] - points[:, :-2]
+    dy[1:-1] = points[2:] - points[:-2]
+    dx[:, 0], dx[:, -1] = dx[:, 1], dx[:, -2]
+    dy[0], dy[-1] = dy[1], dy[-2]
+    n = np.cross(dx, dy)
+    norm = np.linalg.norm(n, axis=-1, keepdims=True)
+    return np.where(norm > 1e-12, n / np.maximum(norm, 1e-12), 0.0)
+
+
+def depth_jumps(gt_depth: np.ndarray, cfg: ErrorBudgetConfig) -> np.ndarray:
+    """Pixels within ``edge_px`` of a kink in the ground truth's inverse depth (module docstring)."""
+    from scipy import ndimage
+
+    valid = gt_depth > 0
+    inverse = np.where(valid, 1.0 / np.maximum(gt_depth, 1e-6), 0.0)
+    kink = np.abs(ndimage.laplace(inverse)) > cfg.edge_jump * np.maximum(inverse, 1e-6)
+    kink |= valid != ndimage.binary_erosion(valid, border_value=1)  # edges of missing depth
+    if cfg.edge_px <= 0:
+        return kink
+    return ndimage.binary_dilation(kink, iterations=cfg.edge_px)
+
+
+def observed_by(points: np.ndarray, poses: np.ndarray, depth_of, K: np.ndarray, width: int, height: int,
+                tol_m: float) -> np.ndarray:
+    """(N,) whether any camera-to-world pose of ``poses`` saw each world point: it projects inside the
+    image, in front of the camera, within ``tol_m`` of that camera's ground-truth depth ``depth_of(pose)``."""
+    seen = np.zeros(len(points), dtype=bool)
+    if len(points) == 0:
+        return seen
+    for pose in poses:
+        todo = np.nonzero(~seen)[0]
+        if len(todo) == 0:
+            break
+        w2c = np.linalg.inv(pose)
+        cam = points[todo] @ w2c[:3, :3].T + w2c[:3, 3]
+        z = cam[:, 2]
+        front = z > 1e-3
+        zs = np.where(front, z, 1.0)
+        u = np.floor(cam[:, 0] / zs * K[0, 0] + K[0, 2]).astype(np.int64)
+        v = np.floor(cam[:, 1] / zs * K[1, 1] + K[1, 2]).astype(np.int64)
+        inside = front & (u >= 0) & (u < width) & (v >= 0) & (v < height)
+        if not inside.any():
+            continue
+        depth = depth_of(pose)
+        idx = np.nonzero(inside)[0]
+        d = depth[v[idx], u[idx]]
+        hit = idx[(d > 0) & (np.abs(d - z[idx]) < tol_m)]
+        seen[todo[hit]] = True
+    return seen
+
+
+def classify_pixels(alpha: np.ndarray, depth: np.ndarray, gt_depth: np.ndarray, points: np.ndarray,
+                    camera: np.ndarray, floor_y: float, observed, cfg: ErrorBudgetConfig) -> np.ndarray:
+    """(H, W) index into PIXEL_CLASSES of every pixel of one view (module docstring).
+
+    ``alpha`` / ``depth``: the render's opacity and un-normalised depth sum w_i z_i; ``points``: (H, W, 3)
+    world points of the ground-truth depth; ``camera``: the view's position; ``observed(points (N, 3))``
+    -> (N,) bool says whether the trajectory saw them (only asked for holes)."""
+    valid = gt_depth > 0
+    shown = np.where(alpha > 1e-6, depth / np.maximum(alpha, 1e-6), 0.0)
+    normals = surface_normals(points)
+    up = normals[..., 1]
+    # orient the normals toward the camera so that "faces up" means what the camera sees faces up
+    toward = np.sum(normals * (camera[None, None, :] - points), axis=-1) < 0
+    up = np.where(toward, -up, up)
+    label = np.full(alpha.shape, PIXEL_CLASSES.index("rest"), dtype=np.int64)
+    horizontal = valid & (np.abs(up) > cfg.horizontal_cos)
+    floor = horizontal & (up > 0) & (np.abs(points[..., 1] - floor_y) < cfg.floor_tol_m)
+    ceiling = horizontal & (up < 0) & (points[..., 1] > camera[1])
+    label[ceiling] = PIXEL_CLASSES.index("ceiling")
+    label[floor] = PIXEL_CLASSES.index("floor")
+    label[depth_jumps(gt_depth, cfg)] = PIXEL_CLASSES.index("depth_edge")
+    label[valid & (shown > gt_depth + cfg.depth_margin_m)] = PIXEL_CLASSES.index("depth_behind")
+    label[valid & (shown < gt_depth - cfg.depth_margin_m)] = PIXEL_CLASSES.index("depth_front")
+    label[alpha < cfg.translucent_alpha] = PIXEL_CLASSES.index("translucent")
+    hole = alpha < cfg.hole_alpha
+    label[hole] = PIXEL_CLASSES.index("hole_observed")
+    ask = hole & valid
+    if ask.any():
+        seen = observed(points[ask])
+        rows, cols = np.nonzero(ask)
+        label[rows[~seen], cols[~seen]] = PIXEL_CLASSES.index("hole_unobserved")
+    return label
+
+
+def view_budget(rgb: np.ndarray, gt_rgb: np.ndarray, label: np.ndarray, psnr_max_db: float = 100.0) -> dict:
+    """One view: its PSNR, and per class the pixel count, summed squared error and the PSNR with that
+    class's squared error halved."""
+    gt = gt_rgb.astype(np.float64) / 255.0 if gt_rgb.dtype == np.uint8 else gt_rgb.astype(np.float64)
+    se = np.mean((np.clip(rgb.astype(np.float64), 0.0, 1.0) - gt) ** 2, axis=-1)
+    floor = 10.0 ** (-psnr_max_db / 10.0)
+    total = float(se.sum())
+    n = se.size
+
+    def to_db(sum_se: float) -> float:
+        return -10.0 * math.log10(max(sum_se / n, floor))
+
+    out = {"psnr": to_db(total), "pixels": {}, "squared_error": {}, "psnr_if_halved": {}}
+    for k, name in enumerate(PIXEL_CLASSES):
+        mask = label == k
+        class_se = float(se[mask].sum())
+        out["pixels"][name] = int(mask.sum())
+        out["squared_error"][name] = class_se
+        out["psnr_if_halved"][name] = to_db(total - 0.5 * class_se)
+    return out
+
+
+def summarise_budget(views: list[dict]) -> dict:
+    """Per class over the views of a split: % of pixels, % of squared error, mean PSNR gain (dB) if the
+    class's error were halved."""
+    if not views:
+        return {"psnr": None, "n_views": 0, "classes": {}}
+    base = float(np.mean([v["psnr"] for v in views]))
+    pixels = sum(sum(v["pixels"].values()) for v in views)
+    error = sum(sum(v["squared_error"].values()) for v in views)
+    classes = {}
+    for name in PIXEL_CLASSES:
+        classes[name] = {
+            "pixels_pct": 100.0 * sum(v["pixels"][name] for v in views) / max(pixels, 1),
+            "error_pct": 100.0 * sum(v["squared_error"][name] for v in views) / max(error, 1e-30),
+            "gain_db": float(np.mean([v["psnr_if_halved"][name] for v in views])) - base,
+        }
+    return {"psnr": base, "n_views": len(views), "classes": classes}
+
+
+# --------------------------------------------------------------------------- an episode
+def error_budget(episode_dir: str | Path, gaussians_path: str | Path | None = None, n_train: int = 50,
+                 n_test: int = 50, seed: int = 0, splits: tuple[str, ...] = ("train", "test"),
+                 backend: str = "auto", config: ErrorBudgetConfig | None = None,
+                 progress: bool = True, sim_overrides: dict | None = None) -> dict:
+    """The error budget (module docstring) of an exploration episode's map on render-eval's views
+    (``sim_overrides``: as render-eval's)."""
+    from activesplat.episode import read_episode
+    from activesplat.eval.render_eval import (
+        SPLITS,
+        RenderEvalConfig,
+        _simulated_setup,
+        locate,
+        render_gaussians_view,
+    )
+    from activesplat.geometry import backproject
+    from activesplat.splat.ply import load_ply
+
+    cfg = config or ErrorBudgetConfig()
+    for split in splits:
+        if split not in SPLITS:
+            raise EpisodeError(f"unknown split {split!r}: choose from {', '.join(SPLITS)}")
+    episode_dir, gaussians_path, _ = locate(episode_dir, gaussians_path)
+    episode = read_episode(episode_dir)
+    if episode.meta.get("source") == "recording":
+        raise EpisodeError(f"{episode_dir} is a recording: the error budget needs the scene's ground truth")
+    setup = _simulated_setup(episode_dir, RenderEvalConfig(n_train=n_train, n_test=n_test, seed=seed),
+                             sim_overrides)
+    gmap = load_ply(gaussians_path)
+    if len(gmap) == 0:
+        raise EpisodeError(f"{gaussians_path} holds no Gaussians: nothing to render")
+    W, H, K = setup.width, setup.height, setup.K
+    cache: dict[int, np.ndarray] = {}
+
+    def depth_of(pose: np.ndarray) -> np.ndarray:
+        key = hash(pose.tobytes())
+        if key not in cache:
+            cache[key] = setup.ground_truth("train", 0, pose)[1]
+        return cache[key]
+
+    trajectory = episode.poses
+
+    def observed(points: np.ndarray) -> np.ndarray:
+        return observed_by(points, trajectory, depth_of, K, W, H, cfg.observed_tol_m)
+
+    rows, cols = np.mgrid[0:H, 0:W]
+    total = sum(len(setup.poses[s]) for s in splits)
+    bar = None
+    if progress:
+        import sys
+
+        from tqdm import tqdm
+
+        bar = tqdm(total=total, desc="error budget", unit="view", file=sys.stderr, dynamic_ncols=True)
+    result = {"episode": str(episode_dir), "gaussians": str(gaussians_path), "scene": setup.name,
+              "classes": list(PIXEL_CLASSES), "config": cfg.__dict__.copy()}
+    for split in splits:
+        views = []
+        for i, pose in enumerate(setup.poses[split]):
+            gt_rgb, gt_depth = setup.ground_truth(split, i, pose)
+            rgb, depth, alpha = render_gaussians_view(gmap, pose, K, W, H, backend)
+            valid = gt_depth > 0
+            points = backproject(np.where(valid, gt_depth, 1.0), pose, K, rows.ravel(), cols.ravel())
+            label = classify_pixels(alpha, depth, gt_depth, points.reshape(H, W, 3), pose[:3, 3],
+                                    setup.floor_height, observed, cfg)
+            views.append(view_budget(rgb, gt_rgb, label))
+            if bar is not None:
+                bar.update(1)
+        result[split] = summarise_budget(views)
+    if bar is not None:
+        bar.close()
+    return result
+
+
+def format_budget(result: dict) -> str:
+    """A markdown table per split: class, % pixels, % squared error, dB gained if its error were halved."""
+    lines = []
+    for split in ("train", "test"):
+        if split not in result:
+            continue
+        s = result[split]
+        lines += [f"{split}: {s['n_views']} views, PSNR {s['psnr']:.2f} dB", "",
+                  "| pixel class | pixels % | squared error % | PSNR gain if halved (dB) |",
+                  "|---|---|---|---|"]
+        for name, c in s["classes"].items():
+            lines.append(f"| {name} | {c['pixels_pct']:.1f} | {c['error_pct']:.1f} | +{c['gain_db']:.2f} |")
+        lines.append("")
+    return "\n".join(lines)

@@ -1,0 +1,98 @@
+"""The error budget of a map (eval/render_error.py): pixel classes, the halving gain, the observed test,
+on the hand-made look-around episodes of tests/eval/conftest.py."""
+
+import math
+
+import numpy as np
+import pytest
+
+from activesplat.errors import EpisodeError
+from activesplat.eval.render_error import (
+    PIXEL_CLASSES,
+    ErrorBudgetConfig,
+    classify_pixels,
+    error_budget,
+    observed_by,
+    view_budget,
+)
+from activesplat.geometry import intrinsics
+
+FAST = dict(n_train=3, n_test=4, progress=False, backend="numba")
+
+
+def test_view_budget_halving_gain():
+    gt = np.zeros((4, 4, 3))
+    rgb = np.zeros((4, 4, 3))
+    rgb[0, 0] = 0.5  # all the error in one pixel of class 0
+    rgb[3, 3] = 0.5  # as much in one pixel of class 1
+    label = np.full((4, 4), PIXEL_CLASSES.index("rest"))
+    label[0, 0], label[3, 3] = 0, 1
+    v = view_budget(rgb, gt, label)
+    assert v["psnr"] == pytest.approx(-10 * math.log10(2 * 0.25 / 16))
+    assert v["squared_error"][PIXEL_CLASSES[0]] == pytest.approx(0.25)
+    # half the error in class 0: halving it removes a quarter of the view's error
+    assert v["psnr_if_halved"][PIXEL_CLASSES[0]] - v["psnr"] == pytest.approx(-10 * math.log10(0.75))
+    assert v["psnr_if_halved"]["rest"] == pytest.approx(v["psnr"])  # no error there, no gain
+    assert sum(v["pixels"].values()) == 16
+
+
+def test_observed_by_checks_image_front_and_depth():
+    K = intrinsics(8, 8, 90.0)
+    pose = np.eye(4)  # camera at the origin looking along +z
+    points = np.array([[0.0, 0.0, 2.0],     # seen: on the surface at depth 2
+                       [0.0, 0.0, 3.0],     # behind the surface
+                       [0.0, 0.0, -2.0],    # behind the camera
+                       [10.0, 0.0, 2.0]])   # outside the image
+    seen = observed_by(points, [pose], lambda p: np.full((8, 8), 2.0), K, 8, 8, 0.05)
+    assert seen.tolist() == [True, False, False, False]
+    assert observed_by(points[:0], [pose], None, K, 8, 8, 0.05).shape == (0,)
+
+
+def test_classify_pixels_order():
+    """Holes come first (split by the observed test), then translucency, depth errors, edges, floor."""
+    cfg = ErrorBudgetConfig()
+    H = W = 6
+    gt_depth = np.full((H, W), 2.0)
+    points = np.zeros((H, W, 3))
+    points[..., 0], points[..., 2] = np.meshgrid(np.arange(W) * 0.1, np.arange(H) * 0.1)  # a floor at y 0
+    alpha = np.ones((H, W))
+    depth = gt_depth.copy()  # sum w z with opacity 1
+    alpha[0, 0] = 0.1
+    alpha[0, 1] = 0.1
+    alpha[1, 0] = 0.8
+    depth[1, 0] = 0.8 * 2.0
+    depth[2, 2] = 1.5  # in front by 0.5 m
+    depth[3, 3] = 2.5  # behind by 0.5 m
+    observed = lambda pts: np.array([p[0] > 0.05 for p in pts])  # noqa: E731 - (0, 0) never seen
+    label = classify_pixels(alpha, depth, gt_depth, points, np.array([0.3, 1.25, 0.3]), 0.0, observed, cfg)
+    name = np.asarray(PIXEL_CLASSES)[label]
+    assert name[0, 0] == "hole_unobserved" and name[0, 1] == "hole_observed"
+    assert name[1, 0] == "translucent"
+    assert name[2, 2] == "depth_front" and name[3, 3] == "depth_behind"
+    assert name[4, 4] == "floor"
+
+
+def test_budget_of_a_full_and_a_quarter_look_around(episode, quarter_episode):
+    full = error_budget(episode[0], **FAST)
+    quarter = error_budget(quarter_episode[0], **FAST)
+    for result in (full, quarter):
+        for split in ("train", "test"):
+            classes = result[split]["classes"]
+            assert set(classes) == set(PIXEL_CLASSES)
+            assert sum(c["pixels_pct"] for c in classes.values()) == pytest.approx(100.0)
+            assert sum(c["error_pct"] for c in classes.values()) == pytest.approx(100.0)
+            assert all(0.0 <= c["gain_db"] <= 10 * math.log10(2) + 1e-9 for c in classes.values())
+        # a train view is a frame of the trajectory: whatever it shows, the trajectory saw
+        assert result["train"]["classes"]["hole_unobserved"]["pixels_pct"] == 0.0
+    # the quarter turn never saw most walls: its test views are mostly holes nobody observed
+    assert quarter["test"]["classes"]["hole_unobserved"]["pixels_pct"] > 20.0
+    assert quarter["test"]["classes"]["hole_unobserved"]["pixels_pct"] > \
+        5 * full["test"]["classes"]["hole_unobserved"]["pixels_pct"]
+    assert quarter["test"]["psnr"] < full["test"]["psnr"]
+
+
+def test_budget_refuses_what_it_cannot_measure(episode, tmp_path):
+    with pytest.raises(EpisodeError, match="unknown split"):
+        error_budget(episode[0], splits=("val",), **FAST)
+    with pytest.raises(EpisodeError):
+        error_budget(tmp_path, **FAST)
