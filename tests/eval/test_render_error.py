@@ -13,6 +13,7 @@ from activesplat.eval.render_error import (
     classify_pixels,
     error_budget,
     observed_by,
+    squared_error,
     view_budget,
 )
 from activesplat.geometry import intrinsics
@@ -27,7 +28,7 @@ def test_view_budget_halving_gain():
     rgb[3, 3] = 0.5  # as much in one pixel of class 1
     label = np.full((4, 4), PIXEL_CLASSES.index("rest"))
     label[0, 0], label[3, 3] = 0, 1
-    v = view_budget(rgb, gt, label)
+    v = view_budget(squared_error(rgb, gt), label)
     assert v["psnr"] == pytest.approx(-10 * math.log10(2 * 0.25 / 16))
     assert v["squared_error"][PIXEL_CLASSES[0]] == pytest.approx(0.25)
     # half the error in class 0: halving it removes a quarter of the view's error

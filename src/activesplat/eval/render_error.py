@@ -39,6 +39,8 @@ from activesplat.errors import EpisodeError
 PIXEL_CLASSES = ("hole_unobserved", "hole_observed", "translucent", "depth_front", "depth_behind",
                  "depth_edge", "floor", "ceiling", "rest")
 """Pixel classes in the order their tests are applied (module docstring)."""
+_HOLE_UNOBSERVED = PIXEL_CLASSES.index("hole_unobserved")
+_HOLE_OBSERVED = PIXEL_CLASSES.index("hole_observed")
 
 
 @dataclass(frozen=True)
@@ -122,12 +124,15 @@ def observed_by(points: np.ndarray, poses: np.ndarray, depth_of, K: np.ndarray, 
 
 
 def classify_pixels(alpha: np.ndarray, depth: np.ndarray, gt_depth: np.ndarray, points: np.ndarray,
-                    camera: np.ndarray, floor_y: float, observed, cfg: ErrorBudgetConfig) -> np.ndarray:
+                    camera: np.ndarray, floor_y: float, observed=None,
+                    cfg: ErrorBudgetConfig | None = None) -> np.ndarray:
     """(H, W) index into PIXEL_CLASSES of every pixel of one view (module docstring).
 
     ``alpha`` / ``depth``: the render's opacity and un-normalised depth sum w_i z_i; ``points``: (H, W, 3)
     world points of the ground-truth depth; ``camera``: the view's position; ``observed(points (N, 3))``
-    -> (N,) bool says whether the trajectory saw them (only asked for holes)."""
+    -> (N,) bool says whether the trajectory saw them (only asked for holes; None: every hole stays
+    ``hole_observed``, for the caller to split)."""
+    cfg = cfg or ErrorBudgetConfig()
     valid = gt_depth > 0
     shown = np.where(alpha > 1e-6, depth / np.maximum(alpha, 1e-6), 0.0)
     normals = surface_normals(points)
@@ -148,18 +153,24 @@ def classify_pixels(alpha: np.ndarray, depth: np.ndarray, gt_depth: np.ndarray, 
     hole = alpha < cfg.hole_alpha
     label[hole] = PIXEL_CLASSES.index("hole_observed")
     ask = hole & valid
-    if ask.any():
+    if observed is not None and ask.any():
         seen = observed(points[ask])
         rows, cols = np.nonzero(ask)
         label[rows[~seen], cols[~seen]] = PIXEL_CLASSES.index("hole_unobserved")
     return label
 
 
-def view_budget(rgb: np.ndarray, gt_rgb: np.ndarray, label: np.ndarray, psnr_max_db: float = 100.0) -> dict:
-    """One view: its PSNR, and per class the pixel count, summed squared error and the PSNR with that
-    class's squared error halved."""
+def squared_error(rgb: np.ndarray, gt_rgb: np.ndarray) -> np.ndarray:
+    """(H, W) squared colour error per pixel, averaged over the channels (colours in [0, 1]; uint8 ground
+    truth divided by 255), as render-eval's PSNR sees it."""
     gt = gt_rgb.astype(np.float64) / 255.0 if gt_rgb.dtype == np.uint8 else gt_rgb.astype(np.float64)
-    se = np.mean((np.clip(rgb.astype(np.float64), 0.0, 1.0) - gt) ** 2, axis=-1)
+    return np.mean((np.clip(rgb.astype(np.float64), 0.0, 1.0) - gt) ** 2, axis=-1)
+
+
+def view_budget(se: np.ndarray, label: np.ndarray, psnr_max_db: float = 100.0) -> dict:
+    """One view from its squared error image ``se`` and pixel classes: its PSNR, and per class the pixel
+    count, summed squared error and the PSNR with that class's squared error halved."""
+    se = se.astype(np.float64)
     floor = 10.0 ** (-psnr_max_db / 10.0)
     total = float(se.sum())
     n = se.size
@@ -227,46 +238,57 @@ def error_budget(episode_dir: str | Path, gaussians_path: str | Path | None = No
     if len(gmap) == 0:
         raise EpisodeError(f"{gaussians_path} holds no Gaussians: nothing to render")
     W, H, K = setup.width, setup.height, setup.K
-    cache: dict[int, np.ndarray] = {}
-
-    def depth_of(pose: np.ndarray) -> np.ndarray:
-        key = hash(pose.tobytes())
-        if key not in cache:
-            cache[key] = setup.ground_truth("train", 0, pose)[1]
-        return cache[key]
-
-    trajectory = episode.poses
-
-    def observed(points: np.ndarray) -> np.ndarray:
-        return observed_by(points, trajectory, depth_of, K, W, H, cfg.observed_tol_m)
-
     rows, cols = np.mgrid[0:H, 0:W]
-    total = sum(len(setup.poses[s]) for s in splits)
-    bar = None
-    if progress:
-        import sys
-
-        from tqdm import tqdm
-
-        bar = tqdm(total=total, desc="error budget", unit="view", file=sys.stderr, dynamic_ncols=True)
-    result = {"episode": str(episode_dir), "gaussians": str(gaussians_path), "scene": setup.name,
-              "classes": list(PIXEL_CLASSES), "config": cfg.__dict__.copy()}
+    bar = _progress(sum(len(setup.poses[s]) for s in splits) + len(episode.poses), progress)
+    # 1. every view: squared error and classes, holes provisionally "observed"; their surface points
+    views: dict[str, list] = {s: [] for s in splits}
+    holes: list[tuple] = []  # (split, view, rows, cols, points)
     for split in splits:
-        views = []
         for i, pose in enumerate(setup.poses[split]):
             gt_rgb, gt_depth = setup.ground_truth(split, i, pose)
             rgb, depth, alpha = render_gaussians_view(gmap, pose, K, W, H, backend)
             valid = gt_depth > 0
             points = backproject(np.where(valid, gt_depth, 1.0), pose, K, rows.ravel(), cols.ravel())
-            label = classify_pixels(alpha, depth, gt_depth, points.reshape(H, W, 3), pose[:3, 3],
-                                    setup.floor_height, observed, cfg)
-            views.append(view_budget(rgb, gt_rgb, label))
+            points = points.reshape(H, W, 3)
+            label = classify_pixels(alpha, depth, gt_depth, points, pose[:3, 3], setup.floor_height,
+                                    cfg=cfg)
+            r, c = np.nonzero((label == _HOLE_OBSERVED) & valid)
+            holes.append((split, i, r, c, points[r, c]))
+            views[split].append((squared_error(rgb, gt_rgb).astype(np.float32), label.astype(np.int8)))
             if bar is not None:
                 bar.update(1)
-        result[split] = summarise_budget(views)
+
+    # 2. one pass over the trajectory: which hole points did any frame see?
+    def depth_of(pose: np.ndarray) -> np.ndarray:
+        if bar is not None:
+            bar.update(1)
+        return setup.ground_truth("train", 0, pose)[1]
+
+    points = np.concatenate([h[4] for h in holes]) if holes else np.zeros((0, 3))
+    seen = observed_by(points, episode.poses, depth_of, K, W, H, cfg.observed_tol_m)
+    start = 0
+    for split, i, r, c, p in holes:
+        unseen = ~seen[start : start + len(p)]
+        start += len(p)
+        views[split][i][1][r[unseen], c[unseen]] = _HOLE_UNOBSERVED
     if bar is not None:
         bar.close()
+    result = {"episode": str(episode_dir), "gaussians": str(gaussians_path), "scene": setup.name,
+              "classes": list(PIXEL_CLASSES), "config": cfg.__dict__.copy()}
+    for split in splits:
+        result[split] = summarise_budget([view_budget(se, label) for se, label in views[split]])
     return result
+
+
+def _progress(total: int, enabled: bool):
+    if not enabled:
+        return None
+    import sys
+
+    from tqdm import tqdm
+
+    return tqdm(total=total, desc="error budget (views, then trajectory frames)", unit="frame",
+                file=sys.stderr, dynamic_ncols=True)
 
 
 def format_budget(result: dict) -> str:
