@@ -260,6 +260,37 @@ def test_flat_gaussians_lie_in_the_floor_and_are_thin_along_its_normal():
         MapperConfig(init_normal_scale=0.0)
 
 
+def test_slant_fill_spreads_copies_over_the_footprint_on_the_floor():
+    cfg = MapperConfig(init_slant_fill=4)
+    K = np.array([[32.0, 0, 32], [0, 32.0, 32], [0, 0, 1]])
+    depth = torch.from_numpy(_floor_depth())
+    mask = torch.zeros(64, 64, dtype=torch.bool)
+    mask[47, 33] = True  # a slanted view of the floor
+    rgb = torch.tensor([0.2, 0.4, 0.6]).expand(64, 64, 3)  # uniform: the 2-px grid, no colour detail
+    raw = gaussians_from_pixels(mask, rgb, depth, np.eye(4), K, cfg)
+    single = gaussians_from_pixels(mask, rgb, depth, np.eye(4), K, MapperConfig())
+    z = float(depth[47, 33])
+    ray = np.array([(33.5 - 32) / 32, (47.5 - 32) / 32, 1.0])
+    cos = (ray / np.linalg.norm(ray))[1]  # the floor's normal is the camera's y axis
+    n = len(raw["means"])
+    assert n == min(4, int(np.floor(1 / cos + 0.5))) and n > 1
+    means = raw["means"].numpy()
+    floor_y = single["means"][0, 1].item()
+    assert np.allclose(means[:, 1], floor_y, atol=1e-5)  # every copy on the floor, at its own depth
+    assert np.allclose(means.mean(axis=0), single["means"][0].numpy(), atol=1e-5)  # centred on the pixel
+    spacing = np.linalg.norm(np.diff(means, axis=0), axis=1)
+    assert np.allclose(spacing, 2 * z / 32.0 / cos / n, rtol=1e-4)  # evenly over the footprint
+    for key in ("log_scales", "quats", "f_dc", "opacity_logits"):  # same shape, colour, opacity as one
+        assert torch.allclose(raw[key], single[key].expand_as(raw[key]), atol=1e-6), key
+    # a pixel seen head-on keeps one Gaussian
+    wall = torch.full((64, 64), 3.0)
+    one = torch.zeros(64, 64, dtype=torch.bool)
+    one[31, 31] = True
+    assert len(gaussians_from_pixels(one, rgb, wall, np.eye(4), K, cfg)["means"]) == 1
+    with pytest.raises(InvalidInputError):
+        MapperConfig(init_slant_fill=0)
+
+
 def test_rotmat_to_quat_inverts_quat_to_rotmat_including_half_turns():
     g = torch.Generator().manual_seed(0)
     q = torch.randn(200, 4, generator=g, dtype=torch.float64)

@@ -95,6 +95,15 @@ class MapperConfig:
     28.44 vs 28.85 dB, LPIPS 0.381 vs 0.324: texture smeared along the slant), and the floor far down a
     corridor still does not join the free-space grid (4 is not enough beyond ~5 m).
 
+    Slant fill (``init_slant_fill``; paper, release and SplaTAM: none). The elongation above covers a
+    grazing footprint with one stretched Gaussian, which renders its centre's depth over its whole
+    length. With this > 1, a Gaussian whose pixel lies on a plane seen at a slant is instead replaced by
+    round(1 / cos(theta)) copies (at most this many), each of the projective radius, spaced evenly along
+    the slant direction over the pixel block's footprint: every copy sits on the plane at its own depth.
+    Seen from the camera that placed them, the copies overlap the same pixels; seen from elsewhere, the
+    rows of a floor or ceiling seen from afar no longer leave gaps between them. Off by default (README,
+    "Mapping at house scale").
+
     Flat Gaussians (``init_normal_scale``; paper, release and SplaTAM: isotropic, i.e. 1). An isotropic
     Gaussian on a surface seen at a slant sticks out of it by its radius: seen along the surface (a
     corridor wall, the floor ahead) its disc covers the pixels of the surface farther on, in front of
@@ -213,6 +222,9 @@ class MapperConfig:
     # project: stretch a new Gaussian along the surface it samples by 1 / cos(viewing angle), at most this
     # much (1 = isotropic, as paper and release; see class docstring "Grazing surfaces")
     init_max_elongation: float = 1.0
+    # project: a new Gaussian on a plane seen at a slant is replaced by up to this many copies along the
+    # slant, covering the block's footprint without stretching (1 = off; see "Grazing surfaces")
+    init_slant_fill: int = 1
     # project: a new Gaussian on a plane is this fraction of its radius thick along the plane's normal
     # (paper, release and SplaTAM: 1 = isotropic; see class docstring "Flat Gaussians")
     init_normal_scale: float = 0.1
@@ -293,7 +305,7 @@ class MapperConfig:
             s = getattr(self, name)
             if s.map_every < 1 or s.keyframe_every < 1 or s.iterations < 0:
                 raise InvalidInputError(f"MapperConfig.{name} needs map_every, keyframe_every >= 1, got {s}")
-        for name in ("pixel_stride", "mask_downscale", "train_downscale"):
+        for name in ("pixel_stride", "mask_downscale", "train_downscale", "init_slant_fill"):
             if getattr(self, name) < 1:
                 raise InvalidInputError(f"MapperConfig.{name} must be >= 1, got {getattr(self, name)}")
         if self.refresh_coarse_factor is not None and self.refresh_coarse_factor <= 1.0:

@@ -156,6 +156,32 @@ def surface_elongation(cos: np.ndarray, ok: np.ndarray, max_elongation: float) -
     return elongation
 
 
+def slant_copies(points: torch.Tensor, colors: torch.Tensor, radii: torch.Tensor, ok: np.ndarray,
+                 frames: np.ndarray, factors: np.ndarray, copies: np.ndarray, footprint: np.ndarray):
+    """The slant fill (MapperConfig.init_slant_fill): each Gaussian i replaced by ``copies[i]`` ones
+    (1: itself) spaced evenly along its frame's slant axis over ``footprint`` (metres, per ``ok`` entry:
+    the length of its pixel block's footprint along the slant), with its colour, radius and frame.
+    ``frames`` / ``factors`` are rows of the ``ok`` entries. Returns the same six, expanded."""
+    n = len(points)
+    ok_index = np.nonzero(ok)[0]
+    position = np.full(n, -1)
+    position[ok_index] = np.arange(len(ok_index))
+    counts = np.where(ok, copies, 1).clip(1, None)
+    source = np.repeat(np.arange(n), counts)
+    rank = np.arange(len(source)) - np.repeat(np.cumsum(counts) - counts, counts)
+    step = np.zeros(n)
+    step[ok_index] = footprint / counts[ok_index]
+    axis = np.zeros((n, 3))
+    axis[ok_index] = frames[:, :, 0]
+    offset = (rank - 0.5 * (counts[source] - 1)) * step[source]
+    shift = torch.from_numpy((axis[source] * offset[:, None]).astype(np.float32))
+    idx = torch.from_numpy(source)
+    new_ok = ok[source]
+    rows = position[source[new_ok]]
+    colors = colors[idx.to(colors.device)]
+    return points[idx] + shift, colors, radii[idx], new_ok, frames[rows], factors[rows]
+
+
 def gaussians_from_pixels(mask: torch.Tensor, rgb: torch.Tensor, depth: torch.Tensor, pose: np.ndarray,
                           K: np.ndarray, cfg: MapperConfig) -> dict[str, torch.Tensor]:
     """Raw parameters of one Gaussian per masked pixel (``mask`` lies on valid observed depth, as eq. 8's
@@ -188,7 +214,7 @@ def gaussians_from_pixels(mask: torch.Tensor, rgb: torch.Tensor, depth: torch.Te
     radii = cfg.init_radius_scale * stride * z / focal
     colors = rgb[torch.from_numpy(v), torch.from_numpy(u)]
     frames = factors = None
-    if cfg.init_max_elongation > 1.0 or cfg.init_normal_scale < 1.0:
+    if cfg.init_max_elongation > 1.0 or cfg.init_normal_scale < 1.0 or cfg.init_slant_fill > 1:
         normal, along, cos, ok = surface_frame(depth_np, v, u, K, cfg.pixel_stride, cfg.init_plane_tol)
         rot = pose[:3, :3]
         # world-frame columns (slant axis, tangent across it, normal): a right-handed frame
@@ -196,6 +222,12 @@ def gaussians_from_pixels(mask: torch.Tensor, rgb: torch.Tensor, depth: torch.Te
         factors = np.ones((int(ok.sum()), 3))
         factors[:, 0] = surface_elongation(cos, ok, cfg.init_max_elongation)[ok]
         factors[:, 2] = cfg.init_normal_scale
+        if cfg.init_slant_fill > 1:
+            copies = np.floor(surface_elongation(cos, ok, float(cfg.init_slant_fill)) + 0.5).astype(np.int64)
+            block = radii.numpy().astype(np.float64) / cfg.init_radius_scale  # stride x depth / focal
+            footprint = block[ok] / np.maximum(cos[ok], 1e-6)
+            points, colors, radii, ok, frames, factors = slant_copies(
+                points, colors, radii, ok, frames, factors, copies, footprint)
         frames = torch.from_numpy(frames.astype(np.float32))
         factors = torch.from_numpy(factors.astype(np.float32))
         ok = torch.from_numpy(ok)
