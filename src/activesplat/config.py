@@ -5,7 +5,7 @@ dataclass whose fields say where their values come from (paper / release / ours)
 
 - ``sim``       `activesplat.sim.SimConfig`: sensor, agent body and action sizes
 - ``mapper``    `activesplat.splat.config.MapperConfig`: the online Gaussian mapper
-- ``explorer``  `activesplat.planning.explorer.ExplorerConfig` with its ``planning``, ``workspace`` and
+- ``explorer``  `activesplat.planning.explorer_config.ExplorerConfig` with its ``planning``, ``workspace`` and
                 ``controller`` groups: viewpoint selection, workspace graph, path following
 - ``frontier``  `activesplat.planning.frontier.FrontierConfig`: the `fbe` baseline
 - ``coverage``  `activesplat.eval.coverage.CoverageConfig`: the completion metrics measured during the run
@@ -36,7 +36,7 @@ import tyro
 
 from activesplat.errors import InvalidInputError
 from activesplat.eval.coverage import CoverageConfig
-from activesplat.planning.explorer import ExplorerConfig
+from activesplat.planning.explorer_config import ExplorerConfig
 from activesplat.planning.frontier import FrontierConfig
 from activesplat.planning.policies import POLICY_NAMES
 from activesplat.refine.config import RefineConfig

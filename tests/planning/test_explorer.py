@@ -16,7 +16,7 @@ from activesplat.errors import InvalidInputError  # noqa: E402
 from activesplat.geometry import camera_pose, pose_yaw_pitch, wrap_angle  # noqa: E402
 from activesplat.planning.activesplat import ActiveSplatExplorer  # noqa: E402
 from activesplat.planning.controller import ControllerConfig, PathFollower  # noqa: E402
-from activesplat.planning.explorer import ExplorerConfig  # noqa: E402
+from activesplat.planning.explorer_config import ExplorerConfig  # noqa: E402
 from activesplat.workspace.clean import extract_workspace  # noqa: E402
 from activesplat.workspace.config import WorkspaceConfig  # noqa: E402
 from activesplat.workspace.paths import line_of_sight, path_ahead_clear  # noqa: E402

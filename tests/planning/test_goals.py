@@ -16,7 +16,7 @@ from activesplat.errors import InvalidInputError  # noqa: E402
 from activesplat.planning.activesplat import goal_rules  # noqa: E402
 from activesplat.planning.config import PlanningConfig  # noqa: E402
 from activesplat.planning.controller import ControllerConfig, tour_actions  # noqa: E402
-from activesplat.planning.explorer import ExplorerConfig  # noqa: E402
+from activesplat.planning.explorer_config import ExplorerConfig  # noqa: E402
 from activesplat.planning.goals import (  # noqa: E402
     bridge_toward,
     closer_on_the_way,

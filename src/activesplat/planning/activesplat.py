@@ -12,7 +12,8 @@ import numpy as np
 
 from activesplat.geometry import pose_yaw_pitch
 from activesplat.planning.controller import floor_xz, yaw_toward
-from activesplat.planning.explorer import Explorer, ExplorerConfig, WorldModel
+from activesplat.planning.explorer import Explorer, WorldModel
+from activesplat.planning.explorer_config import ExplorerConfig
 from activesplat.planning.goals import (
     GoalRules,
     bridge_toward,

@@ -8,7 +8,8 @@ from collections.abc import Callable
 
 from activesplat.errors import InvalidInputError
 from activesplat.planning.activesplat import ActiveSplatExplorer
-from activesplat.planning.explorer import Explorer, ExplorerConfig, WorldModel
+from activesplat.planning.explorer import Explorer, WorldModel
+from activesplat.planning.explorer_config import ExplorerConfig
 from activesplat.planning.frontier import FrontierConfig, FrontierExplorer
 from activesplat.timing import Timers
 

@@ -1,0 +1,201 @@
+"""The explorer's own configuration (`ExplorerConfig`): the knobs of `planning.explorer.Explorer` and its
+policies that are not the paper's planning constants (those are in `planning.config`), with the planning,
+workspace and controller configs nested in it. Every field says where its value comes from."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from activesplat.errors import InvalidInputError, check_fields
+from activesplat.planning.config import PlanningConfig
+from activesplat.planning.controller import ControllerConfig
+from activesplat.workspace.config import WorkspaceConfig
+
+
+@dataclass(frozen=True)
+class ExplorerConfig:
+    """The explorer's own knobs; the planning / workspace / controller configs hold the paper's numbers."""
+
+    bootstrap_yaw_deg: float = 360.0
+    """The look-around before departure turns left this far, one TURN_LEFT at a time (paper / release: a
+    full circle, 36 turns of 10 deg)."""
+    bootstrap_pitch_deg: float = 45.0
+    """After each bootstrap turn one tilt, cycling down to -this and back up to level (release: 0 -> -45 deg
+    in 15 deg tilts, down, down, down, up, up, up; 0 = no tilts)."""
+    idle_yaw_deg: float = 60.0
+    """With no goal to go to, the agent turns left this far on the spot before it replans (ours)."""
+    max_rotation_views: int = 5
+    """On-the-spot rotation targets at most per arrival (release: 5; MP3D 4)."""
+    multi_stop_views: int = 5
+    """Rotation targets at most at a multi-connected node stop on the way (ours; the release uses
+    `max_rotation_views` there too)."""
+    rotation_skip_radii: float = 3.0
+    """No on-the-spot rotations within this many agent radii of a spot already rotated at (release)."""
+    multi_stop_spacing_m: float = 1.5
+    """No rotation stop at a multi-connected node within this of a spot already rotated at (the start's
+    look-around included); 0 = the arrival rule above, as in the release (ours: in furnished rooms the
+    Voronoi graph branches around every piece of furniture, so junctions lie ~1 m apart and the agent
+    stopped at each; 1.5 m: medium-0..3 x 2 seeds, 59.7 -> 71.1 % of the ceiling at step 1000, rotations
+    57.0 -> 46.8 %, final completion 83.92 -> 84.66 %, docs/benchmark.md "Tuning log")."""
+    fewest_action_tour: bool = True
+    """Visit the rotation targets of a stop in the order that takes the fewest turns and tilts, levelling
+    included (ours: every order of the at most 5 targets is tried; False: counter-clockwise from the
+    heading, the order this project used before, which often swept a full circle for targets on both
+    sides of the heading)."""
+    tilt_within_deg: float | None = None
+    """Tilt toward a rotation target only until it lies within this many degrees of the image centre,
+    vertically (ours; None: tilt to the target's pitch, as the paper and the release do). With the 90 deg
+    vertical field of view, 30 leaves 15 deg between the target and the image border, and a target less
+    than 30 deg off level needs no tilt at all. 30 on medium-0..3 x 2 seeds: 86.49 -> 85.88 % completion,
+    rotations 49.3 -> 47.8 %, so off (docs/benchmark.md "Where the completion came from")."""
+    travel_pitch_deg: float = 0.0
+    """Camera pitch while following a path, and the pitch the camera returns to after a stop's rotation
+    targets (ours; 0 = level, as the paper and the release travel; negative = down, whole `look_deg` steps).
+    A level camera at 1.25 m sees no floor within 1.25 m of the agent, and the floor and low furniture
+    beside its path go unobserved although it passed within a metre or two of them. -15 on medium-0..3 x 2
+    seeds: 86.49 -> 86.18 %, the floor's miss rate unchanged, so off (docs/benchmark.md "Where the
+    completion came from")."""
+    unsampled_views: int = 0
+    """Rotation targets at most per stop toward mapped surface within `unsampled_radius_m` that none of the
+    agent's depth points has sampled (a `unsampled_voxel_m` voxel; `planning.observed.unsampled_views`),
+    ranked with the panorama and high-loss targets by weight (ours; 0 = off, as the paper). The completion
+    measure counts a surface point only where a depth point fell within 5 cm of it; the floor and low
+    furniture beside the agent's route are mapped from afar and look seen to eq. 12, but most of what the
+    exhaustive sweep observes and a run does not lies there. 2 on medium-0..3 x 2 seeds (6 runs): 86.46 ->
+    84.76 %, so off (docs/benchmark.md "Where the completion came from")."""
+    unsampled_radius_m: float = 2.5
+    """Surface within this of the agent counts for `unsampled_views` (ours)."""
+    unsampled_voxel_m: float = 0.1
+    """Voxel size of the sampled-surface memory of `unsampled_views` (ours: twice the completion measure's
+    5 cm, so that the map's depth error of a few cm does not flag surface the agent has sampled)."""
+    unsampled_min_weight: float = 25.0
+    """A view toward unsampled surface must cover at least this much of it, in half-resolution panorama
+    pixels (ours: the rotation candidates' minimum cluster mass)."""
+    multi_node_radius_m: float = 0.3
+    """Passing within this of a multi-connected node forces a short rotation stop there (ours)."""
+    local_score_threshold: float = 5.0
+    """Local planning keeps picking nodes of the current subregion while their information score
+    w_o s_o + w_c s_c (eq. 12 without the unvisited / in-horizon flags) exceeds this (ours: 5 = a quarter of
+    the best invisible share anywhere; with the flags counted an agent revisits a seen room node by node)."""
+    global_distance_weight: float = 1.0
+    """Global goal score = node score - this x path length in metres (ours; the paper names a distance
+    cost without a value). 2 lost 2.4 points alone and was a tie with the two rules below (docs/benchmark.md
+    "Tuning log")."""
+    global_halving_m: float | None = None
+    """When set, the global stage ranks by node score / (1 + path length / this) instead of the difference
+    above (ours): a score halves at this much travel, so a long trip must promise proportionally more
+    whatever the scale of the scores. 5 m on medium-0..3 x 2 seeds: 86.02 -> 86.20 % (noise), so off
+    (docs/benchmark.md "Score per way, and a bridge")."""
+    bridge_gain_m: float | None = None
+    """When a goal worth a visit (information above `local_score_threshold`) has no safe path, go instead to
+    the open node of the agent's own graph component nearest to it, if that is at least this much nearer
+    to it than the agent (ours; None = off: the goal is marked failed and the next one is tried, as in the
+    release). The graph is cut where the floor was only seen from far away (a corridor looked down but not
+    walked): the most promising nodes then lie in another component, every path to them fails, they are
+    marked failed and the agent turns to what it can reach. Fresh medium-100 seed 1: 76.22 -> 81.97 %;
+    medium-0..3 x 2 seeds 86.02 -> 86.00 %, fresh medium-100..109 seed 0 86.03 -> 85.43 %, so off
+    (docs/benchmark.md "Score per way, and a bridge")."""
+    retry_unreachable: bool = False
+    """A goal with no safe path on this replan's graph is skipped for this replan only instead of marked
+    failed (ours; False = marked failed, i.e. closed until no goal is left, as in the release). A goal cut
+    off for one replan (the floor of a doorway or a corridor not yet mapped) otherwise stays closed for the
+    rest of the episode (medium-1 seed 0 with `--mapper.edge-band-px 2`, README "Mapping at house
+    scale"). Goals refused on the way (a blocked path, a refused forward move) are still marked failed."""
+    global_tour: bool = False
+    """In the global stage, go first to the subregion that comes first on the shortest open route from the
+    agent through every subregion with a node worth a visit (information above `local_score_threshold`;
+    each subregion's best such node stands for it, graph path lengths; `goals.tour_first`), instead of to
+    the best score minus distance (ours; the paper names a distance cost, not a route). medium-0..3 x 2
+    seeds: 86.02 -> 85.75 %, at step 1000 71.0 -> 65.3 % of the ceiling, so off (docs/benchmark.md "A route
+    through the subregions")."""
+    global_in_horizon: bool = False
+    """Count eq. 12's in-horizon flag in the global stage too (paper: one score for every node; this
+    project's default until the change below). False (ours): the global stage ranks nodes without it. The
+    flag marks a node in a straight line of sight, which is a local preference: down a corridor it gave a
+    node 11 m away the same 10 points as one in the next room, and the agent crossed the house past rooms
+    it had not entered."""
+    global_information_first: bool = True
+    """In the global stage, rank the open nodes whose information score (as for `local_score_threshold`)
+    exceeds the local threshold ahead of every other node, each group by score minus distance cost (ours;
+    the paper ranks all nodes by one score). Without it the unvisited and in-horizon flags (20 of eq. 12's
+    points) of a nearby node in a room already seen can outweigh a far node with unseen space behind a door
+    once the distance cost is counted, and the agent goes from node to node of rooms it has seen. With
+    this and no in-horizon flag on medium-0..3 x seeds 0, 1: completion 84.02 -> 85.36 %, share of the sweep
+    ceiling 92.7 -> 94.2 %, at step 1000 74.4 -> 69.5 %; fresh medium-100..109: 85.33 -> 85.56 %
+    (docs/benchmark.md "Tuning log")."""
+    long_path_m: float = 13.0
+    """Release: a goal path longer than 13 m (200 steps) is kept only if no closer node lies on the way."""
+    on_the_way_m: float = 0.5
+    """A node lies on the way of a long path when it is within this of the path (ours)."""
+    detour_m: float | None = 5.0
+    """In the global stage, go first to the nearest open node whose information exceeds
+    `detour_min_info`, if it is nearer than the chosen goal and costs at most this many metres of extra
+    travel on the way to it (graph lengths, `goals.worth_a_detour`), instead of straight to the goal (ours;
+    None = off, the paper's rule). The door of an unseen room shows little of the room in a panorama, so a
+    node with a large unseen area behind it elsewhere outranks it and the agent walked past the door and
+    never came back (fresh medium-104 and medium-109, seed 0). Measured with 5 m (docs/benchmark.md "Rooms
+    passed on the way"): tuning houses 85.94 -> 86.21 % (with the mapper's colour detail, 86.49 %), fresh
+    medium-100..109 seed 0 84.76 -> 86.31 % (with the colour detail 85.03 %), held-out medium-110..119
+    seed 0 85.39 -> 86.45 % (with the colour detail); rotations rise from 44-46 % to 49-50 %."""
+    detour_min_info: float = 10.0
+    """The information a node must promise to be worth a detour (ours: a third of the best node's 30; a
+    node just above `local_score_threshold` is a corner of a room already seen)."""
+    max_panoramas: int = 24
+    """Candidate nodes scored by panorama per replan, nearest first, on top of one per subregion (see
+    `panorama_every_subregion`; ours: bounds the replan time)."""
+    panorama_every_subregion: bool = True
+    """Score the nearest open node of every subregion by panorama, however many subregions there are, plus
+    the `max_panoramas` nearest open nodes (ours). False: `max_panoramas` in all, subregions nearest first,
+    this project's rule before. Unscored nodes have no information part, so on a medium house (47
+    subregions on medium-105 at step 1692) the 24 panoramas all went to the agent's half of the house, the
+    rooms at the far end looked empty of anything to see, and they were never entered."""
+    escape_forward_steps: int = 3
+    """Forward steps of a collision escape after turning to the clearest heading (ours); the headings probed
+    are every turn of a full circle."""
+    lookahead_m: float = 0.65
+    """Re-check this much of the path ahead at every step (release: 10 forward steps)."""
+    ahead_tolerance_m: float = 0.05
+    """The path-ahead check forgives this much clearance (ours: one workspace cell). The agent follows its
+    path only to within the arrival radius, so the segment it checks starts up to ~0.1 m off the planned
+    one, and clearance is quantised to cells: without it an agent beside a wall corner fails every goal at
+    its first forward step and turns on the spot for hundreds of steps."""
+    panorama_height_m: float = 1.25
+    """Panoramas are rendered at the sensor height above the floor (docs/protocol.md §1)."""
+    hierarchical: bool = True
+    """Local-then-global goal selection over subregions (paper sec. III-C); off for `no-hp`."""
+    rotations: bool = True
+    """On-the-spot rotations toward panorama / high-loss targets on arrival (paper sec. III-B); off for
+    `position`."""
+    multi_stops: bool = True
+    """Rotation stops at multi-connected nodes (paper sec. III-C); off for `position` and `viewpoint`."""
+    random_goals: bool = False
+    """Choose goal nodes uniformly at random (the `random` ablation of the paper's Tab. III)."""
+    seed: int = 0
+    """Seed of the random choices (random goals; ours)."""
+    planning: PlanningConfig = field(default_factory=PlanningConfig)
+    workspace: WorkspaceConfig = field(default_factory=WorkspaceConfig)
+    controller: ControllerConfig = field(default_factory=ControllerConfig)
+
+    def __post_init__(self) -> None:
+        check_fields(self, non_negative=("bootstrap_yaw_deg", "bootstrap_pitch_deg", "idle_yaw_deg",
+                                         "max_rotation_views", "multi_stop_views", "rotation_skip_radii",
+                                         "multi_stop_spacing_m",
+                                         "multi_node_radius_m", "local_score_threshold",
+                                         "global_distance_weight", "long_path_m", "on_the_way_m",
+                                         "escape_forward_steps", "lookahead_m", "ahead_tolerance_m",
+                                         "unsampled_views", "unsampled_min_weight",
+                                         "detour_min_info",
+                                         "panorama_height_m"),
+                     positive=("unsampled_radius_m", "unsampled_voxel_m"), at_least_one=("max_panoramas",))
+        if self.tilt_within_deg is not None and not 0 <= self.tilt_within_deg <= 90:
+            raise InvalidInputError(f"ExplorerConfig.tilt_within_deg must be in [0, 90] (or None = off), got "
+                                    f"{self.tilt_within_deg}")
+        if not -90 < self.travel_pitch_deg < 90:
+            raise InvalidInputError(f"ExplorerConfig.travel_pitch_deg must be in (-90, 90) degrees, got "
+                                    f"{self.travel_pitch_deg}")
+        if self.bridge_gain_m is not None and self.bridge_gain_m < 0:
+            raise InvalidInputError(f"ExplorerConfig.bridge_gain_m must be >= 0 (or None = off), got "
+                                    f"{self.bridge_gain_m}")
+        if self.global_halving_m is not None and self.global_halving_m <= 0:
+            raise InvalidInputError(f"ExplorerConfig.global_halving_m must be > 0 (or None = the distance "
+                                    f"weight's difference), got {self.global_halving_m}")
