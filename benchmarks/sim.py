@@ -107,7 +107,8 @@ def furnished_glb(path: Path, faces: int, materials: int, seed: int = 0) -> Path
     return path
 
 
-def mesh_load(faces: int, materials: int, repeats: int) -> list[tuple[str, str, str]]:
+def mesh_load(faces: int, materials: int, repeats: int,
+              texture_filter: str = "area") -> list[tuple[str, str, str]]:
     """Load time of a generated furnished glb, by stage, and its sensor step time."""
     def timed(fn):
         wall, cpu = time.perf_counter(), time.process_time()
@@ -133,7 +134,7 @@ def mesh_load(faces: int, materials: int, repeats: int) -> list[tuple[str, str, 
                 ("  navigability map", cell(total - t_read - t_storey, total_cpu - c_read - c_storey),
                  "remainder of load_scene"),
                 ("sensor build (Embree BVH, texel planes), on first Simulator", cell(t_sensor, c_sensor), "")]
-        return rows + step_vs_raycast(scene, repeats)
+        return rows + step_vs_raycast(scene, repeats, texture_filter)
 
 
 def main() -> None:
@@ -147,7 +148,7 @@ def main() -> None:
     args = parser.parse_args()
     rows = step_vs_raycast(args.scene, args.repeats, args.texture_filter) + build_times(args.houses)
     if args.faces > 0:
-        rows += mesh_load(args.faces, args.materials, args.repeats)
+        rows += mesh_load(args.faces, args.materials, args.repeats, args.texture_filter)
     print("| measurement | time | note |")
     print("|---|---:|---|")
     for row in rows:
