@@ -327,6 +327,10 @@ def build_parser() -> argparse.ArgumentParser:
     p_reval.add_argument("--backend", default="auto", choices=("auto", "numba", "torch", "gsplat"),
                          help="rasterizer backend")
     p_reval.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p_reval.add_argument("--budget", action="store_true",
+                         help="also the error budget (render_budget.json): which pixels cost how many dB, "
+                              "holes no trajectory frame saw apart from the map's own errors (renders every "
+                              "trajectory frame once more; simulated episodes only)")
     p_reval.set_defaults(func=_cmd_render_eval)
 
     # refine: parsed by tyro (TYRO_COMMANDS)

@@ -97,3 +97,20 @@ def test_budget_refuses_what_it_cannot_measure(episode, tmp_path):
         error_budget(episode[0], splits=("val",), **FAST)
     with pytest.raises(EpisodeError):
         error_budget(tmp_path, **FAST)
+
+
+def test_render_eval_budget_option_writes_the_budget(episode, tmp_path, capsys):
+    import shutil
+
+    from activesplat.cli import main
+
+    out = shutil.copytree(episode[0], tmp_path / "copy")
+    code = main(["render-eval", str(out), "--n-train", "2", "--n-test", "2", "--backend", "numba",
+                 "--no-progress", "--budget"])
+    assert code == 0
+    text = capsys.readouterr().out
+    assert "hole_unobserved" in text and "render_budget.json" in text
+    import json
+
+    saved = json.loads((out / "render_budget.json").read_text())
+    assert saved["train"]["n_views"] == 2 and set(saved["test"]["classes"]) == set(PIXEL_CLASSES)

@@ -210,9 +210,9 @@ def summarise_budget(views: list[dict]) -> dict:
 def error_budget(episode_dir: str | Path, gaussians_path: str | Path | None = None, n_train: int = 50,
                  n_test: int = 50, seed: int = 0, splits: tuple[str, ...] = ("train", "test"),
                  backend: str = "auto", config: ErrorBudgetConfig | None = None,
-                 progress: bool = True, sim_overrides: dict | None = None) -> dict:
+                 progress: bool = True, sim_overrides: dict | None = None, renderer=None) -> dict:
     """The error budget (module docstring) of an exploration episode's map on render-eval's views
-    (``sim_overrides``: as render-eval's)."""
+    (``sim_overrides``, ``renderer``: as render-eval's; default renderer: the 3DGS rasterizer)."""
     from activesplat.episode import read_episode
     from activesplat.eval.render_eval import (
         SPLITS,
@@ -238,6 +238,7 @@ def error_budget(episode_dir: str | Path, gaussians_path: str | Path | None = No
     if len(gmap) == 0:
         raise EpisodeError(f"{gaussians_path} holds no Gaussians: nothing to render")
     W, H, K = setup.width, setup.height, setup.K
+    renderer = renderer or render_gaussians_view
     rows, cols = np.mgrid[0:H, 0:W]
     bar = _progress(sum(len(setup.poses[s]) for s in splits) + len(episode.poses), progress)
     # 1. every view: squared error and classes, holes provisionally "observed"; their surface points
@@ -246,7 +247,7 @@ def error_budget(episode_dir: str | Path, gaussians_path: str | Path | None = No
     for split in splits:
         for i, pose in enumerate(setup.poses[split]):
             gt_rgb, gt_depth = setup.ground_truth(split, i, pose)
-            rgb, depth, alpha = render_gaussians_view(gmap, pose, K, W, H, backend)
+            rgb, depth, alpha = renderer(gmap, pose, K, W, H, backend)
             valid = gt_depth > 0
             points = backproject(np.where(valid, gt_depth, 1.0), pose, K, rows.ravel(), cols.ravel())
             points = points.reshape(H, W, 3)

@@ -30,6 +30,16 @@ def render_eval_from_args(args: argparse.Namespace) -> int:
     result = render_eval(args.dir, n_train=args.n_train, n_test=args.n_test, seed=args.seed,
                          backend=args.backend, progress=not args.no_progress, **options)
     print(format_table(result, out))
+    if getattr(args, "budget", False):
+        from activesplat.episode import write_json_atomic
+        from activesplat.eval.render_error import error_budget, format_budget
+
+        budget = error_budget(args.dir, n_train=args.n_train, n_test=args.n_test, seed=args.seed,
+                              backend=args.backend, progress=not args.no_progress,
+                              renderer=options["renderer"])
+        write_json_atomic(Path(out) / "render_budget.json", budget)
+        print(f"\nerror budget ({Path(out) / 'render_budget.json'}):\n")
+        print(format_budget(budget))
     return 0
 
 
