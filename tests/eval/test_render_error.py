@@ -114,3 +114,4 @@ def test_render_eval_budget_option_writes_the_budget(episode, tmp_path, capsys):
 
     saved = json.loads((out / "render_budget.json").read_text())
     assert saved["train"]["n_views"] == 2 and set(saved["test"]["classes"]) == set(PIXEL_CLASSES)
+    assert (out / "render_budget.png").stat().st_size > 10_000

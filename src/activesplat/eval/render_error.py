@@ -210,9 +210,12 @@ def summarise_budget(views: list[dict]) -> dict:
 def error_budget(episode_dir: str | Path, gaussians_path: str | Path | None = None, n_train: int = 50,
                  n_test: int = 50, seed: int = 0, splits: tuple[str, ...] = ("train", "test"),
                  backend: str = "auto", config: ErrorBudgetConfig | None = None,
-                 progress: bool = True, sim_overrides: dict | None = None, renderer=None) -> dict:
+                 progress: bool = True, sim_overrides: dict | None = None, renderer=None,
+                 figure: str | Path | None = None, figure_views: int = 4) -> dict:
     """The error budget (module docstring) of an exploration episode's map on render-eval's views
-    (``sim_overrides``, ``renderer``: as render-eval's; default renderer: the 3DGS rasterizer)."""
+    (``sim_overrides``, ``renderer``: as render-eval's; default renderer: the 3DGS rasterizer). With
+    ``figure``, a PNG of the ``figure_views`` test views with the largest squared error: ground truth,
+    render, and the pixel classes."""
     from activesplat.episode import read_episode
     from activesplat.eval.render_eval import (
         SPLITS,
@@ -243,6 +246,7 @@ def error_budget(episode_dir: str | Path, gaussians_path: str | Path | None = No
     bar = _progress(sum(len(setup.poses[s]) for s in splits) + len(episode.poses), progress)
     # 1. every view: squared error and classes, holes provisionally "observed"; their surface points
     views: dict[str, list] = {s: [] for s in splits}
+    shown: list[tuple] = []  # (mean squared error, split, view, ground truth, render) for the figure
     holes: list[tuple] = []  # (split, view, rows, cols, points)
     for split in splits:
         for i, pose in enumerate(setup.poses[split]):
@@ -256,6 +260,8 @@ def error_budget(episode_dir: str | Path, gaussians_path: str | Path | None = No
             r, c = np.nonzero((label == _HOLE_OBSERVED) & valid)
             holes.append((split, i, r, c, points[r, c]))
             views[split].append((squared_error(rgb, gt_rgb).astype(np.float32), label.astype(np.int8)))
+            if figure is not None and split == splits[-1]:
+                shown.append((float(views[split][-1][0].mean()), split, i, gt_rgb, np.clip(rgb, 0.0, 1.0)))
             if bar is not None:
                 bar.update(1)
 
@@ -278,7 +284,49 @@ def error_budget(episode_dir: str | Path, gaussians_path: str | Path | None = No
               "classes": list(PIXEL_CLASSES), "config": cfg.__dict__.copy()}
     for split in splits:
         result[split] = summarise_budget([view_budget(se, label) for se, label in views[split]])
+    if figure is not None:
+        worst = sorted(shown, key=lambda v: -v[0])[:figure_views]
+        rows = [(f"{s} view {i}, PSNR {-10 * math.log10(max(e, 1e-10)):.1f} dB", gt, rgb, views[s][i][1])
+                for e, s, i, gt, rgb in worst]
+        where = Path(gaussians_path)
+        draw_budget_figure(Path(figure), rows, title=f"{setup.name}: {where.parent.name}/{where.name}")
     return result
+
+
+CLASS_COLOURS = ("#000000", "#7f7f7f", "#9467bd", "#d62728", "#ff7f0e", "#e377c2", "#8c564b", "#17becf",
+                 "#f0f0f0")
+"""Colours of PIXEL_CLASSES in figures: holes never observed black, observed holes grey, rest near white."""
+
+
+def draw_budget_figure(path: Path, rows: list[tuple], title: str = "") -> Path:
+    """Rows of (label, ground truth, render, pixel classes): ground truth | render | classes, and a
+    legend."""
+    from matplotlib.colors import ListedColormap
+    from matplotlib.figure import Figure
+    from matplotlib.patches import Patch
+
+    n = max(len(rows), 1)
+    fig = Figure(figsize=(9.6, 2.9 * n + 1.0), dpi=100, layout="constrained")
+    axes = np.asarray(fig.subplots(n, 3, squeeze=False))
+    cmap = ListedColormap(CLASS_COLOURS)
+    for r, (label, gt, rgb, classes) in enumerate(rows):
+        axes[r, 0].imshow(gt)
+        axes[r, 1].imshow(rgb)
+        axes[r, 2].imshow(classes, cmap=cmap, vmin=-0.5, vmax=len(PIXEL_CLASSES) - 0.5,
+                          interpolation="nearest")
+        axes[r, 0].set_ylabel(label, fontsize=8)
+    for c, name in enumerate(("ground truth", "render", "pixel class")):
+        axes[0, c].set_title(name, fontsize=10)
+    for ax in axes.ravel():
+        ax.set_xticks([])
+        ax.set_yticks([])
+    fig.legend(handles=[Patch(facecolor=col, edgecolor="0.5", label=name.replace("_", " "))
+                        for name, col in zip(PIXEL_CLASSES, CLASS_COLOURS, strict=True)],
+               loc="outside lower center", ncol=5, fontsize=8)
+    if title:
+        fig.suptitle(title, fontsize=10)
+    fig.savefig(path)
+    return path
 
 
 def _progress(total: int, enabled: bool):

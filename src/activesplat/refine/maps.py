@@ -36,9 +36,9 @@ def render_eval_from_args(args: argparse.Namespace) -> int:
 
         budget = error_budget(args.dir, n_train=args.n_train, n_test=args.n_test, seed=args.seed,
                               backend=args.backend, progress=not args.no_progress,
-                              renderer=options["renderer"])
+                              renderer=options["renderer"], figure=Path(out) / "render_budget.png")
         write_json_atomic(Path(out) / "render_budget.json", budget)
-        print(f"\nerror budget ({Path(out) / 'render_budget.json'}):\n")
+        print(f"\nerror budget ({Path(out) / 'render_budget.json'}, {Path(out) / 'render_budget.png'}):\n")
         print(format_budget(budget))
     return 0
 
