@@ -39,6 +39,7 @@ import numpy as np
 import torch
 
 from activesplat.episode import read_episode
+from activesplat.eval.evaluate import parse_sim_overrides
 from activesplat.geometry import backproject
 from activesplat.sim import SimConfig, Simulator, load_scene
 from activesplat.splat import Mapper, MapperConfig
@@ -156,8 +157,7 @@ def main() -> None:
     torch.set_num_threads(args.threads)
     numba.set_num_threads(min(args.threads, numba.config.NUMBA_NUM_THREADS))  # the kernels' threads too
     config = config_with(args.set)
-    sim_overrides = {k: ast.literal_eval(v) if v[:1] in "0123456789-.([" else v
-                     for k, v in (item.split("=", 1) for item in args.sim)}
+    sim_overrides = parse_sim_overrides(args.sim)
 
     if args.episode is not None:
         sim, poses, dense = episode_poses(args.episode, args.steps, sim_overrides)

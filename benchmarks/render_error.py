@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from activesplat.eval.evaluate import parse_sim_overrides
 from activesplat.eval.render_error import PIXEL_CLASSES, error_budget, format_budget
 
 
@@ -47,7 +48,7 @@ def main() -> None:
     maps = args.gaussians or [None] * len(args.episodes)
     if len(maps) != len(args.episodes):
         parser.error("give one --gaussians per episode")
-    sim_overrides = dict(item.split("=", 1) for item in args.sim)
+    sim_overrides = parse_sim_overrides(args.sim)
     results = []
     for episode, gaussians in zip(args.episodes, maps, strict=True):
         result = error_budget(episode, gaussians, n_train=args.n_train, n_test=args.n_test, seed=args.seed,

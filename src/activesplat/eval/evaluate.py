@@ -14,6 +14,21 @@ COMPLETION_KEYS = ("completion_ratio_pct", "completion_cm", "completion_cm_uncap
                    "n_gt_points", "path_length_m", "steps")
 
 
+def parse_sim_overrides(items: list[str]) -> dict:
+    """``["texture_filter=nearest", "width=128"]`` -> SimConfig overrides: values that read as Python
+    literals (numbers, tuples) become them, anything else stays a string."""
+    import ast
+
+    out = {}
+    for item in items:
+        key, _, value = item.partition("=")
+        try:
+            out[key] = ast.literal_eval(value)
+        except (ValueError, SyntaxError):
+            out[key] = value
+    return out
+
+
 def _sim_config(meta: dict, overrides: dict | None = None):
     """The SimConfig an episode was recorded with (episode.json's config.sim; fields it lacks take the
     defaults of today, e.g. texture_filter "area" for episodes recorded before it existed), with

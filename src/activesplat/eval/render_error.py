@@ -302,12 +302,11 @@ def draw_budget_figure(path: Path, rows: list[tuple], title: str = "") -> Path:
     """Rows of (label, ground truth, render, pixel classes): ground truth | render | classes, and a
     legend."""
     from matplotlib.colors import ListedColormap
-    from matplotlib.figure import Figure
     from matplotlib.patches import Patch
 
-    n = max(len(rows), 1)
-    fig = Figure(figsize=(9.6, 2.9 * n + 1.0), dpi=100, layout="constrained")
-    axes = np.asarray(fig.subplots(n, 3, squeeze=False))
+    from activesplat.eval.render_eval import save_view_grid, view_grid
+
+    fig, axes = view_grid(len(rows), ("ground truth", "render", "pixel class"), extra_height=1.0)
     cmap = ListedColormap(CLASS_COLOURS)
     for r, (label, gt, rgb, classes) in enumerate(rows):
         axes[r, 0].imshow(gt)
@@ -315,18 +314,10 @@ def draw_budget_figure(path: Path, rows: list[tuple], title: str = "") -> Path:
         axes[r, 2].imshow(classes, cmap=cmap, vmin=-0.5, vmax=len(PIXEL_CLASSES) - 0.5,
                           interpolation="nearest")
         axes[r, 0].set_ylabel(label, fontsize=8)
-    for c, name in enumerate(("ground truth", "render", "pixel class")):
-        axes[0, c].set_title(name, fontsize=10)
-    for ax in axes.ravel():
-        ax.set_xticks([])
-        ax.set_yticks([])
     fig.legend(handles=[Patch(facecolor=col, edgecolor="0.5", label=name.replace("_", " "))
                         for name, col in zip(PIXEL_CLASSES, CLASS_COLOURS, strict=True)],
                loc="outside lower center", ncol=5, fontsize=8)
-    if title:
-        fig.suptitle(title, fontsize=10)
-    fig.savefig(path)
-    return path
+    return save_view_grid(fig, path, title)
 
 
 def _progress(total: int, enabled: bool):

@@ -359,14 +359,35 @@ def _grid_label(split: str, view: dict) -> str:
 
 
 # --------------------------------------------------------------------------- figure
+def view_grid(n_rows: int, column_titles: tuple[str, str, str], extra_height: float = 0.6):
+    """(figure, (n, 3) axes) of a figure with one row per view and three titled image columns, no ticks
+    (render_grid.png, render_budget.png)."""
+    from matplotlib.figure import Figure
+
+    n = max(n_rows, 1)
+    fig = Figure(figsize=(9.6, 2.9 * n + extra_height), dpi=100, layout="constrained")
+    axes = np.asarray(fig.subplots(n, 3, squeeze=False))
+    for c, name in enumerate(column_titles):
+        axes[0, c].set_title(name, fontsize=10)
+    for ax in axes.ravel():
+        ax.set_xticks([])
+        ax.set_yticks([])
+    return fig, axes
+
+
+def save_view_grid(fig, path: Path, title: str = "") -> Path:
+    if title:
+        fig.suptitle(title, fontsize=10)
+    fig.savefig(path)
+    return path
+
+
 def draw_render_grid(path: Path, rows: list[dict], depth_max_cm: float, title: str = "") -> Path:
     """Rows of ground truth | render | depth error (cm, colour bar; grey = no ground-truth depth)."""
     import matplotlib
-    from matplotlib.figure import Figure
 
     n = max(len(rows), 1)
-    fig = Figure(figsize=(9.6, 2.9 * n + 0.6), dpi=100, layout="constrained")
-    axes = np.asarray(fig.subplots(n, 3, squeeze=False))
+    fig, axes = view_grid(n, ("ground truth", "render", "depth error |D - D_gt|"))
     cmap = matplotlib.colormaps["inferno"].with_extremes(bad="0.6")
     image = None
     for r, row in enumerate(rows):
@@ -375,18 +396,10 @@ def draw_render_grid(path: Path, rows: list[dict], depth_max_cm: float, title: s
         error = np.ma.masked_invalid(row["error_cm"])
         image = axes[r, 2].imshow(error, cmap=cmap, vmin=0.0, vmax=depth_max_cm)
         axes[r, 0].set_ylabel(row["label"], fontsize=8)
-    for c, name in enumerate(("ground truth", "render", "depth error |D - D_gt|")):
-        axes[0, c].set_title(name, fontsize=10)
-    for ax in axes.ravel():
-        ax.set_xticks([])
-        ax.set_yticks([])
     if image is not None:
         bar = fig.colorbar(image, ax=list(axes[:, 2]), shrink=min(1.0, 3.0 / n), extend="max")
         bar.set_label("depth error (cm)")
-    if title:
-        fig.suptitle(title, fontsize=10)
-    fig.savefig(path)
-    return path
+    return save_view_grid(fig, path, title)
 
 
 # --------------------------------------------------------------------------- command line

@@ -169,7 +169,7 @@ class RGBDSensor:
             rot = np.asarray(pose[:3, :3], dtype=np.float32)
             step_x, step_y = rot[:, 0] / np.float32(K[0, 0]), rot[:, 1] / np.float32(K[1, 1])
             shade_pixels_area(hit["primID"], hit["tfar"], hit["u"], hit["v"], dirs, step_x, step_y,
-                              max_depth, True, *self._kernel_arrays,
+                              max_depth, *self._kernel_arrays,
                               self.face_shade, self._face_normal32, self._texel_jacobian, self.face_material,
                               self._levels, self._nlevels, np.int64(self.config.texture_max_anisotropy), rgb,
                               depth)
