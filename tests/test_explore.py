@@ -80,6 +80,8 @@ def test_episode_folder_is_complete(episode):
     assert replans and all(72 <= r["step"] < 90 and r["stage"] in ("local", "global") for r in replans)
     for r in replans:
         assert r["goal"] is None or (r["path_m"] > 0 and r["candidates"] >= r["promising"])
+        assert 0 < len(r["ranked"]) <= min(8, r["candidates"])  # why: the best candidates, best first
+        assert all(len(c["xz"]) == 2 and c["travel_m"] >= 0 for c in r["ranked"])
     failures = json.loads((out / "stops.json").read_text())["failures"]
     whys = ("no path", "no path, skipped", "blocked")
     assert all(f["why"] in whys and len(f["goal"]) == 2 for f in failures)

@@ -1,6 +1,7 @@
 """The explorer through its public behaviour: the actions `act` returns (bootstrap, goals, escapes), the
 path-ahead check, and turn counts that follow the action sizes."""
 
+import dataclasses
 import sys
 from pathlib import Path
 from types import SimpleNamespace
@@ -332,3 +333,28 @@ def test_the_camera_travels_at_the_travel_pitch_and_returns_to_it_after_a_stop()
         assert ex.last_cause == "level"
     with pytest.raises(InvalidInputError, match="travel_pitch_deg"):
         ExplorerConfig(travel_pitch_deg=-90.0)
+
+
+def test_a_stop_turns_to_a_wall_it_has_only_seen_from_the_other_side_unless_told_not_to():
+    """`PanoramaConfig.front_faces_targets`: the stop's panorama asks the world for front-facing opacity.
+    This world is opaque all round, but behind the agent (yaw 180) it has only the far face of a wall."""
+    def render(pose, K, width, height, front_alpha=False, behind_margin_deg=0.0):
+        u, v = np.meshgrid(np.arange(width) + 0.5, np.arange(height) + 0.5)
+        cam = np.stack([(u - K[0, 2]) / K[0, 0], (v - K[1, 2]) / K[1, 1], np.ones_like(u)], -1)
+        d = cam @ pose[:3, :3].T
+        behind = d[..., 2] < -0.5 * np.linalg.norm(d, axis=-1)  # looking toward -z
+        alpha = np.where(behind & front_alpha, 0.0, 1.0)
+        return SimpleNamespace(alpha=alpha, median_depth=np.full(alpha.shape, 2.0))
+
+    world = SimpleNamespace(gaussians=None, high_loss_mask=None, render=render)
+    yaws = {}
+    for front in (True, False):
+        cfg = ExplorerConfig(workspace=WCFG)
+        assert cfg.planning.panorama.front_faces_targets  # the default
+        pano = dataclasses.replace(cfg.planning.panorama, front_faces_targets=front)
+        cfg = dataclasses.replace(cfg, planning=dataclasses.replace(cfg.planning, panorama=pano))
+        ex = ActiveSplatExplorer(world, 0.0, cfg)
+        targets = ex._rotation_targets(camera_pose([1.0, 1.25, 1.5], 0.0), 5)
+        yaws[front] = [abs(np.degrees(wrap_angle(t.yaw))) for t in targets]
+    assert yaws[True] and max(yaws[True]) > 150  # it turns round to the wall's near face
+    assert yaws[False] == []  # with every Gaussian's opacity the wall looks seen: nothing to turn to

@@ -44,6 +44,18 @@ def fake_renderer(hole_yaw_deg, hole_pitch_deg, radius=3.0):
     return render
 
 
+def test_front_faces_asks_the_world_for_front_facing_opacity_when_it_can_give_it():
+    plain = fake_renderer((0, 0), (0, 0))  # opaque everywhere
+
+    def faces(pose, K, width, height, front_alpha=False, behind_margin_deg=0.0):  # all seen from behind
+        out = plain(pose, K, width, height)
+        return SimpleNamespace(alpha=out.alpha * (0.0 if front_alpha else 1.0), median_depth=out.median_depth)
+
+    assert invisible_share(render_panorama(faces, ORIGIN)) == 0.0
+    assert invisible_share(render_panorama(faces, ORIGIN, front_faces=True)) == pytest.approx(1.0)
+    assert invisible_share(render_panorama(plain, ORIGIN, front_faces=True)) == 0.0  # plain opacity
+
+
 def test_panorama_rays_point_where_the_pose_looks():
     pano = render_panorama(fake_renderer((0, 0), (0, 0)), ORIGIN)
     assert pano.shape == (150, 360)

@@ -283,6 +283,27 @@ def test_a_wall_seen_from_its_other_side_gets_its_own_gaussians_only_with_the_ba
     assert counts[True][1] > 1.5 * counts[True][0]  # the back is mapped: most of the plane anew
 
 
+def test_front_alpha_reads_a_wall_seen_from_behind_as_unseen_but_still_hides_what_lies_beyond():
+    """Mapper.render(front_alpha=True), the planner's visibility: the flat Gaussians of a wall mapped from
+    one side add no visibility to a camera on the other side, yet the wall still occludes."""
+    K = intrinsics(32)
+    mapper = Mapper(K, 32, 32, MapperConfig(), backend=BACKEND)
+    mapper.add_frame(np.full((32, 32, 3), 200, np.uint8), np.full((32, 32), 2.0, np.float32), np.eye(4),
+                     dense=True)
+    behind = np.eye(4)
+    behind[:3, 3] = [0.0, 0.0, 4.0]
+    behind[:3, :3] = np.diag([-1.0, 1.0, -1.0])  # turned round, looking back at the plane z = 2
+    centre = (slice(8, 24), slice(8, 24))
+    for cam in (np.eye(4), behind):
+        plain, front = mapper.render(cam), mapper.render(cam, front_alpha=True)
+        assert plain.alpha[centre].min() > 0.9
+        assert torch.equal(plain.median_depth, front.median_depth)  # depths: every Gaussian
+    assert mapper.render(np.eye(4), front_alpha=True).alpha[centre].min() > 0.9
+    assert mapper.render(behind, front_alpha=True).alpha[centre].max() < 0.05
+    # the rendered alpha of a frame's own view is unchanged by the option's existence
+    assert torch.equal(mapper.render(np.eye(4)).rgb, mapper.render(np.eye(4), front_alpha=False).rgb)
+
+
 def test_depth_edges_at_pixel_resolution_bleed_less_over_what_lies_behind():
     # a face 1 m in front of the wall (2 m), mapped from scratch in one frame, no optimisation: with the grid
     # alone the face's Gaussians reach past its silhouette; with edge_band_px its near-side edge pixels get

@@ -67,6 +67,7 @@ class ActiveSplatExplorer(Explorer):
             return self.timers.time("planner", plan_safe_path, plan.graph, plan.workspace, here, goal,
                                     cfg.workspace)
 
+        self._ranked = goal_order[:self.cfg.replan_log_top]
         for node in goal_order:
             goal = np.asarray(plan.graph.nodes[node]["pos"], float)
             if np.hypot(*(goal - here)) <= cfg.controller.arrive_radius:
@@ -134,6 +135,7 @@ class ActiveSplatExplorer(Explorer):
                        info=round(plan.info.get(node, float("nan")), 2), path_m=round(path_length(path), 2))
             if bridge:  # the goal ranked first had no safe path: `plan.goal` is a node on the way to it
                 rec["bridge_to"] = [round(float(v), 3) for v in plan.graph.nodes[node]["pos"]]
+        rec["ranked"] = [ranked_entry(plan, n) for n in getattr(self, "_ranked", [])]
         self.replans.append(rec)
 
     def arrive(self, pose: np.ndarray, max_views: int | None = None, cause: str = "arrival") -> None:
@@ -177,7 +179,8 @@ class ActiveSplatExplorer(Explorer):
     def _rotation_targets(self, pose: np.ndarray, max_views: int) -> list[RotationTarget]:
         pcfg = self.cfg.planning
         origin = pose[:3, 3]
-        pano = self.last_panorama = render_panorama(self.world.render, origin, pcfg.panorama)
+        pano = self.last_panorama = render_panorama(self.world.render, origin, pcfg.panorama,
+                                                    pcfg.panorama.front_faces_targets)
         targets = rotation_candidates(pano, pcfg.rotation) + self.high_loss.targets(origin, max_distance=4.0)
         if self.sampled is not None:
             c, e = self.cfg.controller, self.cfg
@@ -215,3 +218,12 @@ def goal_rules(cfg: ExplorerConfig) -> GoalRules:
 
 
 __all__ = ["ActiveSplatExplorer", "goal_rules"]
+
+
+def ranked_entry(plan: Plan, node: int) -> dict:
+    """One ranked candidate of a replan for stops.json: floor position, subregion, eq. 12 score, its
+    information part (0 without a panorama) and the graph travel to it."""
+    return {"xz": [round(float(v), 2) for v in plan.graph.nodes[node]["pos"]],
+            "subregion": plan.subregions.get(node), "score": round(plan.scores.get(node, float("nan")), 2),
+            "info": round(plan.info.get(node, float("nan")), 2),
+            "travel_m": round(plan.travel.get(node, float("nan")), 2)}

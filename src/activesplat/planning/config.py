@@ -26,10 +26,22 @@ class PanoramaConfig:
     """Pixels per camera horizontally: 3 x 120 = 360 px, ~1 px per degree (paper: 360 x 150 panorama)."""
     height: int = 150
     """Panorama height in pixels (paper: 150)."""
+    front_faces_targets: bool = True
+    """The panorama a stop picks its rotation targets from counts as visible only surfaces seen from the
+    side that observed them (ours; paper and release: the opacity of every Gaussian). A flat Gaussian seen
+    from behind, such as the corridor face of a room's door wall seen from inside the room, occludes but
+    reads as unseen (`Mapper.render`'s ``front_alpha``). With the paper's opacity the far face of a wall
+    or an object counts as its near face, so a room seen only through its door looks complete from
+    inside, and the agent inside never turns to the wall it came through."""
+    front_faces_scores: bool = False
+    """The same for the panoramas that score candidate nodes (eq. 12's s_o and s_c; ours)."""
+    back_face_margin_deg: float = 15.0
+    """With the two options above, a Gaussian is seen from behind only when the camera lies this far behind
+    its plane (ours): walls and floors seen edge-on would otherwise flicker between seen and unseen."""
 
     def __post_init__(self) -> None:
-        check_fields(self, positive=("hfov_deg", "vfov_deg"), at_least_one=("n_cameras", "width_per_camera",
-                                                                               "height"))
+        check_fields(self, positive=("hfov_deg", "vfov_deg"), non_negative=("back_face_margin_deg",),
+                     at_least_one=("n_cameras", "width_per_camera", "height"))
         if not (self.hfov_deg < 180 and self.vfov_deg < 180):
             raise InvalidInputError(f"PanoramaConfig fields of view must be < 180 deg, got {self.hfov_deg} / "
                                     f"{self.vfov_deg}")

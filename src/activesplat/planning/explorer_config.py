@@ -159,6 +159,9 @@ class ExplorerConfig:
     path only to within the arrival radius, so the segment it checks starts up to ~0.1 m off the planned
     one, and clearance is quantised to cells: without it an agent beside a wall corner fails every goal at
     its first forward step and turns on the spot for hundreds of steps."""
+    replan_log_top: int = 8
+    """Each replan record of stops.json lists this many candidates as ranked (position, subregion, score,
+    information, travel), best first: why the agent went where it went (ours; 0 = none)."""
     panorama_height_m: float = 1.25
     """Panoramas are rendered at the sensor height above the floor (docs/protocol.md §1)."""
     hierarchical: bool = True
@@ -184,7 +187,7 @@ class ExplorerConfig:
                                          "global_distance_weight", "long_path_m", "on_the_way_m",
                                          "escape_forward_steps", "lookahead_m", "ahead_tolerance_m",
                                          "unsampled_views", "unsampled_min_weight",
-                                         "detour_min_info",
+                                         "detour_min_info", "replan_log_top",
                                          "panorama_height_m"),
                      positive=("unsampled_radius_m", "unsampled_voxel_m"), at_least_one=("max_panoramas",))
         if self.tilt_within_deg is not None and not 0 <= self.tilt_within_deg <= 90:

@@ -292,7 +292,8 @@ def rank_goals(plan: Plan, here: np.ndarray, render: RenderFn, floor_height: flo
     quality = observed is not None and score_cfg.w_q > 0
     for i in panorama_candidates(nodes, dist, open_, plan.subregions, rules.max_panoramas,
                                   rules.panorama_every_subregion):
-        pano = render_panorama(render, [pos[i][0], height, pos[i][1]], pcfg.panorama)
+        pano = render_panorama(render, [pos[i][0], height, pos[i][1]], pcfg.panorama,
+                               pcfg.panorama.front_faces_scores)
         inv[i] = invisible_share(pano, pcfg.rotation)
         vol[i] = hull_volume(pano, pcfg.hull)
         if quality:

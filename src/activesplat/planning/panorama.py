@@ -8,6 +8,7 @@ targets and contour pixels back-project into 3D without the "1 px = 1 degree" ap
 
 from __future__ import annotations
 
+import inspect
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -78,14 +79,20 @@ def panorama_poses(origin, cfg: PanoramaConfig) -> list[np.ndarray]:
     return [camera_pose(origin, -c * step, 0.0) for c in range(cfg.n_cameras)]
 
 
-def render_panorama(render: RenderFn, origin, cfg: PanoramaConfig | None = None) -> Panorama:
-    """Render the visibility panorama at `origin` (world, camera height) with `render`."""
+def render_panorama(render: RenderFn, origin, cfg: PanoramaConfig | None = None,
+                    front_faces: bool = False) -> Panorama:
+    """Render the visibility panorama at `origin` (world, camera height) with `render`. `front_faces`:
+    visibility of surfaces from the side that observed them only (`PanoramaConfig.front_faces_targets`),
+    where `render` can tell (a ``front_alpha`` parameter)."""
     cfg = cfg or PanoramaConfig()
     origin = np.asarray(origin, dtype=np.float64)
     K, cam_rays = _camera_rays(cfg)
     inv, med, rays = [], [], []
+    # a world model that cannot tell faces apart (no ``front_alpha`` parameter) gives the plain opacity
+    front = ({"front_alpha": True, "behind_margin_deg": cfg.back_face_margin_deg}
+             if front_faces and _takes(render, "front_alpha") else {})
     for pose in panorama_poses(origin, cfg):
-        out = render(pose, K=K, width=cfg.width_per_camera, height=cfg.height)
+        out = render(pose, K=K, width=cfg.width_per_camera, height=cfg.height, **front)
         inv.append(1.0 - _np(out.alpha))
         med.append(_np(out.median_depth))
         rays.append(cam_rays @ pose[:3, :3].T)
@@ -100,6 +107,15 @@ def render_panorama(render: RenderFn, origin, cfg: PanoramaConfig | None = None)
         yaw=np.arctan2(rays_all[..., 0], rays_all[..., 2]).astype(np.float32),
         pitch=np.arctan2(rays_all[..., 1], horiz).astype(np.float32),
     )
+
+
+def _takes(fn, name: str) -> bool:
+    """Whether callable `fn` accepts keyword argument `name`."""
+    try:
+        params = inspect.signature(fn).parameters
+    except (TypeError, ValueError):
+        return False
+    return name in params or any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params.values())
 
 
 def _np(x) -> np.ndarray:

@@ -239,19 +239,23 @@ def frustum_rows(means: torch.Tensor, log_scales: torch.Tensor, pose, K, width: 
 
 
 def back_facing(quats: torch.Tensor, log_scales: torch.Tensor, means: torch.Tensor, camera_center,
-                flatness: float = 0.5) -> torch.Tensor:
+                flatness: float = 0.5, margin_deg: float = 0.0) -> torch.Tensor:
     """(N,) bool: flat Gaussians seen from behind. A Gaussian is flat when its third scale is below
     ``flatness`` times the smaller of the other two; its third rotation axis is then the normal of the
     surface it was made from, pointing to the side that observed it (``densify.gaussians_from_pixels``
     turns it so). Seen from behind = the camera centre lies on the other side of that plane: the
-    Gaussian belongs to the far face of a wall or an object, not to a surface this camera can see."""
+    Gaussian belongs to the far face of a wall or an object, not to a surface this camera can see. With
+    ``margin_deg`` > 0 the camera must lie that many degrees behind the plane (seen from the Gaussian),
+    so that a plane seen edge-on, whose normal is a few degrees off, does not flip from side to side."""
     with torch.no_grad():
         if quats.shape[0] == 0:
             return torch.zeros(0, dtype=torch.bool, device=quats.device)
         flat = log_scales[:, 2] < torch.minimum(log_scales[:, 0], log_scales[:, 1]) + float(np.log(flatness))
         normal = quat_to_rotmat(quats)[:, :, 2]
         c = torch.as_tensor(np.asarray(camera_center, dtype=np.float32), device=means.device)
-        return flat & (((c - means) * normal).sum(dim=1) < 0)
+        to_camera = c - means
+        limit = -float(np.sin(np.radians(margin_deg))) * to_camera.norm(dim=1) if margin_deg > 0 else 0.0
+        return flat & ((to_camera * normal).sum(dim=1) < limit)
 
 
 def _frustum_rows_torch(means, log_scales, pose, K, width, height, depth, occlusion_margin_m,

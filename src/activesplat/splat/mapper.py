@@ -40,7 +40,7 @@ from activesplat.splat.densify import (
     high_loss_mask,
     prune_mask,
 )
-from activesplat.splat.gaussians import GaussianMap, activate, back_facing, frustum_rows
+from activesplat.splat.gaussians import GaussianMap, activate, back_facing, frustum_rows, rgb_to_f_dc
 from activesplat.splat.keyframes import Keyframe, mapping_window
 from activesplat.splat.losses import mapping_loss
 from activesplat.splat.optim import RowAdam, nonzero_rows
@@ -125,11 +125,31 @@ class Mapper:
         self._rng = np.random.default_rng(self.config.seed)
 
     # ------------------------------------------------------------------ rendering
-    def render(self, pose, K=None, width: int | None = None, height: int | None = None):
-        """Render the map from camera-to-world ``pose`` (no grad); intrinsics default to the sensor's."""
+    def render(self, pose, K=None, width: int | None = None, height: int | None = None,
+               front_alpha: bool = False, behind_margin_deg: float = 0.0):
+        """Render the map from camera-to-world ``pose`` (no grad); intrinsics default to the sensor's.
+
+        ``front_alpha``: the returned ``alpha`` (and ``rgb``, grey) counts only what the camera sees of
+        surfaces from the side that observed them. A flat Gaussian seen from behind (:func:`back_facing`:
+        the far face of a wall, the back of an object) still hides what lies behind it, but adds nothing:
+        from inside a room whose door wall was mapped only from the corridor, that wall reads as unseen,
+        not as seen in the corridor's colours. Depths are those of every Gaussian. The planner's
+        visibility (``PanoramaConfig.front_faces_targets`` / ``front_faces_scores``).
+        ``behind_margin_deg``: how far behind a plane the camera must be for its Gaussian to count as seen
+        from behind (:func:`back_facing`)."""
         K = self.K if K is None else _as_intrinsics(K)
+        pose = _as_pose(pose)
         with torch.no_grad():
-            return self._render(_as_pose(pose), K, width or self.width, height or self.height)
+            if not front_alpha:
+                return self._render(pose, K, width or self.width, height or self.height)
+            rows = self._view_rows(pose, K, width or self.width, height or self.height)
+            raw = self.gaussians.rows(rows)
+            front = ~back_facing(raw["quats"], raw["log_scales"], raw["means"], pose[:3, 3],
+                                 margin_deg=behind_margin_deg)
+            raw["f_dc"] = rgb_to_f_dc(front.to(torch.float32)[:, None].expand(-1, 3))
+            out = self._render(pose, K, width or self.width, height or self.height, rows, raw)
+            out.alpha = out.rgb[..., 0].clamp(0.0, 1.0)
+            return out
 
     def _render(self, pose: np.ndarray, K: np.ndarray, width: int, height: int,
                 rows: torch.Tensor | None = None, raw: dict[str, torch.Tensor] | None = None):
