@@ -47,6 +47,7 @@ class ActiveSplatExplorer(Explorer):
         """Every rotation stop: step, cause (arrival / multi_stop), floor position, the targets chosen
         (source, yaw / pitch in degrees, weight) and how many candidates each source offered (the
         episode's stops.json)."""
+        self._ranked: list = []  # the best candidates of the current replan, for its record
         self.replans: list[dict] = []
         """Every replan: step, floor position, stage (local / global, `Plan.stage`), the goal (None: idle),
         its eq. 12 score and information part, the path length, and how many candidates promised something
@@ -135,7 +136,7 @@ class ActiveSplatExplorer(Explorer):
                        info=round(plan.info.get(node, float("nan")), 2), path_m=round(path_length(path), 2))
             if bridge:  # the goal ranked first had no safe path: `plan.goal` is a node on the way to it
                 rec["bridge_to"] = [round(float(v), 3) for v in plan.graph.nodes[node]["pos"]]
-        rec["ranked"] = [ranked_entry(plan, n) for n in getattr(self, "_ranked", [])]
+        rec["ranked"] = [ranked_entry(plan, n) for n in self._ranked]
         self.replans.append(rec)
 
     def arrive(self, pose: np.ndarray, max_views: int | None = None, cause: str = "arrival") -> None:
@@ -217,9 +218,6 @@ def goal_rules(cfg: ExplorerConfig) -> GoalRules:
                      global_halving_m=cfg.global_halving_m, global_tour=cfg.global_tour)
 
 
-__all__ = ["ActiveSplatExplorer", "goal_rules"]
-
-
 def ranked_entry(plan: Plan, node: int) -> dict:
     """One ranked candidate of a replan for stops.json: floor position, subregion, eq. 12 score, its
     information part (0 without a panorama) and the graph travel to it."""
@@ -227,3 +225,7 @@ def ranked_entry(plan: Plan, node: int) -> dict:
             "subregion": plan.subregions.get(node), "score": round(plan.scores.get(node, float("nan")), 2),
             "info": round(plan.info.get(node, float("nan")), 2),
             "travel_m": round(plan.travel.get(node, float("nan")), 2)}
+
+
+__all__ = ["ActiveSplatExplorer", "goal_rules"]
+
