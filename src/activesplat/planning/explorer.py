@@ -46,7 +46,10 @@ class WorldModel(Protocol):
     high_loss_mask: Any
 
     def render(self, pose: np.ndarray, K: np.ndarray | None = None, width: int | None = None,
-               height: int | None = None) -> Any: ...
+               height: int | None = None, front_alpha: bool = False, behind_margin_deg: float = 0.0) -> Any:
+        """``alpha`` and ``median_depth`` of a view; with ``front_alpha`` the opacity of surfaces seen from
+        the side that observed them (`Mapper.render`). A world without those two parameters gives the
+        plain opacity to the panoramas (`planning.panorama.render_panorama`)."""
 
 
 @dataclass(frozen=True)

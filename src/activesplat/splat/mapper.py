@@ -138,16 +138,14 @@ class Mapper:
         ``behind_margin_deg``: how far behind a plane the camera must be for its Gaussian to count as seen
         from behind (:func:`back_facing`)."""
         K = self.K if K is None else _as_intrinsics(K)
-        pose = _as_pose(pose)
+        pose, width, height = _as_pose(pose), width or self.width, height or self.height
         with torch.no_grad():
             if not front_alpha:
-                return self._render(pose, K, width or self.width, height or self.height)
-            rows = self._view_rows(pose, K, width or self.width, height or self.height)
+                return self._render(pose, K, width, height)
+            rows, behind = self._facing_rows(pose, K, width, height, behind_margin_deg)
             raw = self.gaussians.rows(rows)
-            front = ~back_facing(raw["quats"], raw["log_scales"], raw["means"], pose[:3, 3],
-                                 margin_deg=behind_margin_deg)
-            raw["f_dc"] = rgb_to_f_dc(front.to(torch.float32)[:, None].expand(-1, 3))
-            out = self._render(pose, K, width or self.width, height or self.height, rows, raw)
+            raw["f_dc"] = rgb_to_f_dc((~behind).to(torch.float32)[:, None].expand(-1, 3))
+            out = self._render(pose, K, width, height, rows, raw)
             out.alpha = out.rgb[..., 0].clamp(0.0, 1.0)
             return out
 
@@ -285,11 +283,18 @@ class Mapper:
     def _front_rows(self, pose: np.ndarray) -> torch.Tensor:
         """The Gaussians of this view's frustum less the flat ones it sees from behind
         (:func:`back_facing`; MapperConfig "Back faces")."""
-        rows = self._view_rows(pose, self.K, self.width, self.height)
+        rows, behind = self._facing_rows(pose, self.K, self.width, self.height)
+        return rows[~behind]
+
+    def _facing_rows(self, pose: np.ndarray, K: np.ndarray, width: int, height: int,
+                     margin_deg: float = 0.0) -> tuple[torch.Tensor, torch.Tensor]:
+        """The Gaussians of this view's frustum (:meth:`_view_rows`) and which of them are flat ones it
+        sees from behind (:func:`back_facing`, camera ``margin_deg`` behind their plane)."""
+        rows = self._view_rows(pose, K, width, height)
         p = self.gaussians.params
         behind = back_facing(p["quats"].index_select(0, rows), p["log_scales"].index_select(0, rows),
-                             p["means"].index_select(0, rows), pose[:3, 3])
-        return rows[~behind]
+                             p["means"].index_select(0, rows), pose[:3, 3], margin_deg=margin_deg)
+        return rows, behind
 
     def _retire_coarse(self, pose: np.ndarray, obs_depth: torch.Tensor) -> torch.Tensor:
         """The coarse refresh (MapperConfig): the Gaussians in this view that it sees whole and much finer
