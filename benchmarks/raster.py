@@ -7,7 +7,8 @@ of forward and forward+backward milliseconds (median of repeats) and the numba c
 over repeats, ``time.process_time``), which stays meaningful on a busy machine; "other" is the rest
 of the forward+backward (Python, torch autograd, input checks).
 
-    python benchmarks/raster.py [--sizes 10000 50000 200000] [--repeats 5] [--torch-max 200000] [--stages]
+    python benchmarks/raster.py [--sizes 10000 50000 200000] [--repeats 5] [--torch-max 200000] [--image 256]
+                                [--stages]
 """
 
 from __future__ import annotations
@@ -63,11 +64,16 @@ def time_backend(params, backend: str, repeats: int) -> tuple[float, float, int]
     leaves = [p.clone().requires_grad_(True) for p in params]
     fwd, both = [], []
     visible = 0
-    for _ in range(repeats):
+    view, K = view.to(params[0].device), K.to(params[0].device)
+    sync = torch.cuda.synchronize if params[0].is_cuda else (lambda: None)
+    for _ in range(repeats + params[0].is_cuda):  # on the GPU the first run only warms up
+        sync()
         t0 = time.perf_counter()
         out = rasterize(*leaves, view, K, WIDTH, HEIGHT, backend=backend)
+        sync()
         t1 = time.perf_counter()
         (out.rgb.sum() + out.depth.sum() + out.alpha.sum()).backward()
+        sync()
         t2 = time.perf_counter()
         fwd.append(1e3 * (t1 - t0))
         both.append(1e3 * (t2 - t0))
@@ -134,9 +140,12 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--torch-max", type=int, default=200_000, help="largest N timed with torch")
     parser.add_argument("--torch-repeats", type=int, default=1)
+    parser.add_argument("--image", type=int, default=256, help="square image side in pixels")
     parser.add_argument("--stages", action="store_true", help="also print per-stage CPU ms on one thread")
     parser.add_argument("--stage-table-only", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
+    global WIDTH, HEIGHT
+    WIDTH = HEIGHT = args.image
     if args.stage_table_only:
         print_stage_table(args.sizes, args.repeats)
         return

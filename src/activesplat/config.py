@@ -233,6 +233,9 @@ class RefineCommand:
     """Ignore a checkpoint in DIR/refined_METHOD and start again."""
     backend: BackendName = "auto"
     """Rasterizer backend (auto: gsplat with CUDA, else numba)."""
+    image_size: int | None = None
+    """Refine and evaluate at this square size in pixels, the keyframes rendered again by the simulator
+    from their poses (simulated episodes; the paper refines at 512). None: the keyframes as recorded."""
     floor: int | float | str | None = None
     """Storey of a multi-storey mesh: an index from the bottom (0, 1, ...) or a floor height in metres
     (3.0); None: the mesh's only storey (an error lists the storeys when there are several)."""

@@ -5,6 +5,7 @@ import dataclasses
 import json
 import shutil
 
+import numpy as np
 import pytest
 
 from activesplat.cli import main
@@ -70,3 +71,26 @@ def test_cli_runs_resumes_and_restarts(episode, tmp_path, capsys, monkeypatch):
     assert err.startswith("activesplat: error:") and "--restart" in err and "\n" not in err
     assert main([*longer, "--restart"]) == 0
     assert "refined 3dgs: 3 iterations" in capsys.readouterr().out
+
+
+def test_image_size_renders_the_keyframes_again(episode, tmp_path, capsys):
+    """--image-size: the keyframes are rendered again by the simulator at that size from their poses (the
+    paper refines at 512 x 512 what it explored at 256 x 256), and the evaluation uses that size too."""
+    from activesplat.refine.trainer import load_episode_map, rerender_keyframes
+
+    ep = shutil.copytree(episode, tmp_path / "ep", ignore=shutil.ignore_patterns("refined_*"))
+    online = load_episode_map(ep)
+    big = rerender_keyframes(ep, online, 96)
+    assert big.rgb.shape == (10, 96, 96, 3) and big.depth.shape == (10, 96, 96) and big.width == 96
+    assert big.K[0, 0] == pytest.approx(online.K[0, 0] * 1.5) and big.K[0, 2] == pytest.approx(48.0)
+    np.testing.assert_array_equal(big.poses, online.poses)
+    # the same view at both sizes: the larger one, averaged down, is the smaller one up to texture detail
+    small = big.rgb[3].reshape(32, 3, 32, 3, 3).mean(axis=(1, 3))
+    coarse = rerender_keyframes(ep, online, 32).rgb[3].astype(float)
+    assert np.abs(small - coarse).mean() < 12.0
+    res = refine(ep, "3dgs", 2, backend="numba", progress=False, eval_kwargs=EVAL, image_size=96)
+    info = json.loads((ep / "refined_3dgs" / "refine.json").read_text())
+    assert info["image_size"] == [96, 96] and res.metrics["width"] == 96 and res.metrics["height"] == 96
+    assert main(["refine", str(ep), "--iters", "2", "--image-size", "8", "--no-progress", "--restart"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("activesplat: error:") and "image_size" in err and "\n" not in err

@@ -285,20 +285,27 @@ def _read_meta(episode_dir: Path) -> dict:
     return meta
 
 
-def _simulated_setup(episode_dir: Path, cfg: RenderEvalConfig, sim_overrides: dict | None = None) -> _Setup:
-    """Train views on the trajectory, test views at random free-space poses, both rendered by the
-    simulator."""
+def episode_simulator(episode_dir: str | Path, sim_overrides: dict | None = None):
+    """(episode, simulator) of a simulated episode: its scene, start pose and SimConfig (with
+    ``sim_overrides`` on top, e.g. another image size). EpisodeError when episode.json names no scene."""
     from activesplat.eval.evaluate import _sim_config
-    from activesplat.geometry import intrinsics
     from activesplat.sim import Simulator, load_scene
 
     episode = read_episode(episode_dir)
     meta = episode.meta
     if "scene" not in meta:
-        raise EpisodeError(f"{episode_dir}/episode.json names no scene")
-    sim_config = _sim_config(meta, sim_overrides)
+        raise EpisodeError(f"{episode_dir}/episode.json names no scene (not a simulated episode)")
     scene = load_scene(meta["scene"], z_up=bool(meta.get("z_up", False)), floor=meta.get("floor"))
-    sim = Simulator(scene, start=episode.start_pose, config=sim_config)
+    return episode, Simulator(scene, start=episode.start_pose, config=_sim_config(meta, sim_overrides))
+
+
+def _simulated_setup(episode_dir: Path, cfg: RenderEvalConfig, sim_overrides: dict | None = None) -> _Setup:
+    """Train views on the trajectory, test views at random free-space poses, both rendered by the
+    simulator."""
+    from activesplat.geometry import intrinsics
+
+    episode, sim = episode_simulator(episode_dir, sim_overrides)
+    meta, sim_config, scene = episode.meta, sim.config, sim.scene
     width, height = sim.width, sim.height
     steps = train_indices(len(episode.poses), cfg.n_train)
     poses = {"train": episode.poses[steps],

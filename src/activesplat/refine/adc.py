@@ -145,7 +145,7 @@ def split(gmap: GaussianMap, optimizer: torch.optim.Optimizer | None, mask: torc
         return 0
     p = {name: gmap.params[name].detach()[mask] for name in PARAM_NAMES}
     stds = torch.exp(p["log_scales"]).repeat(samples, 1)
-    z = torch.randn(stds.shape, generator=generator, device=stds.device, dtype=stds.dtype)
+    z = torch.randn(stds.shape, generator=generator, dtype=stds.dtype).to(stds.device)  # CPU generator
     rot = quat_to_rotmat(p["quats"]).repeat(samples, 1, 1)
     children = {
         "means": (rot @ (z * stds).unsqueeze(2)).squeeze(2) + p["means"].repeat(samples, 1),

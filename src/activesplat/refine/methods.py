@@ -47,7 +47,7 @@ class Splatting3D:
         """(N,) NDC norm of the 2D-mean gradient and (N,) visibility (screen radius > 0), after backward."""
         grad = out.means2d.grad
         if grad is None:
-            grad = torch.zeros(len(gmap), 2)
+            grad = torch.zeros(len(gmap), 2, device=gmap.device)
         return ndc_grad_norm(grad, width, height), out.radii > 0
 
     def export(self, gmap: GaussianMap) -> GaussianMap:

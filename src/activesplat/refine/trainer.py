@@ -44,6 +44,7 @@ from activesplat.splat.config import MapperConfig
 from activesplat.splat.gaussians import GaussianMap
 from activesplat.splat.losses import mapping_loss
 from activesplat.splat.ply import load_ply, save_ply
+from activesplat.splat.raster import backend_device
 
 CHECKPOINT = "checkpoint.pt"
 CHECKPOINT_VERSION = 1
@@ -140,6 +141,23 @@ def load_episode_map(episode_dir: str | Path) -> EpisodeMap:
     return EpisodeMap(K, width, height, config, load_ply(path / "gaussians.ply"), rgb, depth, poses)
 
 
+def rerender_keyframes(episode_dir: Path, mapper: EpisodeMap, size: int) -> EpisodeMap:
+    """The keyframe buffer rendered again by the episode's simulator at ``size`` x ``size`` pixels from the
+    same poses (the paper refines at 512 x 512 what it explored at 256 x 256). Simulated episodes only."""
+    from activesplat.eval.render_eval import episode_simulator
+    from activesplat.geometry import intrinsics
+
+    if isinstance(size, bool) or not 16 <= size <= 4096:
+        raise InvalidInputError(f"image_size must be between 16 and 4096 pixels, got {size!r}")
+    _, sim = episode_simulator(episode_dir, {"width": size, "height": size})
+    views = [sim.render(pose, size, size) for pose in mapper.poses]
+    rgb = np.stack([v[0] for v in views]) if views else np.zeros((0, size, size, 3), np.uint8)
+    depth = (np.stack([v[1] for v in views]).astype(np.float32) if views
+             else np.zeros((0, size, size), np.float32))
+    return replace(mapper, K=intrinsics(size, size, sim.config.hfov_deg), width=size, height=size, rgb=rgb,
+                   depth=depth)
+
+
 def _psnr(rgb: torch.Tensor, obs_rgb: torch.Tensor, valid: torch.Tensor) -> float:
     """PSNR (dB, peak 1) over the ``valid`` pixels of a rendered (clamped) image."""
     err = ((rgb.detach().clamp(0.0, 1.0) - obs_rgb) ** 2).mean(dim=2)[valid]
@@ -176,18 +194,24 @@ class Refiner:
 
     def __init__(self, episode_dir: str | Path, method: str = "3dgs", iters: int = 2000,
                  config: RefineConfig | None = None, seed: int = 0, backend: str = "auto",
-                 restart: bool = False, progress: bool = True, out_dir: str | Path | None = None):
+                 restart: bool = False, progress: bool = True, out_dir: str | Path | None = None,
+                 image_size: int | None = None):
         self.episode_dir = check_arguments(episode_dir, method, iters)
         self.method_name, self.iters, self.seed = method, int(iters), int(seed)
         self.cfg = config if config is not None else RefineConfig()
         self.backend, self.progress = backend, progress
         self.out_dir = Path(out_dir) if out_dir is not None else output_dir(self.episode_dir, method)
         mapper = load_episode_map(self.episode_dir)
+        self.image_size = None if image_size is None else int(image_size)
+        if self.image_size is not None:
+            mapper = rerender_keyframes(self.episode_dir, mapper, self.image_size)
         self.width, self.height = mapper.width, mapper.height
         self.rgb, self.depth, poses = mapper.rgb, mapper.depth, mapper.poses
         self.n_keyframes = len(poses)
-        self.K = torch.from_numpy(mapper.K.astype(np.float32))
-        self.viewmats = torch.from_numpy(np.linalg.inv(poses).astype(np.float32))
+        # 3DGS refinement runs where its rasterizer does (the GPU with gsplat); 2DGS surfels on the CPU
+        self.device = backend_device(backend) if method == "3dgs" else torch.device("cpu")
+        self.K = torch.from_numpy(mapper.K.astype(np.float32)).to(self.device)
+        self.viewmats = torch.from_numpy(np.linalg.inv(poses).astype(np.float32)).to(self.device)
         lam = self.cfg.lambda_dssim
         self.loss_cfg = replace(mapper.config, lambda_l1=1.0 - lam, lambda_ssim=lam,
                                 weight_color=self.cfg.weight_color, weight_depth=self.cfg.weight_depth)
@@ -202,14 +226,15 @@ class Refiner:
             self._load_checkpoint(self.out_dir / CHECKPOINT)
             self.resumed = True
         else:
-            self._fresh_state(mapper.gaussians, extent)
+            self._fresh_state(GaussianMap({k: v.to(self.device) for k, v in mapper.gaussians.params.items()}),
+                              extent)
             self.resumed = False
 
     # ------------------------------------------------------------------ state
     def _fresh_state(self, online: GaussianMap, extent: float) -> None:
         self.gmap = self.method.prepare(online)
         self.optimizer = self.gmap.make_optimizer(self.lr, self.adam_eps)
-        self.adc = DensityControl(self.cfg, extent, len(self.gmap))
+        self.adc = DensityControl(self.cfg, extent, len(self.gmap), self.device)
         self.iteration = 0
         self.rng = np.random.default_rng(self.seed)
         self.generator = torch.Generator().manual_seed(self.seed)
@@ -222,7 +247,7 @@ class Refiner:
     def _identity(self) -> dict:
         """What a checkpoint must match to be resumed by this run."""
         return {"method": self.method_name, "iters": self.iters, "seed": self.seed,
-                "n_keyframes": self.n_keyframes, "config": asdict(self.cfg)}
+                "n_keyframes": self.n_keyframes, "image_size": self.image_size, "config": asdict(self.cfg)}
 
     def save_checkpoint(self) -> Path:
         """Write ``checkpoint.pt`` atomically (temporary file, then rename)."""
@@ -247,7 +272,7 @@ class Refiner:
 
     def _load_checkpoint(self, path: Path) -> None:
         try:
-            state = torch.load(path, weights_only=True)
+            state = torch.load(path, weights_only=True, map_location=self.device)
         except Exception as err:  # noqa: BLE001 - any unreadable file is bad input here
             raise EpisodeError(f"{path}: unreadable checkpoint ({type(err).__name__}); use --restart") \
                 from None
@@ -263,13 +288,13 @@ class Refiner:
         self.gmap = GaussianMap(state["params"])
         self.optimizer = self.gmap.make_optimizer(self.lr, self.adam_eps)
         self.optimizer.load_state_dict(state["optimizer"])
-        self.adc = DensityControl(self.cfg, 1.0, 0)
+        self.adc = DensityControl(self.cfg, 1.0, 0, self.device)
         self.adc.load_state_dict(state["adc"])
         self.iteration = int(state["iteration"])
         self.rng = np.random.default_rng()
         self.rng.bit_generator.state = state["rng"]
         self.generator = torch.Generator()
-        self.generator.set_state(state["torch_rng"])
+        self.generator.set_state(state["torch_rng"].cpu())
         self.ema_loss, self.ema_psnr = state["ema"]
         self.history, self.totals = list(state["history"]), dict(state["totals"])
         self.train_seconds, self.n_initial = float(state["train_seconds"]), int(state["n_initial"])
@@ -285,7 +310,8 @@ class Refiner:
 
     def _observation(self, i: int) -> tuple[torch.Tensor, torch.Tensor]:
         """Keyframe ``i``: rgb (H,W,3) in [0,1] and depth (H,W) in metres (0 = invalid)."""
-        return torch.from_numpy(self.rgb[i]).to(torch.float32) / 255.0, torch.from_numpy(self.depth[i])
+        rgb = torch.from_numpy(self.rgb[i]).to(self.device, torch.float32) / 255.0
+        return rgb, torch.from_numpy(self.depth[i]).to(self.device)
 
     def step(self) -> tuple[float, float]:
         """One iteration (1-based ``self.iteration`` after it); returns (loss, PSNR) of the view."""
@@ -408,20 +434,27 @@ class Refiner:
         from activesplat.eval.render_eval import render_eval
 
         options = {"backend": self.backend, "progress": self.progress, **self.method.eval_kwargs(), **kwargs}
+        if self.image_size is not None:  # ground truth at the size the map was refined at
+            options["sim_overrides"] = {**options.get("sim_overrides", {}), "width": self.image_size,
+                                        "height": self.image_size}
         return render_eval(self.episode_dir, gaussians_path=ply, out_dir=self.out_dir, **options)
 
 
 def refine(episode_dir: str | Path, method: str = "3dgs", iters: int = 2000, *,
            config: RefineConfig | None = None, seed: int = 0, backend: str = "auto", restart: bool = False,
            progress: bool = True, evaluate: bool = True, stop_at: int | None = None,
-           eval_kwargs: dict | None = None, out_dir: str | Path | None = None) -> RefineResult:
+           eval_kwargs: dict | None = None, out_dir: str | Path | None = None,
+           image_size: int | None = None) -> RefineResult:
     """Refine the map of ``episode_dir`` offline (see the module docstring); returns what it produced.
 
     ``stop_at`` stops after that iteration with a checkpoint, as Ctrl-C would (a later call resumes);
     ``evaluate=False`` skips render_metrics.json; ``eval_kwargs`` go to ``render_eval`` (e.g. n_test);
-    ``out_dir`` replaces ``DIR/refined_<method>`` (e.g. one folder per iteration count in a benchmark).
+    ``out_dir`` replaces ``DIR/refined_<method>`` (e.g. one folder per iteration count in a benchmark);
+    ``image_size`` refines (and evaluates) at that square size, the keyframes rendered again by the
+    simulator (:func:`rerender_keyframes`; the paper: 512).
     """
-    refiner = Refiner(episode_dir, method, iters, config, seed, backend, restart, progress, out_dir)
+    refiner = Refiner(episode_dir, method, iters, config, seed, backend, restart, progress, out_dir,
+                      image_size)
     metrics_path = refiner.out_dir / "render_metrics.json"
     done_before = refiner.iteration >= refiner.iters and (refiner.out_dir / "gaussians.ply").is_file()
     refiner.train(stop_at)
@@ -437,10 +470,10 @@ def refine(episode_dir: str | Path, method: str = "3dgs", iters: int = 2000, *,
 
 def refine_from_command(cmd) -> int:
     """``activesplat refine DIR [--method 3dgs|2dgs] [--iters N] [--seed S] [--restart] [--backend B]
-    [--refine.FIELD VALUE ...]`` (an `activesplat.config.RefineCommand`)."""
+    [--image-size PX] [--refine.FIELD VALUE ...]`` (an `activesplat.config.RefineCommand`)."""
     check_arguments(cmd.dir, cmd.method, cmd.iters)
     res = refine(cmd.dir, cmd.method, cmd.iters, config=cmd.refine, seed=cmd.seed, backend=cmd.backend,
-                 restart=cmd.restart, progress=cmd.progress)
+                 restart=cmd.restart, progress=cmd.progress, image_size=cmd.image_size)
     rate = res.iterations / res.train_seconds if res.train_seconds else float("nan")
     print(f"refined {res.method}: {res.iterations} iterations ({rate:.2f} it/s), "
           f"{res.n_gaussians_initial} -> {res.n_gaussians} Gaussians "

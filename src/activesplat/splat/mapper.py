@@ -45,6 +45,7 @@ from activesplat.splat.keyframes import Keyframe, mapping_window
 from activesplat.splat.losses import mapping_loss
 from activesplat.splat.optim import RowAdam, nonzero_rows
 from activesplat.splat.ply import load_ply, save_ply
+from activesplat.splat.raster import backend_device
 
 
 @dataclass
@@ -105,14 +106,15 @@ class Mapper:
     """Incremental Gaussian map built from posed RGB-D frames (see module docstring)."""
 
     def __init__(self, K, width: int, height: int, config: MapperConfig | None = None, backend: str = "auto",
-                 device: str | torch.device = "cpu"):
+                 device: str | torch.device | None = None):
         if int(width) <= 0 or int(height) <= 0:
             raise InvalidInputError(f"image size must be positive, got {width}x{height}")
         self.K = _as_intrinsics(K)
         self.width, self.height = int(width), int(height)
         self.config = config if config is not None else MapperConfig()
         self.backend = backend
-        self.device = torch.device(device)
+        self.device = backend_device(backend) if device is None else torch.device(device)
+        """Where the map and its optimisation live (default: the GPU with gsplat, else the CPU)."""
         self.gaussians = GaussianMap.empty(self.device)
         self.optimizer = self._make_optimizer()
         self.keyframes: list[Keyframe] = []
@@ -435,7 +437,7 @@ class Mapper:
 
     @classmethod
     def load(cls, directory: str | Path, backend: str | None = None,
-             device: str | torch.device = "cpu") -> Mapper:
+             device: str | torch.device | None = None) -> Mapper:
         """Read a folder written by :meth:`save` (fresh Adam state)."""
         directory = Path(directory)
         meta_path = directory / "mapper.json"
@@ -444,7 +446,7 @@ class Mapper:
         meta = json.loads(meta_path.read_text())
         mapper = cls(meta["K"], meta["width"], meta["height"], MapperConfig.from_dict(meta["config"]),
                      backend or meta["backend"], device)
-        mapper.gaussians = load_ply(directory / "gaussians.ply", device)
+        mapper.gaussians = load_ply(directory / "gaussians.ply", mapper.device)
         mapper.optimizer = mapper._make_optimizer()
         mapper.peak_gaussians = len(mapper.gaussians)
         with np.load(directory / "keyframes.npz") as data:  # each data[key] decompresses: read once

@@ -97,7 +97,7 @@ def rasterize(
     check_size("rasterize", width, height)
     tensors = _check_tensors(means, quats, scales, opacities, colors, viewmat, K, background, mask)
     means, quats, scales, opacities, colors, viewmat, K, background, mask = tensors
-    name = _choose_backend(backend)
+    name = resolve_backend(backend)
     if name == "torch":
         from activesplat.splat.raster.torch_ref import rasterize_torch as render
     elif name == "numba":
@@ -107,12 +107,18 @@ def rasterize(
     return render(means, quats, scales, opacities, colors, viewmat, K, width, height, background, mask)
 
 
-def _choose_backend(backend: str) -> str:
+def resolve_backend(backend: str) -> str:
+    """The backend ``backend`` names ("auto": gsplat when CUDA and gsplat are there, else numba)."""
     if backend not in BACKENDS:
         raise InvalidInputError(f"unknown rasterizer backend {backend!r}; expected one of {BACKENDS}")
     if backend == "auto":
         return "gsplat" if gsplat_available() else "numba"
     return backend
+
+
+def backend_device(backend: str) -> torch.device:
+    """Where a map rendered with ``backend`` should live: the GPU for gsplat, else the CPU."""
+    return torch.device("cuda" if resolve_backend(backend) == "gsplat" else "cpu")
 
 
 @functools.cache

@@ -1,18 +1,24 @@
-"""gsplat (CUDA) backend of :func:`activesplat.splat.rasterize`: a thin adapter to
-``gsplat.rasterization`` (gsplat >= 1.4; ``pip install activesplat[cuda]``). Imported lazily.
+"""gsplat (CUDA) backend of :func:`activesplat.splat.rasterize`: an adapter to gsplat's projection,
+tile intersection and blending kernels (gsplat 1.5; ``pip install activesplat[cuda]``). Imported lazily.
 
-Matching semantics: ``render_mode="RGB+D"`` gives the *accumulated* depth sum w_i z_i (what we want;
-"RGB+ED" would divide by alpha), ``rasterize_mode="classic"``, ``eps2d=0.3`` (the low-pass),
-``near_plane=0.01``, 16 px tiles, pixel centres at +0.5, colours passed directly (no SH).
+Matching semantics: the depth channel is blended like a colour, giving the *accumulated* depth sum
+w_i z_i (what we want; gsplat's "RGB+ED" would divide by alpha), classic 3DGS (no antialiasing
+compensation), ``eps2d=0.3`` (the low-pass), ``near_plane=0.01``, 16 px tiles, pixel centres at +0.5,
+colours passed directly (no SH).
 Known differences from the numba/torch backends, all inside gsplat's CUDA code:
 - gsplat clamps alpha at 0.999 (we use 0.99) and since 1.5 bins tiles with per-axis (and
   opacity-aware) radii; images agree to ~1e-3, not bit-for-bit.
-- gsplat has no median depth: it is computed by a second, non-differentiable pass of the numba
-  backend on the CPU (costs a device->host copy; exact 3DGS semantics).
+- gsplat has no median depth: a small Triton kernel (:mod:`median_triton`) walks the tile lists
+  gsplat built for the same call, with this project's blending rules; without Triton (CPU-only
+  PyTorch builds) a second, non-differentiable pass of the numba backend on the CPU gives it.
 - ``mask`` is applied by rendering the selected subset; radii / means2d of the others are 0.
+- CPU inputs are rendered on the GPU and the outputs moved back (gradients flow through the copies);
+  the mapper, render-eval and refinement keep their maps on the GPU so that nothing is copied.
 """
 
 from __future__ import annotations
+
+from dataclasses import fields
 
 import torch
 from torch import Tensor
@@ -22,9 +28,12 @@ from activesplat.splat.raster.constants import RASTER
 
 
 def rasterize_gsplat(means, quats, scales, opacities, colors, viewmat, K, width, height, background, mask):
-    """Render through ``gsplat.rasterization`` (one camera) and reshape to :class:`RenderOutput`."""
-    from gsplat import rasterization
-
+    """Render through gsplat's CUDA kernels (one camera) into a :class:`RenderOutput`."""
+    if means.device.type != "cuda":  # CPU tensors: render on the GPU, outputs (and gradients) come back
+        out = rasterize_gsplat(*(None if t is None else t.cuda() for t in (means, quats, scales, opacities,
+                                 colors, viewmat, K)), width, height, background.cuda(),
+                               None if mask is None else mask.cuda())
+        return RenderOutput(**{f.name: getattr(out, f.name).to(means.device) for f in fields(out)})
     n, device = means.shape[0], means.device
     if n == 0 or (mask is not None and not bool(mask.any())):
         return _background_only(background, n, width, height, device)
@@ -33,16 +42,37 @@ def rasterize_gsplat(means, quats, scales, opacities, colors, viewmat, K, width,
     f32 = [t.to(device, torch.float32) for t in (means, quats, scales, opacities, colors, viewmat, K)]
     means, quats, scales, opacities, colors, viewmat, K = f32
     bg = torch.cat([background.to(device, torch.float32), torch.zeros(1, device=device)])[None]
-    render, alphas, meta = rasterization(
-        means, quats, scales, opacities, colors, viewmat[None], K[None], width, height,
-        near_plane=RASTER.near, eps2d=RASTER.low_pass, tile_size=RASTER.tile_size, packed=False,
-        backgrounds=bg, render_mode="RGB+D", rasterize_mode="classic",
-    )
-    rgb, depth, alpha = render[0, ..., :3], render[0, ..., 3], alphas[0, ..., 0]
-    median = _median_depth_cpu(means, quats, scales, opacities, viewmat, K, width, height).to(device)
-    radii, means2d = _per_gaussian(meta, n, mask, device)
-    return RenderOutput(rgb=rgb, depth=depth, alpha=alpha, median_depth=median, radii=radii,
-                        means2d=means2d, depths=_view_depths(means, viewmat, n, mask))
+    rgbd, alphas, radii, means2d, meta = _render(means, quats, scales, opacities, colors, viewmat, K, width,
+                                                 height, bg)
+    median = _median_depth(meta, means, quats, scales, opacities, viewmat, K, width, height).to(device)
+    radii, means2d = _per_gaussian(radii, means2d, n, mask, device)
+    return RenderOutput(rgb=rgbd[..., :3], depth=rgbd[..., 3], alpha=alphas[..., 0], median_depth=median,
+                        radii=radii, means2d=means2d, depths=_view_depths(means, viewmat, n, mask))
+
+
+def _render(means, quats, scales, opacities, colors, viewmat, K, width, height, bg):
+    """gsplat's projection, tile intersection and blending for one camera (what ``gsplat.rasterization``
+    does with ``render_mode="RGB+D"``, classic mode, unpacked), called step by step so that the returned
+    (N, 2) ``means2d`` is the tensor the blending reads: its ``.grad`` after backward is the 2D-mean
+    gradient 3DGS densification uses. Returns ((H,W,4) colour + depth sum, (H,W,1) alpha, (N,2) radii,
+    (N,2) means2d, the tile lists for the median depth)."""
+    from gsplat import fully_fused_projection, isect_offset_encode, isect_tiles, rasterize_to_pixels
+
+    tile = RASTER.tile_size
+    radii, means2d, depths, conics, _ = fully_fused_projection(
+        means, None, quats, scales, viewmat[None], K[None], width, height, eps2d=RASTER.low_pass,
+        near_plane=RASTER.near, opacities=opacities)
+    tiles_x, tiles_y = -(-width // tile), -(-height // tile)
+    _, isect_ids, flatten_ids = isect_tiles(means2d, radii, depths, tile, tiles_x, tiles_y, n_images=1)
+    offsets = isect_offset_encode(isect_ids, 1, tiles_x, tiles_y)
+    m2d = means2d[0]
+    features = torch.cat([colors, depths[0, :, None]], dim=-1)[None]
+    rgbd, alphas = rasterize_to_pixels(m2d[None], conics, features, opacities[None], width, height, tile,
+                                       offsets, flatten_ids, backgrounds=bg)
+    meta = {"means2d": means2d, "conics": conics, "opacities": opacities[None], "depths": depths,
+            "isect_offsets": offsets, "flatten_ids": flatten_ids, "tile_width": tiles_x,
+            "tile_height": tiles_y, "tile_size": tile}
+    return rgbd[0], alphas[0], radii[0], m2d, meta
 
 
 def _background_only(background: Tensor, n: int, width: int, height: int, device) -> RenderOutput:
@@ -53,12 +83,10 @@ def _background_only(background: Tensor, n: int, width: int, height: int, device
                         means2d=torch.zeros(n, 2, device=device), depths=torch.zeros(n, device=device))
 
 
-def _per_gaussian(meta: dict, n: int, mask: Tensor | None, device) -> tuple[Tensor, Tensor]:
-    """radii (N,) int32 (max over axes when gsplat returns per-axis radii) and means2d (N,2)."""
-    radii = meta["radii"][0]
-    if radii.ndim == 2:  # gsplat >= 1.5: (N, 2) per-axis radii
-        radii = radii.max(dim=-1).values
-    means2d = meta["means2d"][0]
+def _per_gaussian(radii: Tensor, means2d: Tensor, n: int, mask: Tensor | None,
+                  device) -> tuple[Tensor, Tensor]:
+    """radii (N,) int32 (the larger of gsplat's per-axis radii) and means2d (N,2), zero outside ``mask``."""
+    radii = radii.max(dim=-1).values if radii.ndim == 2 else radii
     if mask is None:
         return radii.to(torch.int32), means2d
     full_radii = torch.zeros(n, dtype=torch.int32, device=device)
@@ -72,6 +100,15 @@ def _view_depths(means: Tensor, viewmat: Tensor, n: int, mask: Tensor | None) ->
     if mask is None:
         return z
     return torch.zeros(n, dtype=z.dtype, device=z.device).index_put((mask,), z)
+
+
+def _median_depth(meta, means, quats, scales, opacities, viewmat, K, width, height) -> Tensor:
+    """Median depth on the GPU from gsplat's tile lists (Triton), else from the numba backend."""
+    try:
+        from activesplat.splat.raster.median_triton import median_depth_from_meta
+    except ImportError:
+        return _median_depth_cpu(means, quats, scales, opacities, viewmat, K, width, height)
+    return median_depth_from_meta(meta, width, height)
 
 
 @torch.no_grad()

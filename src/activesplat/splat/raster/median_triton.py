@@ -1,0 +1,78 @@
+"""Median depth on the GPU: a small Triton kernel over gsplat's per-tile intersection lists.
+
+gsplat renders colour, blended depth and opacity but not the median depth (the view depth of the
+Gaussian at which the transmittance T first drops below 0.5), which eqs. 8 and 10 and the panoramas
+use. This kernel walks the depth-sorted list of each 16 x 16 tile that ``gsplat.rasterization`` has
+already built (``meta["isect_offsets"]``, ``meta["flatten_ids"]``), with the projected means, conics,
+opacities and depths of the same call, and applies the blending rules of
+:mod:`activesplat.splat.raster.constants` (alpha clamp 0.99, skip below 1/255, stop before T < 1e-4),
+so it gives the numba backend's median depth without copying the map to the CPU.
+
+Triton ships with the CUDA builds of PyTorch; with ``TRITON_INTERPRET=1`` the same kernel runs on CPU
+tensors (the tests do that). Not differentiable (the median depth never is).
+"""
+
+from __future__ import annotations
+
+import torch
+import triton
+import triton.language as tl
+
+from activesplat.splat.raster.constants import RASTER
+
+
+@triton.jit
+def _median_depth_kernel(offsets, ids, means2d, conics, opacities, depths, out, tiles_x, width, height,
+                         alpha_max, alpha_min, t_min, t_median, TILE: tl.constexpr):
+    tile = tl.program_id(0)
+    start = tl.load(offsets + tile)
+    end = tl.load(offsets + tile + 1)
+    p = tl.arange(0, TILE * TILE)
+    col = (tile % tiles_x) * TILE + p % TILE
+    row = (tile // tiles_x) * TILE + p // TILE
+    inside = (col < width) & (row < height)
+    fx = col.to(tl.float32) + 0.5
+    fy = row.to(tl.float32) + 0.5
+    trans = tl.full((TILE * TILE,), 1.0, tl.float32)
+    median = tl.zeros((TILE * TILE,), tl.float32)
+    live = inside
+    k = start
+    n_live = tl.sum(live.to(tl.int32), axis=0)
+    while (k < end) & (n_live > 0):
+        g = tl.load(ids + k).to(tl.int64)
+        dx = tl.load(means2d + 2 * g) - fx
+        dy = tl.load(means2d + 2 * g + 1) - fy
+        power = 0.5 * (tl.load(conics + 3 * g) * dx * dx + tl.load(conics + 3 * g + 2) * dy * dy) \
+            + tl.load(conics + 3 * g + 1) * dx * dy
+        alpha = tl.minimum(alpha_max, tl.load(opacities + g) * tl.exp(-power))
+        hit = live & (power >= 0.0) & (alpha >= alpha_min)
+        t_next = trans * (1.0 - alpha)
+        blend = hit & (t_next >= t_min)
+        crosses = blend & (trans >= t_median) & (t_next < t_median)
+        median = tl.where(crosses, tl.load(depths + g), median)
+        trans = tl.where(blend, t_next, trans)
+        live = live & ~(hit & (t_next < t_min))
+        n_live = tl.sum(live.to(tl.int32), axis=0)
+        k += 1
+    tl.store(out + row * width + col, median, mask=inside)
+
+
+@torch.no_grad()
+def median_depth_from_meta(meta: dict, width: int, height: int) -> torch.Tensor:
+    """(height, width) median depth of camera 0 of a ``gsplat.rasterization`` call (``packed=False``,
+    one camera), 0 where T never drops below 0.5."""
+    tile = int(meta["tile_size"])
+    offsets = meta["isect_offsets"][0].reshape(-1).to(torch.int64)
+    ids = meta["flatten_ids"].to(torch.int64)
+    offsets = torch.cat([offsets, offsets.new_tensor([ids.numel()])])
+    out = torch.zeros(height, width, dtype=torch.float32, device=offsets.device)
+    if ids.numel() == 0:
+        return out
+    f32 = [meta[k][0].detach().to(torch.float32).contiguous()
+           for k in ("means2d", "conics", "opacities", "depths")]
+    tiles_x = int(meta["tile_width"])
+    grid = (tiles_x * int(meta["tile_height"]),)
+    _median_depth_kernel[grid](offsets, ids, *f32, out, tiles_x, width, height, RASTER.alpha_max,
+                               RASTER.alpha_min, RASTER.transmittance_min, RASTER.median_transmittance,
+                               TILE=tile)
+    return out
