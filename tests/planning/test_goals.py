@@ -322,3 +322,18 @@ def test_rotation_targets_tilt_only_until_the_target_is_within_the_given_angle_o
     assert cost[1] < cost[0]
     with pytest.raises(InvalidInputError, match="tilt_within_deg"):
         ExplorerConfig(tilt_within_deg=120.0)
+
+
+def test_rotation_targets_lighter_than_a_share_of_their_sources_heaviest_are_skipped():
+    targets = [RotationTarget(np.radians(90), 0.0, 4000.0),   # a wall of unseen surface
+               RotationTarget(np.radians(-90), 0.0, 30.0),    # a patch beside it: 0.75 % of it
+               RotationTarget(np.radians(180), 0.0, 400.0),   # 10 %
+               RotationTarget(np.radians(-150), 0.0, 2.0, "high_loss")]  # the only high-loss target stays
+    pcfg = PlanningConfig()
+    every = select_rotation_targets(targets, 0.0, pcfg, 5)
+    assert len(every) == 4  # off by default (paper and release)
+    share = dataclasses.replace(pcfg, rotation=dataclasses.replace(pcfg.rotation, min_relative_weight=0.05))
+    kept = select_rotation_targets(targets, 0.0, share, 5)
+    assert sorted(t.weight for t in kept) == [2.0, 400.0, 4000.0]
+    with pytest.raises(InvalidInputError, match="min_relative_weight"):
+        dataclasses.replace(pcfg.rotation, min_relative_weight=1.5)

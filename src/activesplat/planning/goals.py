@@ -426,14 +426,20 @@ def select_rotation_targets(targets: Sequence[RotationTarget], yaw: float, pcfg:
                             final_yaw: float | None = None,
                             tilt_within_deg: float | None = None) -> list[RotationTarget]:
     """On-arrival rotation targets (sec. III-B3): the heaviest panorama / high-loss targets, skipping those
-    already in view (within their source's minimum offset of the heading, and less than 20 deg off level)
-    and those within 20 deg of a chosen one, at most `max_views`. Returned in counter-clockwise order from
+    lighter than `RotationCandidateConfig.min_relative_weight` of their source's heaviest, those already in
+    view (within their source's minimum offset of the heading, and less than 20 deg off level) and those
+    within 20 deg of a chosen one, at most `max_views`. Returned in counter-clockwise order from
     the heading, or, given the controller `ctrl`, in the order that visits them in the fewest turns and
     tilts from (`yaw`, `pitch`), levelling and the turn back to `final_yaw` (if given) included
     (`controller.fewest_actions_order`). Given `tilt_within_deg`, each chosen target's pitch is brought that
     much closer to level (never past it): the tilt that puts the target that far from the image centre."""
     chosen: list[RotationTarget] = []
+    heaviest: dict[str, float] = {}
+    for t in targets:
+        heaviest[t.source] = max(heaviest.get(t.source, 0.0), t.weight)
     for t in sorted(targets, key=lambda t: -t.weight):
+        if t.weight < pcfg.rotation.min_relative_weight * heaviest[t.source]:
+            continue
         limit = pcfg.high_loss.min_offset_deg if t.source == "high_loss" else pcfg.rotation.min_offset_deg
         if abs(math.degrees(float(wrap_angle(t.yaw - yaw)))) <= limit and abs(math.degrees(t.pitch)) < 20:
             continue
