@@ -107,7 +107,9 @@ class ExplorerConfig:
     each subregion's best such node stands for it, graph path lengths; `goals.tour_first`), instead of to
     the best score minus distance (ours; the paper names a distance cost, not a route). medium-0..3 x 2
     seeds: 86.02 -> 85.75 %, at step 1000 71.0 -> 65.3 % of the ceiling, so off (docs/benchmark.md "A route
-    through the subregions")."""
+    through the subregions"). With the later defaults: tuning 85.87 -> 86.42 %, fresh medium-100..109 seed
+    0 86.13 -> 83.42 % (medium-103 58 %: the route is re-planned at every replan and its first stop keeps
+    changing sides of the house; docs/benchmark.md "The route through the subregions, again")."""
     global_in_horizon: bool = False
     """Count eq. 12's in-horizon flag in the global stage too (paper: one score for every node; this
     project's default until the change below). False (ours): the global stage ranks nodes without it. The
