@@ -1,6 +1,7 @@
 """The GPU median-depth kernel against the numba backend's median depth, run on the CPU through Triton's
-interpreter over tile lists built by gsplat's PyTorch reference functions; skipped without triton or
-gsplat (``pip install -e ".[cuda]"``)."""
+interpreter over tile lists built by gsplat's PyTorch reference functions. For machines without CUDA that
+have triton and gsplat installed; skipped elsewhere (with CUDA, test_rasterize_gsplat compares the
+compiled kernel)."""
 
 import math
 import os
@@ -11,11 +12,13 @@ from raster_scenes import intrinsics, random_scene
 
 from activesplat.splat import rasterize
 
-os.environ.setdefault("TRITON_INTERPRET", "1")  # read when a kernel is launched, not at import
+if torch.cuda.is_available():  # there the compiled kernel is compared, in test_rasterize_gsplat
+    pytest.skip("with CUDA the compiled kernel is tested in test_rasterize_gsplat", allow_module_level=True)
+# Triton reads this when it is first imported: set before, and only on machines without CUDA, so that no
+# compiled kernel of the same test session becomes an interpreted one
+os.environ.setdefault("TRITON_INTERPRET", "1")
 pytest.importorskip("triton", reason="triton is not installed")
 pytest.importorskip("gsplat", reason="gsplat is not installed (pip install activesplat[cuda])")
-if torch.cuda.is_available() and os.environ["TRITON_INTERPRET"] != "1":
-    pytest.skip("the GPU run of this kernel is compared in test_rasterize_gsplat", allow_module_level=True)
 
 from gsplat.cuda._torch_impl import (  # noqa: E402
     _fully_fused_projection,
