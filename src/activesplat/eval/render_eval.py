@@ -177,7 +177,7 @@ def render_eval(episode_dir: str | Path, gaussians_path: str | Path | None = Non
     ``{"texture_filter": "nearest"}`` to evaluate as the simulator rendered before the area filter)."""
     from activesplat.eval.lpips import LPIPS
     from activesplat.splat.ply import load_ply
-    from activesplat.splat.rasterize import gsplat_available
+    from activesplat.splat.raster import backend_device
 
     for name, value in (("n_train", n_train), ("n_test", n_test)):
         if isinstance(value, bool) or not isinstance(value, int | np.integer) or value <= 0:
@@ -188,8 +188,7 @@ def render_eval(episode_dir: str | Path, gaussians_path: str | Path | None = Non
     episode_dir, gaussians_path, out = locate(episode_dir, gaussians_path, out_dir)
     lpips_model = LPIPS()  # fails early, with the pip command, when the weights are not installed
     meta = _read_meta(episode_dir)
-    use_cuda = backend == "gsplat" or (backend == "auto" and gsplat_available())
-    gmap = load_ply(gaussians_path, device="cuda" if use_cuda else "cpu")
+    gmap = load_ply(gaussians_path, device=backend_device(backend))
     if len(gmap) == 0:
         raise EpisodeError(f"{gaussians_path} holds no Gaussians: nothing to render")
     if meta.get("source") == "recording":

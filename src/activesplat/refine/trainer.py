@@ -122,9 +122,9 @@ class EpisodeMap:
     poses: np.ndarray
 
 
-def load_episode_map(episode_dir: str | Path) -> EpisodeMap:
-    """Read gaussians.ply, mapper.json and keyframes.npz (each keyframe array read once, so the buffer
-    costs its own size in memory; EpisodeError on inconsistent files)."""
+def load_episode_map(episode_dir: str | Path, device: str | torch.device = "cpu") -> EpisodeMap:
+    """Read gaussians.ply (onto ``device``), mapper.json and keyframes.npz (each keyframe array read once,
+    so the buffer costs its own size in memory; EpisodeError on inconsistent files)."""
     path = Path(episode_dir)
     try:
         meta = json.loads((path / "mapper.json").read_text())
@@ -138,7 +138,7 @@ def load_episode_map(episode_dir: str | Path) -> EpisodeMap:
     if rgb.shape != (n, height, width, 3) or depth.shape != (n, height, width) or poses.shape != (n, 4, 4):
         raise EpisodeError(f"{path / 'keyframes.npz'}: keyframes of shape {rgb.shape} / {depth.shape} / "
                            f"{poses.shape} do not match the {width}x{height} camera of mapper.json")
-    return EpisodeMap(K, width, height, config, load_ply(path / "gaussians.ply"), rgb, depth, poses)
+    return EpisodeMap(K, width, height, config, load_ply(path / "gaussians.ply", device), rgb, depth, poses)
 
 
 def rerender_keyframes(episode_dir: Path, mapper: EpisodeMap, size: int) -> EpisodeMap:
@@ -201,15 +201,15 @@ class Refiner:
         self.cfg = config if config is not None else RefineConfig()
         self.backend, self.progress = backend, progress
         self.out_dir = Path(out_dir) if out_dir is not None else output_dir(self.episode_dir, method)
-        mapper = load_episode_map(self.episode_dir)
+        # 3DGS refinement runs where its rasterizer does (the GPU with gsplat); 2DGS surfels on the CPU
+        self.device = backend_device(backend) if method == "3dgs" else torch.device("cpu")
+        mapper = load_episode_map(self.episode_dir, self.device)
         self.image_size = None if image_size is None else int(image_size)
         if self.image_size is not None:
             mapper = rerender_keyframes(self.episode_dir, mapper, self.image_size)
         self.width, self.height = mapper.width, mapper.height
         self.rgb, self.depth, poses = mapper.rgb, mapper.depth, mapper.poses
         self.n_keyframes = len(poses)
-        # 3DGS refinement runs where its rasterizer does (the GPU with gsplat); 2DGS surfels on the CPU
-        self.device = backend_device(backend) if method == "3dgs" else torch.device("cpu")
         self.K = torch.from_numpy(mapper.K.astype(np.float32)).to(self.device)
         self.viewmats = torch.from_numpy(np.linalg.inv(poses).astype(np.float32)).to(self.device)
         lam = self.cfg.lambda_dssim
@@ -226,8 +226,7 @@ class Refiner:
             self._load_checkpoint(self.out_dir / CHECKPOINT)
             self.resumed = True
         else:
-            self._fresh_state(GaussianMap({k: v.to(self.device) for k, v in mapper.gaussians.params.items()}),
-                              extent)
+            self._fresh_state(mapper.gaussians, extent)
             self.resumed = False
 
     # ------------------------------------------------------------------ state

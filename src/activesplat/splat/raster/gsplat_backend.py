@@ -30,9 +30,8 @@ from activesplat.splat.raster.constants import RASTER
 def rasterize_gsplat(means, quats, scales, opacities, colors, viewmat, K, width, height, background, mask):
     """Render through gsplat's CUDA kernels (one camera) into a :class:`RenderOutput`."""
     if means.device.type != "cuda":  # CPU tensors: render on the GPU, outputs (and gradients) come back
-        out = rasterize_gsplat(*(None if t is None else t.cuda() for t in (means, quats, scales, opacities,
-                                 colors, viewmat, K)), width, height, background.cuda(),
-                               None if mask is None else mask.cuda())
+        out = rasterize_gsplat(*(t.cuda() for t in (means, quats, scales, opacities, colors, viewmat, K)),
+                               width, height, background.cuda(), None if mask is None else mask.cuda())
         return RenderOutput(**{f.name: getattr(out, f.name).to(means.device) for f in fields(out)})
     n, device = means.shape[0], means.device
     if n == 0 or (mask is not None and not bool(mask.any())):

@@ -2,11 +2,11 @@
 
 gsplat renders colour, blended depth and opacity but not the median depth (the view depth of the
 Gaussian at which the transmittance T first drops below 0.5), which eqs. 8 and 10 and the panoramas
-use. This kernel walks the depth-sorted list of each 16 x 16 tile that ``gsplat.rasterization`` has
-already built (``meta["isect_offsets"]``, ``meta["flatten_ids"]``), with the projected means, conics,
-opacities and depths of the same call, and applies the blending rules of
-:mod:`activesplat.splat.raster.constants` (alpha clamp 0.99, skip below 1/255, stop before T < 1e-4),
-so it gives the numba backend's median depth without copying the map to the CPU.
+use. This kernel walks the depth-sorted list of each 16 x 16 tile that gsplat's tile intersection has
+already built for the same render (``isect_offsets``, ``flatten_ids``, in the layout of
+``gsplat.rasterization``'s meta), with the projected means, conics, opacities and depths of that call,
+and applies the blending rules of :mod:`activesplat.splat.raster.constants` (alpha clamp 0.99, skip below
+1/255, stop before T < 1e-4), so it gives the numba backend's median depth without copying the map to the CPU.
 
 Triton ships with the CUDA builds of PyTorch; with ``TRITON_INTERPRET=1`` the same kernel runs on CPU
 tensors (the tests do that). Not differentiable (the median depth never is).
