@@ -18,6 +18,8 @@ from activesplat.planning.config import PlanningConfig  # noqa: E402
 from activesplat.planning.controller import ControllerConfig, tour_actions  # noqa: E402
 from activesplat.planning.explorer_config import ExplorerConfig  # noqa: E402
 from activesplat.planning.goals import (  # noqa: E402
+    Commitment,
+    Promises,
     bridge_toward,
     closer_on_the_way,
     distance_to_polyline,
@@ -307,6 +309,67 @@ def test_the_sampled_surface_term_adds_to_the_information_of_the_scored_nodes_on
     # node (information above 0) gains the full weight and the others nothing
     for node, info in plain.items():
         assert sampled[node] == (info + 20.0 if info > 0 else info)
+
+
+def test_a_node_keeps_its_promise_until_its_subregion_is_entered_or_it_is_visited():
+    promises = Promises(radius=0.5)
+    pos = np.array([[0.0, 0.0], [5.0, 0.0], [10.0, 0.0]])
+    none, all_ = np.zeros(3, bool), np.ones(3, bool)
+    first = promises.keep(pos, np.array([12.0, 30.0, 3.0]), all_, none)
+    assert first.tolist() == [12.0, 30.0, 3.0]  # nothing remembered yet
+    # the graph moved a little; the door view lowered node 0, node 1 got no panorama (information 0)
+    moved = pos + [0.3, 0.0]
+    scored = np.array([True, False, True])
+    again = promises.keep(moved, np.array([6.0, 0.0, 8.0]), scored, none)
+    assert again.tolist() == [12.0, 30.0, 8.0]  # the higher of now and then
+    # node 0's subregion entered (released): the panorama rules and its memory is gone
+    entered = promises.keep(moved, np.array([6.0, 0.0, 4.0]), scored, np.array([True, False, False]))
+    assert entered.tolist() == [6.0, 30.0, 8.0]
+    assert promises.keep(moved, np.array([2.0, 0.0, 4.0]), all_, none).tolist() == [2.0, 30.0, 8.0]
+    far = promises.keep(moved + 1.0, np.zeros(3), none, none)  # beyond the radius nothing is kept
+    assert far.tolist() == [0.0, 0.0, 0.0]
+
+
+def test_a_global_choice_is_followed_until_its_subregion_holds_nothing_to_see():
+    nodes = [10, 11, 12, 13]
+    pos = np.array([[0.0, 0.0], [1.0, 0.0], [8.0, 0.0], [9.0, 0.0]])
+    regions = {10: 0, 11: 0, 12: 1, 13: 1}
+    order = [2, 3, 0, 1]  # this replan prefers the other side of the house
+    worth = np.array([True, True, True, True])
+    commitment = Commitment(radius=0.5)
+    assert commitment.first(order, worth, nodes, pos, regions) == (order, False)  # nothing committed yet
+    commitment.pos = np.array([0.2, 0.1])  # the last global goal, near node 10 (the graph moved a little)
+    assert commitment.first(order, worth, nodes, pos, regions) == ([0, 2, 3, 1], True)
+    # node 10 seen: the subregion's other node worth a visit is next
+    assert commitment.first(order, np.array([False, True, True, True]), nodes, pos, regions) == (
+        [1, 2, 3, 0], True)
+    # nothing of the subregion worth a visit any more: the replan's own order, and the commitment is gone
+    seen = np.array([False, False, True, True])
+    assert commitment.first(order, seen, nodes, pos, regions) == (order, False)
+    assert commitment.pos is None
+    commitment.pos = np.array([4.5, 0.0])  # no candidate near the remembered goal: dropped as well
+    assert commitment.first(order, worth, nodes, pos, regions) == (order, False) and commitment.pos is None
+    with pytest.raises(InvalidInputError, match="commit_global_m"):
+        ExplorerConfig(commit_global_m=-1.0)
+
+
+def test_rank_goals_applies_kept_promises_outside_the_agents_subregion_only():
+    cfg = ExplorerConfig(workspace=WCFG, keep_promise_m=0.3)
+    ws = extract_workspace(corridor(), HERE, WCFG)
+    plan = Plan(workspace=ws, graph=build_voronoi_graph(ws, WCFG))
+    plan.subregions = {n: int(plan.graph.nodes[n]["pos"][0] > 3.0) for n in plan.graph.nodes}
+    nodes = list(plan.graph.nodes)
+    pos = np.stack([np.asarray(plan.graph.nodes[n]["pos"], float) for n in nodes])
+    promises = Promises(0.3, pos, np.full(len(nodes), 100.0))
+    rank_goals(plan, HERE, HalfSeen().render, 0.0, [], [], cfg.planning, WCFG, goal_rules(cfg),
+               np.random.default_rng(0), promises=promises)
+    here_region = plan.subregions[min(nodes, key=lambda n: np.hypot(*(pos[nodes.index(n)] - HERE)))]
+    outside = {plan.subregions[n] != here_region for n in plan.info}
+    assert outside == {True, False}  # candidates on both sides
+    for n, info in plan.info.items():
+        assert (info == 100.0) == (plan.subregions[n] != here_region), (n, info)
+    with pytest.raises(InvalidInputError, match="keep_promise_m"):
+        ExplorerConfig(keep_promise_m=0.0)
 
 
 def test_rotation_targets_tilt_only_until_the_target_is_within_the_given_angle_of_the_centre():

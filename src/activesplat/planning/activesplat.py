@@ -15,7 +15,9 @@ from activesplat.planning.controller import floor_xz, yaw_toward
 from activesplat.planning.explorer import Explorer, WorldModel
 from activesplat.planning.explorer_config import ExplorerConfig
 from activesplat.planning.goals import (
+    Commitment,
     GoalRules,
+    Promises,
     bridge_toward,
     closer_on_the_way,
     rank_goals,
@@ -47,6 +49,10 @@ class ActiveSplatExplorer(Explorer):
         """Every rotation stop: step, cause (arrival / multi_stop), floor position, the targets chosen
         (source, yaw / pitch in degrees, weight) and how many candidates each source offered (the
         episode's stops.json)."""
+        self.promises = None if self.cfg.keep_promise_m is None else Promises(self.cfg.keep_promise_m)
+        """What the nodes outside the agent's subregion promised at earlier replans (`keep_promise_m`)."""
+        self.commitment = None if self.cfg.commit_global_m is None else Commitment(self.cfg.commit_global_m)
+        """The goal of the last global choice, followed until reached or seen (`commit_global_m`)."""
         self._ranked: list = []  # the best candidates of the current replan, for its record
         self.replans: list[dict] = []
         """Every replan: step, floor position, stage (local / global, `Plan.stage`), the goal (None: idle),
@@ -62,7 +68,8 @@ class ActiveSplatExplorer(Explorer):
         rules = goal_rules(cfg)
         goal_order = self.timers.time("position_selection", rank_goals, plan, here, self.world.render,
                                       self.floor_height, self.visited, self.failed, cfg.planning,
-                                      cfg.workspace, rules, self.rng, self.observed)
+                                      cfg.workspace, rules, self.rng, self.observed, self.promises,
+                                      self.commitment)
 
         def find_path(goal: np.ndarray) -> np.ndarray | None:
             return self.timers.time("planner", plan_safe_path, plan.graph, plan.workspace, here, goal,
@@ -87,6 +94,7 @@ class ActiveSplatExplorer(Explorer):
                 # not marked failed: from the bridge node it may have a path (each bridge is a node not yet
                 # visited and nearer to the goal, so the bridges toward one goal end)
                 self.go_to(*bridge)
+                self._commit(goal)
                 self._record_replan(here, node, bridge[1], False, bridge=True)
                 return
             on_the_way = False
@@ -104,6 +112,7 @@ class ActiveSplatExplorer(Explorer):
                                                find_path)
                 on_the_way = on_the_way or goal is not ranked_goal
             self.go_to(goal, path)
+            self._commit(np.asarray(plan.graph.nodes[node]["pos"], float))
             self._record_replan(here, node, path, on_the_way)
             return
         self._record_replan(here, None, None, False)
@@ -111,6 +120,12 @@ class ActiveSplatExplorer(Explorer):
         stuck = bool(self.failed)
         self.failed.clear()  # fallback: forget failures, the next replan gives every goal a second chance
         self.idle(pose, stuck)
+
+    def _commit(self, goal: np.ndarray) -> None:
+        """Remember the goal of a global choice (`commit_global_m`): the ranked node, not a stop on the
+        way."""
+        if self.commitment is not None and self.plan.stage == "global":
+            self.commitment.pos = np.asarray(goal, float).copy()
 
     def _bridge(self, plan: Plan, here: np.ndarray, node: int, goal: np.ndarray,
                 find_path) -> tuple[np.ndarray, np.ndarray] | None:
@@ -132,6 +147,7 @@ class ActiveSplatExplorer(Explorer):
                "goal": None}
         if node is not None and path is not None:
             rec.update(goal=[round(float(v), 3) for v in self.plan.goal], on_the_way=on_the_way,
+                       committed=plan.committed,
                        score=round(plan.scores.get(node, float("nan")), 2),
                        info=round(plan.info.get(node, float("nan")), 2), path_m=round(path_length(path), 2))
             if bridge:  # the goal ranked first had no safe path: `plan.goal` is a node on the way to it

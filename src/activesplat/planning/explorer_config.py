@@ -110,6 +110,24 @@ class ExplorerConfig:
     through the subregions"). With the later defaults: tuning 85.87 -> 86.42 %, fresh medium-100..109 seed
     0 86.13 -> 83.42 % (medium-103 58 %: the route is re-planned at every replan and its first stop keeps
     changing sides of the house; docs/benchmark.md "The route through the subregions, again")."""
+    keep_promise_m: float | None = None
+    """Remember what each node outside the agent's subregion promised (its information part) across
+    replans, by floor position within this many metres, and rank it by at least that until the agent has
+    replanned inside its subregion or visited it (ours, `goals.Promises`; None = off: every replan's
+    panoramas alone, as in the paper). A room seen through its door looks half seen from the corridor, and
+    the promise of its nodes drops as the agent walks past: on medium-2 seed 0 rooms 7-9 promised 12-13
+    at step 769, 7-10 at step 869, and were never entered. 0.5 m on medium-0..3 x 2 seeds: 85.87 ->
+    84.52 %, medium-2 seed 1 83.36 -> 71.69 % (the first panoramas promise the maximum everywhere and the
+    memory keeps it), so off (docs/benchmark.md "Kept promises and a committed global goal")."""
+    commit_global_m: float | None = None
+    """Follow a global choice through to its subregion (ours, `goals.Commitment`; None = off: every replan
+    ranks anew, as in the paper): a global-stage replan puts first the best node worth a visit of the
+    subregion holding the candidate nearest the last global goal (within this many metres), until none of
+    it is worth a visit. A long trip has stops on the way (the detour rule, `long_path_m`), and with the map
+    grown the best node at each could lie on the other side of the house: on fresh medium-103 the agent
+    crossed it six times, 8-13 m each. 1 m on medium-0..3 x 2 seeds: 85.87 -> 85.71 %, at step 1000
+    62.41 -> 64.09 %, worst room 71.1 -> 67.6 %; with `global_tour` 85.72 %; so off (docs/benchmark.md
+    "Kept promises and a committed global goal")."""
     global_in_horizon: bool = False
     """Count eq. 12's in-horizon flag in the global stage too (paper: one score for every node; this
     project's default until the change below). False (ours): the global stage ranks nodes without it. The
@@ -201,6 +219,12 @@ class ExplorerConfig:
         if self.bridge_gain_m is not None and self.bridge_gain_m < 0:
             raise InvalidInputError(f"ExplorerConfig.bridge_gain_m must be >= 0 (or None = off), got "
                                     f"{self.bridge_gain_m}")
+        if self.commit_global_m is not None and self.commit_global_m <= 0:
+            raise InvalidInputError(f"ExplorerConfig.commit_global_m must be > 0 (or None = off), got "
+                                    f"{self.commit_global_m}")
+        if self.keep_promise_m is not None and self.keep_promise_m <= 0:
+            raise InvalidInputError(f"ExplorerConfig.keep_promise_m must be > 0 (or None = off), got "
+                                    f"{self.keep_promise_m}")
         if self.global_halving_m is not None and self.global_halving_m <= 0:
             raise InvalidInputError(f"ExplorerConfig.global_halving_m must be > 0 (or None = the distance "
                                     f"weight's difference), got {self.global_halving_m}")

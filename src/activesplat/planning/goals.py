@@ -7,7 +7,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import networkx as nx
 import numpy as np
@@ -54,6 +54,73 @@ class GoalRules:
     panorama_every_subregion: bool = True
     global_halving_m: float | None = None
     global_tour: bool = False
+
+
+@dataclass
+class Promises:
+    """What the nodes outside the agent's subregion once promised to show (ours,
+    `ExplorerConfig.keep_promise_m`):
+    the information part of every node scored by panorama, kept across replans by floor position. A room
+    looked into from its door, or passed along a corridor, looks half seen from there: its nodes' promise
+    drops although most of the room was never seen from close by, and the agent walked past such rooms and
+    never came back. With this memory a node promises at least what it promised before, until the agent
+    has replanned inside the node's subregion or visited it (then the memory of it is dropped and the
+    panoramas rule again)."""
+
+    radius: float
+    """A remembered promise belongs to the current nodes within this of its position (the Voronoi graph
+    moves a little between replans)."""
+    pos: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    value: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+    def keep(self, pos: np.ndarray, info: np.ndarray, scored: np.ndarray, release: np.ndarray) -> np.ndarray:
+        """The nodes' information parts with the memory applied: max(info, the promise remembered within
+        `radius`) for the nodes not `release`d (those in the agent's subregion or visited: their memory is
+        dropped). The memory then holds every scored node's (not released) value."""
+        pos, info = np.asarray(pos, float).reshape(-1, 2), np.asarray(info, float)
+        scored, release = np.asarray(scored, bool), np.asarray(release, bool)
+        near = np.hypot(*(pos[:, None, :] - self.pos[None, :, :]).transpose(2, 0, 1)) <= self.radius
+        kept = np.where(near, self.value[None, :], 0.0).max(axis=1, initial=0.0)
+        out = np.where(release, info, np.maximum(info, kept))
+        stale = (near & (release | scored)[:, None]).any(axis=0)  # dropped or replaced by a fresh value
+        new = scored & ~release
+        self.pos = np.concatenate([self.pos[~stale], pos[new]])
+        self.value = np.concatenate([self.value[~stale], out[new]])
+        return out
+
+
+@dataclass
+class Commitment:
+    """The global goal the agent set out for, kept until it is reached or no longer worth a visit (ours,
+    `ExplorerConfig.commit_global_m`). Every global-stage replan ranks the nodes anew on a map that grew
+    since the last one; a long trip has stops on the way (`closer_on_the_way`, the detour rule), and at
+    each the best node could change sides of the house, so the agent crossed it again and again. With a
+    commitment a global replan goes on toward the subregion it chose before while a node of it still
+    promises something to see."""
+
+    radius: float
+    """The committed subregion is that of the candidate nearest the remembered goal, if one lies within
+    this (the Voronoi graph and its subregions are rebuilt at every replan)."""
+    pos: np.ndarray | None = None
+    """The goal of the last global choice (floor x, z); None: no commitment."""
+
+    def first(self, order: list[int], worth: np.ndarray, nodes: Sequence[int], pos: np.ndarray,
+              subregions: dict[int, int]) -> tuple[list[int], bool]:
+        """`order` (indices into `nodes`) with the committed subregion's best node worth a visit moved to
+        the front, and whether the commitment held; when it did not (no candidate near the remembered goal,
+        or none of its subregion worth a visit) the order is unchanged and the commitment dropped."""
+        if self.pos is None or len(nodes) == 0:
+            return order, False
+        d = np.hypot(*(np.asarray(pos, float).reshape(-1, 2) - self.pos).T)
+        nearest = int(np.argmin(d))
+        region = subregions.get(nodes[nearest])
+        if d[nearest] <= self.radius:
+            keep = [i for i in order if worth[i] and (subregions.get(nodes[i]) == region if region is not None
+                                                       else i == nearest)]
+            if keep:
+                return [keep[0]] + [i for i in order if i != keep[0]], True
+        self.pos = None
+        return order, False
 
 
 def node_state(node_pos: np.ndarray, visited: Sequence[np.ndarray], failed: Sequence[np.ndarray],
@@ -265,12 +332,17 @@ def local_then_global(scores: np.ndarray, info: np.ndarray, travel: np.ndarray, 
 def rank_goals(plan: Plan, here: np.ndarray, render: RenderFn, floor_height: float,
                visited: Sequence[np.ndarray], failed: Sequence[np.ndarray], pcfg: PlanningConfig,
                wcfg: WorkspaceConfig, rules: GoalRules, rng: np.random.Generator,
-               observed: ObservedSurface | None = None) -> list[int]:
+               observed: ObservedSurface | None = None, promises: Promises | None = None,
+               commitment: Commitment | None = None) -> list[int]:
     """Candidate goal nodes of `plan.graph`, best first (eq. 12 scores; local-then-global, sec. III-C).
     Renders a panorama at up to `max_panoramas` open candidates and records every candidate's score and
     information part in `plan.scores` / `plan.info`. `random_goals`: a random order of the open nodes,
     then the others (no scores). With `observed` and a positive `ScoreConfig.w_q`, the information part
-    also counts the surface near each node that the agent's depth has not sampled (`planning.observed`)."""
+    also counts the surface near each node that the agent's depth has not sampled (`planning.observed`).
+    With `promises` (hierarchical only) a node outside the agent's subregion promises at least what it
+    promised at an earlier replan (`Promises`). With `commitment` a global stage goes on toward the
+    subregion chosen at an earlier global replan while it holds something to see (`Commitment`); whether
+    it did is `plan.committed`."""
     graph, ws = plan.graph, plan.workspace
     nodes = goal_candidates(graph)
     if not nodes:
@@ -287,6 +359,7 @@ def rank_goals(plan: Plan, here: np.ndarray, render: RenderFn, floor_height: flo
     inv = np.zeros(len(nodes))
     vol = np.zeros(len(nodes))
     poor = np.zeros(len(nodes))
+    scored = np.zeros(len(nodes), bool)
     height = floor_height + rules.panorama_height_m
     score_cfg = pcfg.score
     quality = observed is not None and score_cfg.w_q > 0
@@ -294,31 +367,38 @@ def rank_goals(plan: Plan, here: np.ndarray, render: RenderFn, floor_height: flo
                                   rules.panorama_every_subregion):
         pano = render_panorama(render, [pos[i][0], height, pos[i][1]], pcfg.panorama,
                                pcfg.panorama.front_faces_scores)
+        scored[i] = True
         inv[i] = invisible_share(pano, pcfg.rotation)
         vol[i] = hull_volume(pano, pcfg.hull)
         if quality:
             poor[i] = poorly_observed_share(pano, observed, score_cfg.quality_radius_m)
     # the sampled-surface term (ours, off by default): normalised by its maximum like s_o and s_c
     extra = score_cfg.w_q * poor / poor.max() if quality and poor.max() > 0 else np.zeros(len(nodes))
-    in_horizon = np.array([line_of_sight(ws, here, p, wcfg) for p in pos])
-    scores = node_scores(inv, vol, unvisited, in_horizon, is_failed, score_cfg) + extra
-    # the global stage weighs what a node promises against the way there; the in-horizon flag (a node in
-    # sight of the agent) is a local preference and, counted there too, keeps the agent near (ours)
-    global_scores = None if rules.global_in_horizon else node_scores(
-        inv, vol, unvisited, np.zeros_like(in_horizon), is_failed, score_cfg) + extra
-    plan.scores = {n: float(s) for n, s in zip(nodes, scores, strict=True)}
-    travel = travel_lengths(graph, here, nodes, pos)
-    plan.travel = {n: float(t) for n, t in zip(nodes, travel, strict=True)}
+    hierarchical = rules.hierarchical and bool(plan.subregions)
+    local = agent_subregion(graph, plan.subregions, here) if hierarchical else None
+    in_local = np.array([hierarchical and plan.subregions.get(n) == local for n in nodes])
     # the information terms (w_o s_o + w_c s_c, shares relative to the best node anywhere): what keeps
     # planning local, and what makes a node worth a stop on a long path's way
     info = information_scores(inv, vol, score_cfg) + extra
+    # a promise kept from an earlier replan adds to the information part and the score alike (0 in the
+    # agent's own subregion, so the local stage sees what the panoramas show)
+    kept = np.zeros(len(nodes))
+    if promises is not None and hierarchical:
+        kept = promises.keep(pos, info, scored, in_local | ~unvisited) - info
+        info = info + kept
+    in_horizon = np.array([line_of_sight(ws, here, p, wcfg) for p in pos])
+    scores = node_scores(inv, vol, unvisited, in_horizon, is_failed, score_cfg) + extra + kept
+    # the global stage weighs what a node promises against the way there; the in-horizon flag (a node in
+    # sight of the agent) is a local preference and, counted there too, keeps the agent near (ours)
+    global_scores = None if rules.global_in_horizon else node_scores(
+        inv, vol, unvisited, np.zeros_like(in_horizon), is_failed, score_cfg) + extra + kept
+    plan.scores = {n: float(s) for n, s in zip(nodes, scores, strict=True)}
+    travel = travel_lengths(graph, here, nodes, pos)
+    plan.travel = {n: float(t) for n, t in zip(nodes, travel, strict=True)}
     plan.info = {n: float(v) for n, v in zip(nodes, info, strict=True)}
     # with `quality_in_local` off the sampled-surface term does not keep the agent in its subregion: it
     # only makes poorly sampled rooms worth a trip in the global stage
     local_info = info if score_cfg.quality_in_local else info - extra
-    hierarchical = rules.hierarchical and bool(plan.subregions)
-    local = agent_subregion(graph, plan.subregions, here) if hierarchical else None
-    in_local = np.array([hierarchical and plan.subregions.get(n) == local for n in nodes])
     rules = dataclasses.replace(rules, hierarchical=hierarchical)
     promising = worth_a_visit(info, open_, rules.local_score_threshold)
     local_promising = worth_a_visit(local_info, open_, rules.local_score_threshold)
@@ -326,6 +406,9 @@ def rank_goals(plan: Plan, here: np.ndarray, render: RenderFn, floor_height: flo
     order = local_then_global(scores, local_info, travel, open_, in_local, rules, global_scores, info)
     if rules.global_tour and plan.stage == "global":
         order = tour_first(order, promising, travel, nodes, plan.subregions, graph)
+    plan.committed = False
+    if commitment is not None and plan.stage == "global":
+        order, plan.committed = commitment.first(order, promising, nodes, pos, plan.subregions)
     return [nodes[i] for i in order]
 
 
@@ -459,6 +542,7 @@ def select_rotation_targets(targets: Sequence[RotationTarget], yaw: float, pcfg:
     return [chosen[i] for i in order]
 
 
-__all__ = ["GoalRules", "closer_on_the_way", "distance_to_polyline", "goal_candidates", "local_then_global",
-           "node_state", "pairwise_travel", "panorama_candidates", "rank_goals", "select_rotation_targets",
-           "shortest_tour", "tour_first", "travel_lengths", "worth_a_detour", "worth_a_visit"]
+__all__ = ["Commitment", "GoalRules", "Promises", "closer_on_the_way", "distance_to_polyline",
+           "goal_candidates", "local_then_global", "node_state", "pairwise_travel", "panorama_candidates",
+           "rank_goals", "select_rotation_targets", "shortest_tour", "tour_first", "travel_lengths",
+           "worth_a_detour", "worth_a_visit"]

@@ -38,6 +38,9 @@ class Plan:
     """How the goal ranking went: "local" (a node of the agent's subregion promised something to see),
     "global" (score minus distance over every node), "flat" (no hierarchical planning); empty when the
     nodes were not ranked (random goals)."""
+    committed: bool = False
+    """The global stage went on toward the subregion of an earlier global choice
+    (`planning.goals.Commitment`)."""
     goal: np.ndarray | None = None
     path: np.ndarray | None = None
 
