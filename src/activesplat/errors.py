@@ -31,14 +31,18 @@ class RecordingError(InvalidInputError):
 
 
 def check_fields(obj, *, positive: tuple[str, ...] = (), non_negative: tuple[str, ...] = (),
-                 unit: tuple[str, ...] = (), at_least_one: tuple[str, ...] = ()) -> None:
+                 unit: tuple[str, ...] = (), at_least_one: tuple[str, ...] = (),
+                 optional: tuple[str, ...] = ()) -> None:
     """Validate the named numeric fields of a config dataclass: ``positive`` > 0, ``non_negative`` >= 0,
-    ``unit`` in [0, 1], ``at_least_one`` >= 1. The first one out of range raises an InvalidInputError
-    naming it as ``ClassName.field``."""
+    ``unit`` in [0, 1], ``at_least_one`` >= 1; a field also named in ``optional`` may be None (off). The
+    first one out of range raises an InvalidInputError naming it as ``ClassName.field``."""
     rules = [(positive, lambda v: v > 0, "> 0"), (non_negative, lambda v: v >= 0, ">= 0"),
              (unit, lambda v: 0 <= v <= 1, "in [0, 1]"), (at_least_one, lambda v: v >= 1, ">= 1")]
     for names, ok, text in rules:
         for name in names:
             value = getattr(obj, name)
+            if value is None and name in optional:
+                continue
             if not ok(value):
-                raise InvalidInputError(f"{type(obj).__name__}.{name} must be {text}, got {value}")
+                off = " (or None = off)" if name in optional else ""
+                raise InvalidInputError(f"{type(obj).__name__}.{name} must be {text}{off}, got {value}")

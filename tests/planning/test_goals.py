@@ -18,8 +18,6 @@ from activesplat.planning.config import PlanningConfig  # noqa: E402
 from activesplat.planning.controller import ControllerConfig, tour_actions  # noqa: E402
 from activesplat.planning.explorer_config import ExplorerConfig  # noqa: E402
 from activesplat.planning.goals import (  # noqa: E402
-    Commitment,
-    Promises,
     bridge_toward,
     closer_on_the_way,
     distance_to_polyline,
@@ -31,6 +29,7 @@ from activesplat.planning.goals import (  # noqa: E402
     tour_first,
     worth_a_detour,
 )
+from activesplat.planning.replan_memory import Commitment, Promises  # noqa: E402
 from activesplat.planning.viewpoints import RotationTarget  # noqa: E402
 from activesplat.workspace.clean import extract_workspace  # noqa: E402
 from activesplat.workspace.config import WorkspaceConfig  # noqa: E402

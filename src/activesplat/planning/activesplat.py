@@ -15,9 +15,7 @@ from activesplat.planning.controller import floor_xz, yaw_toward
 from activesplat.planning.explorer import Explorer, WorldModel
 from activesplat.planning.explorer_config import ExplorerConfig
 from activesplat.planning.goals import (
-    Commitment,
     GoalRules,
-    Promises,
     bridge_toward,
     closer_on_the_way,
     rank_goals,
@@ -27,6 +25,7 @@ from activesplat.planning.goals import (
 )
 from activesplat.planning.observed import unsampled_views
 from activesplat.planning.panorama import render_panorama
+from activesplat.planning.replan_memory import Commitment, Promises
 from activesplat.planning.viewpoints import RotationTarget, rotation_candidates
 from activesplat.timing import Timers
 from activesplat.workspace.paths import path_length, plan_safe_path
@@ -94,7 +93,7 @@ class ActiveSplatExplorer(Explorer):
                 # not marked failed: from the bridge node it may have a path (each bridge is a node not yet
                 # visited and nearer to the goal, so the bridges toward one goal end)
                 self.go_to(*bridge)
-                self._commit(goal)
+                self._commit(node)
                 self._record_replan(here, node, bridge[1], False, bridge=True)
                 return
             on_the_way = False
@@ -112,7 +111,7 @@ class ActiveSplatExplorer(Explorer):
                                                find_path)
                 on_the_way = on_the_way or goal is not ranked_goal
             self.go_to(goal, path)
-            self._commit(np.asarray(plan.graph.nodes[node]["pos"], float))
+            self._commit(node)
             self._record_replan(here, node, path, on_the_way)
             return
         self._record_replan(here, None, None, False)
@@ -121,11 +120,11 @@ class ActiveSplatExplorer(Explorer):
         self.failed.clear()  # fallback: forget failures, the next replan gives every goal a second chance
         self.idle(pose, stuck)
 
-    def _commit(self, goal: np.ndarray) -> None:
+    def _commit(self, node: int) -> None:
         """Remember the goal of a global choice (`commit_global_m`): the ranked node, not a stop on the
-        way."""
+        way or a bridge toward it."""
         if self.commitment is not None and self.plan.stage == "global":
-            self.commitment.pos = np.asarray(goal, float).copy()
+            self.commitment.pos = np.asarray(self.plan.graph.nodes[node]["pos"], float).copy()
 
     def _bridge(self, plan: Plan, here: np.ndarray, node: int, goal: np.ndarray,
                 find_path) -> tuple[np.ndarray, np.ndarray] | None:

@@ -113,15 +113,15 @@ class ExplorerConfig:
     keep_promise_m: float | None = None
     """Remember what each node outside the agent's subregion promised (its information part) across
     replans, by floor position within this many metres, and rank it by at least that until the agent has
-    replanned inside its subregion or visited it (ours, `goals.Promises`; None = off: every replan's
+    replanned inside its subregion or visited it (ours, `replan_memory.Promises`; None = off: every replan's
     panoramas alone, as in the paper). A room seen through its door looks half seen from the corridor, and
     the promise of its nodes drops as the agent walks past: on medium-2 seed 0 rooms 7-9 promised 12-13
     at step 769, 7-10 at step 869, and were never entered. 0.5 m on medium-0..3 x 2 seeds: 85.87 ->
     84.52 %, medium-2 seed 1 83.36 -> 71.69 % (the first panoramas promise the maximum everywhere and the
     memory keeps it), so off (docs/benchmark.md "Kept promises and a committed global goal")."""
     commit_global_m: float | None = None
-    """Follow a global choice through to its subregion (ours, `goals.Commitment`; None = off: every replan
-    ranks anew, as in the paper): a global-stage replan puts first the best node worth a visit of the
+    """Follow a global choice through to its subregion (ours, `replan_memory.Commitment`; None = off: every
+    replan ranks anew, as in the paper): a global-stage replan puts first the best node worth a visit of the
     subregion holding the candidate nearest the last global goal (within this many metres), until none of
     it is worth a visit. A long trip has stops on the way (the detour rule, `long_path_m`), and with the map
     grown the best node at each could lie on the other side of the house: on fresh medium-103 the agent
@@ -209,23 +209,17 @@ class ExplorerConfig:
                                          "escape_forward_steps", "lookahead_m", "ahead_tolerance_m",
                                          "unsampled_views", "unsampled_min_weight",
                                          "detour_min_info", "replan_log_top",
-                                         "panorama_height_m"),
-                     positive=("unsampled_radius_m", "unsampled_voxel_m"), at_least_one=("max_panoramas",))
+                                         "panorama_height_m", "bridge_gain_m"),
+                     positive=("unsampled_radius_m", "unsampled_voxel_m", "commit_global_m",
+                               "keep_promise_m"),
+                     at_least_one=("max_panoramas",),
+                     optional=("bridge_gain_m", "commit_global_m", "keep_promise_m"))
         if self.tilt_within_deg is not None and not 0 <= self.tilt_within_deg <= 90:
             raise InvalidInputError(f"ExplorerConfig.tilt_within_deg must be in [0, 90] (or None = off), got "
                                     f"{self.tilt_within_deg}")
         if not -90 < self.travel_pitch_deg < 90:
             raise InvalidInputError(f"ExplorerConfig.travel_pitch_deg must be in (-90, 90) degrees, got "
                                     f"{self.travel_pitch_deg}")
-        if self.bridge_gain_m is not None and self.bridge_gain_m < 0:
-            raise InvalidInputError(f"ExplorerConfig.bridge_gain_m must be >= 0 (or None = off), got "
-                                    f"{self.bridge_gain_m}")
-        if self.commit_global_m is not None and self.commit_global_m <= 0:
-            raise InvalidInputError(f"ExplorerConfig.commit_global_m must be > 0 (or None = off), got "
-                                    f"{self.commit_global_m}")
-        if self.keep_promise_m is not None and self.keep_promise_m <= 0:
-            raise InvalidInputError(f"ExplorerConfig.keep_promise_m must be > 0 (or None = off), got "
-                                    f"{self.keep_promise_m}")
         if self.global_halving_m is not None and self.global_halving_m <= 0:
             raise InvalidInputError(f"ExplorerConfig.global_halving_m must be > 0 (or None = the distance "
                                     f"weight's difference), got {self.global_halving_m}")

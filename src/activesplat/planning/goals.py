@@ -7,7 +7,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import networkx as nx
 import numpy as np
@@ -17,6 +17,7 @@ from activesplat.planning.config import PlanningConfig
 from activesplat.planning.controller import ControllerConfig, fewest_actions_order
 from activesplat.planning.observed import ObservedSurface, poorly_observed_share
 from activesplat.planning.panorama import RenderFn, render_panorama
+from activesplat.planning.replan_memory import Commitment, Promises
 from activesplat.planning.viewpoints import (
     RotationTarget,
     hull_volume,
@@ -54,73 +55,6 @@ class GoalRules:
     panorama_every_subregion: bool = True
     global_halving_m: float | None = None
     global_tour: bool = False
-
-
-@dataclass
-class Promises:
-    """What the nodes outside the agent's subregion once promised to show (ours,
-    `ExplorerConfig.keep_promise_m`):
-    the information part of every node scored by panorama, kept across replans by floor position. A room
-    looked into from its door, or passed along a corridor, looks half seen from there: its nodes' promise
-    drops although most of the room was never seen from close by, and the agent walked past such rooms and
-    never came back. With this memory a node promises at least what it promised before, until the agent
-    has replanned inside the node's subregion or visited it (then the memory of it is dropped and the
-    panoramas rule again)."""
-
-    radius: float
-    """A remembered promise belongs to the current nodes within this of its position (the Voronoi graph
-    moves a little between replans)."""
-    pos: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
-    value: np.ndarray = field(default_factory=lambda: np.zeros(0))
-
-    def keep(self, pos: np.ndarray, info: np.ndarray, scored: np.ndarray, release: np.ndarray) -> np.ndarray:
-        """The nodes' information parts with the memory applied: max(info, the promise remembered within
-        `radius`) for the nodes not `release`d (those in the agent's subregion or visited: their memory is
-        dropped). The memory then holds every scored node's (not released) value."""
-        pos, info = np.asarray(pos, float).reshape(-1, 2), np.asarray(info, float)
-        scored, release = np.asarray(scored, bool), np.asarray(release, bool)
-        near = np.hypot(*(pos[:, None, :] - self.pos[None, :, :]).transpose(2, 0, 1)) <= self.radius
-        kept = np.where(near, self.value[None, :], 0.0).max(axis=1, initial=0.0)
-        out = np.where(release, info, np.maximum(info, kept))
-        stale = (near & (release | scored)[:, None]).any(axis=0)  # dropped or replaced by a fresh value
-        new = scored & ~release
-        self.pos = np.concatenate([self.pos[~stale], pos[new]])
-        self.value = np.concatenate([self.value[~stale], out[new]])
-        return out
-
-
-@dataclass
-class Commitment:
-    """The global goal the agent set out for, kept until it is reached or no longer worth a visit (ours,
-    `ExplorerConfig.commit_global_m`). Every global-stage replan ranks the nodes anew on a map that grew
-    since the last one; a long trip has stops on the way (`closer_on_the_way`, the detour rule), and at
-    each the best node could change sides of the house, so the agent crossed it again and again. With a
-    commitment a global replan goes on toward the subregion it chose before while a node of it still
-    promises something to see."""
-
-    radius: float
-    """The committed subregion is that of the candidate nearest the remembered goal, if one lies within
-    this (the Voronoi graph and its subregions are rebuilt at every replan)."""
-    pos: np.ndarray | None = None
-    """The goal of the last global choice (floor x, z); None: no commitment."""
-
-    def first(self, order: list[int], worth: np.ndarray, nodes: Sequence[int], pos: np.ndarray,
-              subregions: dict[int, int]) -> tuple[list[int], bool]:
-        """`order` (indices into `nodes`) with the committed subregion's best node worth a visit moved to
-        the front, and whether the commitment held; when it did not (no candidate near the remembered goal,
-        or none of its subregion worth a visit) the order is unchanged and the commitment dropped."""
-        if self.pos is None or len(nodes) == 0:
-            return order, False
-        d = np.hypot(*(np.asarray(pos, float).reshape(-1, 2) - self.pos).T)
-        nearest = int(np.argmin(d))
-        region = subregions.get(nodes[nearest])
-        if d[nearest] <= self.radius:
-            keep = [i for i in order if worth[i] and (subregions.get(nodes[i]) == region if region is not None
-                                                       else i == nearest)]
-            if keep:
-                return [keep[0]] + [i for i in order if i != keep[0]], True
-        self.pos = None
-        return order, False
 
 
 def node_state(node_pos: np.ndarray, visited: Sequence[np.ndarray], failed: Sequence[np.ndarray],
@@ -542,7 +476,7 @@ def select_rotation_targets(targets: Sequence[RotationTarget], yaw: float, pcfg:
     return [chosen[i] for i in order]
 
 
-__all__ = ["Commitment", "GoalRules", "Promises", "closer_on_the_way", "distance_to_polyline",
+__all__ = ["GoalRules", "closer_on_the_way", "distance_to_polyline",
            "goal_candidates", "local_then_global", "node_state", "pairwise_travel", "panorama_candidates",
            "rank_goals", "select_rotation_targets", "shortest_tour", "tour_first", "travel_lengths",
            "worth_a_detour", "worth_a_visit"]

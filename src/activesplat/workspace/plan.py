@@ -40,7 +40,7 @@ class Plan:
     nodes were not ranked (random goals)."""
     committed: bool = False
     """The global stage went on toward the subregion of an earlier global choice
-    (`planning.goals.Commitment`)."""
+    (`planning.replan_memory.Commitment`)."""
     goal: np.ndarray | None = None
     path: np.ndarray | None = None
 
