@@ -126,8 +126,8 @@ class ExplorerConfig:
     it is worth a visit. A long trip has stops on the way (the detour rule, `long_path_m`), and with the map
     grown the best node at each could lie on the other side of the house: on fresh medium-103 the agent
     crossed it six times, 8-13 m each. 1 m on medium-0..3 x 2 seeds: 85.87 -> 85.71 %, at step 1000
-    62.41 -> 64.09 %, worst room 71.1 -> 67.6 %; with `global_tour` 85.72 %; fresh medium-100..104 seed 0
-    84.24 -> 84.55 %, at step 1000 65.05 -> 64.99 %; so off (docs/benchmark.md
+    62.41 -> 64.09 %, worst room 71.1 -> 67.6 %; with `global_tour` 85.72 %; fresh medium-100..109 seed 0
+    85.83 -> 85.82 %, at step 1000 67.07 -> 67.00 %; so off (docs/benchmark.md
     "Kept promises and a committed global goal")."""
     global_in_horizon: bool = False
     """Count eq. 12's in-horizon flag in the global stage too (paper: one score for every node; this
