@@ -105,6 +105,18 @@ def test_same_seed_same_actions(episode, tmp_path):
     assert (again / "actions.txt").read_text() == (out / "actions.txt").read_text()
 
 
+def test_live_evaluation_on_a_worker_thread_gives_the_same_numbers(episode, tmp_path):
+    out, metrics = episode
+    cfg = {**TINY, "coverage_config": CoverageConfig(n_gt_points=4000, batch_frames=10, background=True)}
+    m = run_exploration("small-0", policy="activesplat", steps=90, seed=1, out=tmp_path / "bg", **cfg)
+    assert m["evaluation_background"] and not metrics["evaluation_background"]
+    for key in ("completion_ratio_pct", "completion_cm", "completion_cm_uncapped", "curve", "rooms",
+                "completion_gain"):
+        assert m[key] == metrics[key], key
+    assert len(m["curve"]) == 9  # a point every 10 frames, the last at step 90
+    assert m["evaluation_worker_ms_per_step"] > 0
+
+
 def test_interrupted_run_leaves_a_consistent_partial_episode(tmp_path, monkeypatch):
     from activesplat.planning import activesplat as explorer_mod
 

@@ -10,8 +10,10 @@ the action log alone.
 from __future__ import annotations
 
 import math
+import os
 import sys
 import time
+from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -138,7 +140,7 @@ def explore_environment(env, run, out: str | Path, overwrite: bool = False, prog
             action = explorer.act(obs)
             if hasattr(env, "waypoint"):  # a base with its own controller: the planner's next waypoint
                 env.waypoint(_next_waypoint(explorer))
-            obs = env.step(action)
+            obs = timers.time("simulator", env.step, action)
             forward += action == "move_forward"
             actions.append(action)
             causes.append(getattr(explorer, "last_cause", "") or "policy")
@@ -146,17 +148,21 @@ def explore_environment(env, run, out: str | Path, overwrite: bool = False, prog
             if viewer is not None:
                 viewer.update(step, obs, mapper, explorer, final=step == steps)
             if evaluator is not None and evaluator.curve_due(step, steps):
-                curve.append(timers.time("evaluation", evaluator.curve_point, step, forward))
+                timers.time("evaluation", evaluator.curve_point, step, forward)
             if bar is not None:
                 bar.update(1)
                 elapsed = time.perf_counter() - t_start
-                done = f"completion {curve[-1]['completion_ratio_pct']:.1f}% | " if curve else ""
+                point = evaluator.latest() if evaluator is not None else None
+                done = f"completion {point['completion_ratio_pct']:.1f}% | " if point else ""
                 bar.set_postfix_str(f"{done}{1000 * elapsed / step:.0f} ms/step | "
                                     f"{len(mapper.gaussians)} gaussians")
         if evaluator is not None:  # the last observation counts too (poses.txt holds steps + 1 frames)
             timers.time("evaluation", evaluator.observe, obs.pose)
+            curve = timers.time("evaluation", evaluator.finish)
     except KeyboardInterrupt:
         writer.close()
+        if evaluator is not None:
+            evaluator.close()
         if bar is not None:
             bar.close()
         _save_map(mapper, explorer, out_dir, floor_height)
@@ -176,12 +182,15 @@ def explore_environment(env, run, out: str | Path, overwrite: bool = False, prog
         "wall_time_s": wall,
         "ms_per_step": 1000.0 * wall / steps,
         "evaluation_ms_per_step": timers.per_step(steps).get("evaluation", 0.0),
+        "simulator_ms_per_step": timers.per_step(steps).get("simulator", 0.0),
         "timing_ms": {k: timers.per_step(steps).get(k, 0.0) for k in TIMING_KEYS},
         "n_gaussians": len(mapper.gaussians),
         "scene": name, "policy": policy, "seed": seed,
         "curve": curve,
     })
     if evaluator is not None:
+        metrics["evaluation_worker_ms_per_step"] = evaluator.worker_ms / steps
+        metrics["evaluation_background"] = evaluator.background
         cov = evaluator.coverage
         metrics["completion_gain"] = completion_gain(cov.gain_by_frame(), actions, causes, len(cov.gt))
     _save_map(mapper, explorer, out_dir, floor_height)
@@ -205,7 +214,12 @@ def _next_waypoint(explorer) -> np.ndarray | None:
 
 class _Completion:
     """Completion measured on the fly (docs/protocol.md §6): evaluation, not the robot's work; ground-truth
-    depth at 128 x 128 rendered by the simulator at every observed pose."""
+    depth at 128 x 128 rendered by the simulator at every observed pose.
+
+    The loop hands over poses (`observe`) and asks for curve points (`curve_point`); the ground-truth
+    renders and KD-tree updates run by batches of `CoverageConfig.batch_frames` poses, in order, either at
+    once or on a worker thread (`CoverageConfig.background`), so both give the same numbers. `finish`
+    waits for the worker and returns the curve."""
 
     def __init__(self, sim, coverage, run):
         from activesplat.geometry import intrinsics
@@ -213,17 +227,74 @@ class _Completion:
         self.sim, self.coverage, self.cfg, self.sim_config = sim, coverage, run.coverage, run.sim
         self.K = intrinsics(self.cfg.resolution, self.cfg.resolution, run.sim.hfov_deg)
         self.positions: list[tuple[float, float]] = []
+        self.curve: list[dict] = []
+        self.worker_ms = 0.0
+        """Milliseconds spent on the renders and KD-tree updates, wherever they ran."""
+        self._pending: list[np.ndarray] = []
+        self._observed = 0
+        background = self.cfg.background
+        if background is None:
+            background = (os.cpu_count() or 1) >= 8
+        self._worker = ThreadPoolExecutor(1, thread_name_prefix="live-evaluation") if background else None
+        self._jobs: list[Future] = []
+
+    @property
+    def background(self) -> bool:
+        return self._worker is not None
 
     def observe(self, pose) -> None:
-        depth = self.sim.render(pose, self.cfg.resolution, self.cfg.resolution)[1]
-        self.coverage.add_frame(depth, pose, self.K)
+        self._pending.append(np.array(pose, dtype=np.float64))
+        self._observed += 1
         self.positions.append((float(pose[0, 3]), float(pose[2, 3])))
 
     def curve_due(self, step: int, steps: int) -> bool:
-        return self.coverage.frames % self.cfg.batch_frames == 0 or step == steps
+        return self._observed % self.cfg.batch_frames == 0 or step == steps
 
-    def curve_point(self, step: int, forward: int) -> dict:
-        return _curve_point(step, self.coverage, forward, self.sim_config)
+    def curve_point(self, step: int, forward: int) -> None:
+        """Fold the poses observed so far in, then add the curve point of `step` (`curve`)."""
+        self._submit(step, forward)
+
+    def latest(self) -> dict | None:
+        """The newest curve point computed so far (behind by a batch while the worker runs)."""
+        return self.curve[-1] if self.curve else None
+
+    def finish(self) -> list[dict]:
+        """Fold the remaining poses in, wait for the worker; the curve."""
+        self._submit(None, 0)
+        self._wait()
+        return self.curve
+
+    def close(self) -> None:
+        """Stop the worker (an interrupted episode): queued batches are dropped."""
+        if self._worker is not None:
+            self._worker.shutdown(wait=True, cancel_futures=True)
+
+    def _submit(self, step: int | None, forward: int) -> None:
+        poses, self._pending = self._pending, []
+        if self._worker is None:
+            self._fold(poses, step, forward)
+            return
+        done = [job for job in self._jobs if job.done()]
+        for job in done:  # a worker's error surfaces at the next batch, not at the end of the episode
+            job.result()
+        self._jobs = [job for job in self._jobs if not job.done()]
+        self._jobs.append(self._worker.submit(self._fold, poses, step, forward))
+
+    def _wait(self) -> None:
+        for job in self._jobs:
+            job.result()
+        self._jobs = []
+        if self._worker is not None:
+            self._worker.shutdown(wait=True)
+
+    def _fold(self, poses: list[np.ndarray], step: int | None, forward: int) -> None:
+        t0 = time.perf_counter()
+        res = self.cfg.resolution
+        for pose in poses:
+            self.coverage.add_frame(self.sim.depth(pose, res, res), pose, self.K)
+        if step is not None:
+            self.curve.append(_curve_point(step, self.coverage, forward, self.sim_config))
+        self.worker_ms += 1000.0 * (time.perf_counter() - t0)
 
     def metrics(self) -> dict:
         """Completion, and for a built-in house the rooms entered and per-room completion."""
@@ -283,6 +354,12 @@ def _save_map(mapper, explorer, out_dir: Path, floor_height: float) -> None:
                  title=f"{explorer.name}: map, Voronoi graph (subregions), trajectory")
 
 
+def _worker(metrics: dict) -> str:
+    if not metrics.get("evaluation_background"):
+        return ""
+    return f" (waiting; {metrics['evaluation_worker_ms_per_step']:.0f} on its worker thread)"
+
+
 def _progress(steps: int, scene: str, policy: str, enabled: bool):
     if not enabled:
         return None
@@ -298,12 +375,14 @@ def format_summary(metrics: dict, out_dir: Path) -> str:
         f"episode      {out_dir}",
         f"scene        {metrics['scene']}  policy {metrics['policy']}  seed {metrics['seed']}",
         f"steps        {metrics['steps']}  ({metrics['ms_per_step']:.0f} ms/step of which "
-        f"{metrics['evaluation_ms_per_step']:.0f} live evaluation; {metrics['wall_time_s']:.0f} s wall)",
+        f"{metrics['evaluation_ms_per_step']:.0f} live evaluation{_worker(metrics)}; "
+        f"{metrics['wall_time_s']:.0f} s wall)",
         f"completion   {metrics['completion_ratio_pct']:.2f} %  |  {metrics['completion_cm']:.2f} cm "
         f"(uncapped {_fmt(metrics['completion_cm_uncapped'])} cm)",
         f"path length  {metrics['path_length_m']:.2f} m",
         f"gaussians    {metrics['n_gaussians']}",
-        "time/step    " + "  ".join(f"{k} {t[k]:.1f}" for k in TIMING_KEYS) + " (ms)",
+        "time/step    " + "  ".join(f"{k} {t[k]:.1f}" for k in TIMING_KEYS)
+        + f"  simulator {metrics.get('simulator_ms_per_step', 0.0):.1f} (ms)",
     ]
     return "\n".join(lines)
 

@@ -46,9 +46,10 @@ def gsplat_meta(means, quats, scales, opacities, viewmat, K, width, height) -> d
             "tile_width": tw, "tile_height": th, "tile_size": tile}
 
 
-@pytest.mark.parametrize(("seed", "n"), [(0, 200), (1, 400)])
-def test_median_kernel_matches_numba(seed, n):
-    params = random_scene(n, seed, scale=(0.03, 0.3), opacity=(0.3, 0.98))
+@pytest.mark.parametrize(("seed", "n", "opacity"), [(0, 200, (0.3, 0.98)), (1, 400, (0.3, 0.98)),
+                                                    (2, 3000, (0.02, 0.3))])  # lists of many chunks
+def test_median_kernel_matches_numba(seed, n, opacity):
+    params = random_scene(n, seed, scale=(0.03, 0.3), opacity=opacity)
     K = intrinsics(W, H)
     ref = rasterize(*params, torch.eye(4), K, W, H, backend="numba").median_depth
     got = median_depth_from_meta(gsplat_meta(*params[:4], torch.eye(4), K, W, H), W, H)

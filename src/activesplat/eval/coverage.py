@@ -39,6 +39,11 @@ class CoverageConfig:
     batch_frames: int = 50
     """Frames whose points are pooled into one KD-tree per update (ours: a speed knob; the result is
     exact)."""
+    background: bool | None = None
+    """Run the live evaluation of `activesplat explore` (ground-truth depth renders, KD-tree updates, curve
+    points) on a worker thread, off the exploration step's critical path (ours: a speed knob; the frames
+    are folded in the same order, so every number is the same). None: on where the machine has at least 8
+    CPU cores. On 2 cores the worker would only compete with the mapper's threads."""
 
     def __post_init__(self) -> None:
         check_fields(self, positive=("cap_m", "threshold_m", "far_voxel_m"),

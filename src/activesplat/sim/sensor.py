@@ -11,8 +11,10 @@ no 3D map can reproduce (docs/protocol.md §1, "Texture filtering")."""
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
 from functools import cached_property
 
+import numba
 import numpy as np
 import trimesh
 from embreex import rtcore_scene
@@ -25,6 +27,26 @@ from activesplat.sim.textures import tile_surface
 
 FLOAT_TEXELS = 4_000_000
 """Scenes with at most this many texels keep them as float32 (48 MB); larger ones as uint8."""
+
+
+BLOCK_PIXELS = 8192
+"""Fewest pixels per thread of a render (smaller images stay on the calling thread)."""
+_POOL: tuple[int, ThreadPoolExecutor] | None = None
+
+
+def _in_blocks(fn, n: int) -> None:
+    """``fn(lo, hi)`` over [0, n) split into contiguous blocks, one per thread (at most numba's thread
+    count, at least BLOCK_PIXELS each); on this thread when that is one block."""
+    global _POOL
+    threads = min(numba.get_num_threads(), n // BLOCK_PIXELS)
+    if threads <= 1:
+        fn(0, n)
+        return
+    if _POOL is None or _POOL[0] < threads:
+        _POOL = (threads, ThreadPoolExecutor(threads, thread_name_prefix="sensor"))
+    bounds = np.linspace(0, n, threads + 1).astype(int)
+    for job in [_POOL[1].submit(fn, lo, hi) for lo, hi in zip(bounds[:-1], bounds[1:], strict=True)]:
+        job.result()
 
 
 def camera_rays(K: np.ndarray, width: int, height: int) -> np.ndarray:
@@ -157,18 +179,34 @@ class RGBDSensor:
         origins[:] = np.asarray(pose[:3, 3], dtype=np.float32)
         return origins, dirs
 
+    def depth(self, pose: np.ndarray, K: np.ndarray, width: int, height: int) -> np.ndarray:
+        """The depth of `render` alone (float32 (H, W) z-depth metres, 0 past max_depth or no hit): one Embree
+        distance query, no shading and no compiled kernel (the live evaluation's renders)."""
+        t = self.distance(*self.world_rays(pose, K, width, height))
+        return np.where(t <= np.float32(self.config.max_depth), t, np.float32(0.0)).reshape(height, width)
+
     def render(self, pose: np.ndarray, K: np.ndarray, width: int, height: int):
         """(rgb uint8 (H, W, 3), depth float32 (H, W) z-depth metres, 0 past max_depth or no hit);
-        the colour of each hit as `shade` computes it, in one compiled pass over the pixels."""
+        the colour of each hit as `shade` computes it, in one compiled pass over the pixels. Embree and
+        the shading kernel release the GIL, so the pixels go out in row blocks to threads (as many as
+        numba may use, ``NUMBA_NUM_THREADS``); every pixel is computed alone, so the image is the same."""
         origins, dirs = self.world_rays(pose, K, width, height)
-        hit = self.cast(origins, dirs)
         rgb = np.empty((width * height, 3), dtype=np.uint8)
         depth = np.empty(width * height, dtype=np.float32)
+        rot = np.asarray(pose[:3, :3], dtype=np.float32)
+        steps = rot[:, 0] / np.float32(K[0, 0]), rot[:, 1] / np.float32(K[1, 1])
+
+        def block(lo: int, hi: int) -> None:
+            self._shade(self.cast(origins[lo:hi], dirs[lo:hi]), dirs[lo:hi], steps, rgb[lo:hi], depth[lo:hi])
+
+        _in_blocks(block, width * height)
+        return rgb.reshape(height, width, 3), depth.reshape(height, width)
+
+    def _shade(self, hit: dict, dirs: np.ndarray, steps, rgb: np.ndarray, depth: np.ndarray) -> None:
+        """Colour and depth of Embree hits into `rgb` (N, 3) and `depth` (N,)."""
         max_depth = np.float32(self.config.max_depth)
         if self.textured and self.config.texture_filter == "area":
-            rot = np.asarray(pose[:3, :3], dtype=np.float32)
-            step_x, step_y = rot[:, 0] / np.float32(K[0, 0]), rot[:, 1] / np.float32(K[1, 1])
-            shade_pixels_area(hit["primID"], hit["tfar"], hit["u"], hit["v"], dirs, step_x, step_y,
+            shade_pixels_area(hit["primID"], hit["tfar"], hit["u"], hit["v"], dirs, *steps,
                               max_depth, *self._kernel_arrays,
                               self.face_shade, self._face_normal32, self._texel_jacobian, self.face_material,
                               self._levels, self._nlevels, np.int64(self.config.texture_max_anisotropy), rgb,
@@ -176,7 +214,6 @@ class RGBDSensor:
         else:
             shade_pixels(hit["primID"], hit["tfar"], hit["u"], hit["v"], max_depth, self.textured,
                          *self._kernel_arrays, self.face_shade, rgb, depth)
-        return rgb.reshape(height, width, 3), depth.reshape(height, width)
 
     @cached_property
     def _face_normal32(self) -> np.ndarray:

@@ -96,6 +96,11 @@ class Simulator:
         K = intrinsics(width, height, self.config.hfov_deg)
         return self.sensor.render(np.asarray(pose, dtype=np.float64), K, width, height)
 
+    def depth(self, pose: np.ndarray, width: int, height: int) -> np.ndarray:
+        """The depth of `render` alone (no colour): float32 (height, width) z-depth metres."""
+        K = intrinsics(width, height, self.config.hfov_deg)
+        return self.sensor.depth(np.asarray(pose, dtype=np.float64), K, width, height)
+
     def observe(self, collided: bool = False) -> Observation:
         pose = self.pose
         rgb, depth = self.render(pose)

@@ -20,10 +20,19 @@ import triton.language as tl
 
 from activesplat.splat.raster.constants import RASTER
 
+CHUNK = 32
+"""Gaussians of a tile's list blended per loop iteration of the kernel."""
+
 
 @triton.jit
 def _median_depth_kernel(offsets, ids, means2d, conics, opacities, depths, out, tiles_x, width, height,
-                         alpha_max, alpha_min, t_min, t_median, TILE: tl.constexpr):
+                         alpha_max, alpha_min, t_min, t_median, TILE: tl.constexpr, CHUNK: tl.constexpr):
+    """One program per tile. The tile's depth-sorted list is read CHUNK Gaussians at a time: the
+    transmittance after each of them comes from a cumulative sum of log(1 - alpha) (the blending rules of
+    the numba backend, alpha clamped and skipped below alpha_min), and a pixel is done at the first
+    Gaussian that takes it below t_median: its median depth is that Gaussian's depth, unless the same
+    Gaussian also takes it below t_min, where blending stops before it (median 0). The tile stops when
+    all its pixels are done: only the front of each list is read."""
     tile = tl.program_id(0)
     start = tl.load(offsets + tile)
     end = tl.load(offsets + tile + 1)
@@ -31,29 +40,37 @@ def _median_depth_kernel(offsets, ids, means2d, conics, opacities, depths, out, 
     col = (tile % tiles_x) * TILE + p % TILE
     row = (tile // tiles_x) * TILE + p // TILE
     inside = (col < width) & (row < height)
-    fx = col.to(tl.float32) + 0.5
-    fy = row.to(tl.float32) + 0.5
+    fx = (col.to(tl.float32) + 0.5)[:, None]
+    fy = (row.to(tl.float32) + 0.5)[:, None]
+    b = tl.arange(0, CHUNK)
     trans = tl.full((TILE * TILE,), 1.0, tl.float32)
     median = tl.zeros((TILE * TILE,), tl.float32)
     live = inside
     k = start
     n_live = tl.sum(live.to(tl.int32), axis=0)
     while (k < end) & (n_live > 0):
-        g = tl.load(ids + k).to(tl.int64)
-        dx = tl.load(means2d + 2 * g) - fx
-        dy = tl.load(means2d + 2 * g + 1) - fy
-        power = 0.5 * (tl.load(conics + 3 * g) * dx * dx + tl.load(conics + 3 * g + 2) * dy * dy) \
-            + tl.load(conics + 3 * g + 1) * dx * dy
-        alpha = tl.minimum(alpha_max, tl.load(opacities + g) * tl.exp(-power))
-        hit = live & (power >= 0.0) & (alpha >= alpha_min)
-        t_next = trans * (1.0 - alpha)
-        blend = hit & (t_next >= t_min)
-        crosses = blend & (trans >= t_median) & (t_next < t_median)
-        median = tl.where(crosses, tl.load(depths + g), median)
-        trans = tl.where(blend, t_next, trans)
-        live = live & ~(hit & (t_next < t_min))
+        valid = (k + b) < end
+        g = tl.load(ids + k + b, mask=valid, other=0).to(tl.int64)
+        dx = tl.load(means2d + 2 * g, mask=valid, other=0.0)[None, :] - fx
+        dy = tl.load(means2d + 2 * g + 1, mask=valid, other=0.0)[None, :] - fy
+        power = 0.5 * (tl.load(conics + 3 * g, mask=valid, other=0.0)[None, :] * dx * dx
+                       + tl.load(conics + 3 * g + 2, mask=valid, other=0.0)[None, :] * dy * dy) \
+            + tl.load(conics + 3 * g + 1, mask=valid, other=0.0)[None, :] * dx * dy
+        alpha = tl.minimum(alpha_max, tl.load(opacities + g, mask=valid, other=0.0)[None, :] * tl.exp(-power))
+        hit = valid[None, :] & (power >= 0.0) & (alpha >= alpha_min)
+        log_keep = tl.where(hit, tl.log(1.0 - alpha), 0.0)
+        t_after = trans[:, None] * tl.exp(tl.cumsum(log_keep, axis=1))
+        first = tl.min(tl.where(hit & (t_after < t_median), b[None, :], CHUNK), axis=1)
+        at_first = b[None, :] == first[:, None]
+        t_first = tl.sum(tl.where(at_first, t_after, 0.0), axis=1)
+        depth = tl.load(depths + g, mask=valid, other=0.0)[None, :]
+        depth_first = tl.sum(tl.where(at_first, depth, 0.0), axis=1)
+        done = live & (first < CHUNK)
+        median = tl.where(done & (t_first >= t_min), depth_first, median)
+        live = live & ~done
+        trans = trans * tl.exp(tl.sum(log_keep, axis=1))
         n_live = tl.sum(live.to(tl.int32), axis=0)
-        k += 1
+        k += CHUNK
     tl.store(out + row * width + col, median, mask=inside)
 
 
@@ -74,5 +91,5 @@ def median_depth_from_meta(meta: dict, width: int, height: int) -> torch.Tensor:
     grid = (tiles_x * int(meta["tile_height"]),)
     _median_depth_kernel[grid](offsets, ids, *f32, out, tiles_x, width, height, RASTER.alpha_max,
                                RASTER.alpha_min, RASTER.transmittance_min, RASTER.median_transmittance,
-                               TILE=tile)
+                               TILE=tile, CHUNK=CHUNK)
     return out
