@@ -106,10 +106,16 @@ def test_same_seed_same_actions(episode, tmp_path):
 
 
 def test_live_evaluation_on_a_worker_thread_gives_the_same_numbers(episode, tmp_path):
-    out, metrics = episode
-    cfg = {**TINY, "coverage_config": CoverageConfig(n_gt_points=4000, batch_frames=10, background=True)}
-    m = run_exploration("small-0", policy="activesplat", steps=90, seed=1, out=tmp_path / "bg", **cfg)
+    out, metrics = episode  # CoverageConfig.background None: on with two or more threads
+    runs = {}
+    for background in (False, True):
+        cfg = {**TINY, "coverage_config": CoverageConfig(n_gt_points=4000, batch_frames=10,
+                                                         background=background)}
+        runs[background] = run_exploration("small-0", policy="activesplat", steps=90, seed=1,
+                                           out=tmp_path / str(background), **cfg)
+    m, metrics = runs[True], runs[False]
     assert m["evaluation_background"] and not metrics["evaluation_background"]
+    assert (tmp_path / "True" / "actions.txt").read_text() == (out / "actions.txt").read_text()
     for key in ("completion_ratio_pct", "completion_cm", "completion_cm_uncapped", "curve", "rooms",
                 "completion_gain"):
         assert m[key] == metrics[key], key

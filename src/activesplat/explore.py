@@ -10,7 +10,6 @@ the action log alone.
 from __future__ import annotations
 
 import math
-import os
 import sys
 import time
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -233,8 +232,10 @@ class _Completion:
         self._pending: list[np.ndarray] = []
         self._observed = 0
         background = self.cfg.background
-        if background is None:
-            background = (os.cpu_count() or 1) >= 8
+        if background is None:  # a process held to one thread (a benchmark worker) keeps it to itself
+            import numba
+
+            background = numba.get_num_threads() >= 2
         self._worker = ThreadPoolExecutor(1, thread_name_prefix="live-evaluation") if background else None
         self._jobs: list[Future] = []
 
