@@ -281,6 +281,37 @@ def test_a_global_replan_stops_first_at_a_node_worth_a_detour(monkeypatch):
         assert ex.replans[-1]["on_the_way"] == (expected == mid)
 
 
+def test_a_goal_put_off_for_a_detour_is_gone_to_straight_the_next_time(monkeypatch):
+    """`postpone_once_m`: the replan after a detour toward the same ranked goal takes no second detour."""
+    ws = extract_workspace(corridor(), HERE, WCFG)
+    graph = build_voronoi_graph(ws, WCFG)
+    pos = {n: np.asarray(d["pos"], float) for n, d in graph.nodes(data=True)}
+    far = max(pos, key=lambda n: pos[n][0])
+    mid = sorted(pos, key=lambda n: pos[n][0])[len(pos) // 2]
+
+    def rank(plan, here, *a, **k):
+        plan.stage = "global"
+        plan.scores, plan.info = {far: 40.0, mid: 25.0}, {far: 30.0, mid: 12.0}
+        plan.travel = {n: float(abs(pos[n][0] - here[0])) for n in (far, mid)}
+        return [far, mid]
+
+    monkeypatch.setattr(explorer_module, "build_plan", lambda *a, **k: Plan(workspace=ws, graph=graph))
+    monkeypatch.setattr(explorer_module, "rank_goals", rank)
+    obs = _obs(HERE)
+    for once, second in ((None, mid), (1.0, far)):
+        cfg = ExplorerConfig(workspace=WCFG, detour_m=5.0, postpone_once_m=once)
+        ex = ActiveSplatExplorer(WORLD, 0.0, cfg)
+        _after_bootstrap(ex, obs)
+        ex.act(obs)
+        assert np.allclose(ex.plan.goal, pos[mid]) and ex.replans[-1]["on_the_way"]  # the first detour
+        ex.replan(obs.pose)  # the same ranking again, from the same spot
+        assert np.allclose(ex.plan.goal, pos[second]), once
+        assert ex.replans[-1]["on_the_way"] == (second == mid)
+        assert ex.replans[-1].get("put_off_before", False) == (second == far)
+    with pytest.raises(InvalidInputError, match="postpone_once_m"):
+        ExplorerConfig(postpone_once_m=0.0)
+
+
 def test_a_rotation_stop_on_the_way_keeps_the_travelling_schedule(monkeypatch):
     """docs/protocol.md §2: the dense schedule while the agent turns on the spot with no path (bootstrap,
     arrival, escapes); a stop at a multi-connected node turns with its path still waiting and keeps the

@@ -51,6 +51,7 @@ class ActiveSplatExplorer(Explorer):
         self.promises = None if self.cfg.keep_promise_m is None else Promises(self.cfg.keep_promise_m)
         """What the nodes outside the agent's subregion promised at earlier replans (`keep_promise_m`)."""
         self.commitment = None if self.cfg.commit_global_m is None else Commitment(self.cfg.commit_global_m)
+        self._put_off: np.ndarray | None = None  # the ranked goal the last replan put off (postpone_once_m)
         """The goal of the last global choice, followed until reached or seen (`commit_global_m`)."""
         self._ranked: list = []  # the best candidates of the current replan, for its record
         self.replans: list[dict] = []
@@ -98,27 +99,36 @@ class ActiveSplatExplorer(Explorer):
                 return
             on_the_way = False
             radius = cfg.planning.score.unvisited_radius_m
-            if cfg.detour_m is not None and plan.stage == "global":
+            straight = self._put_off_before(goal)  # put off once already: no stop on the way this time
+            if not straight and cfg.detour_m is not None and plan.stage == "global":
                 stop = worth_a_detour(plan, node, self.visited, self.failed, radius, cfg.detour_m,
                                       cfg.detour_min_info)
                 stop_pos = None if stop is None else np.asarray(plan.graph.nodes[stop]["pos"], float)
                 detour = None if stop_pos is None else find_path(stop_pos)
                 if detour is not None:
                     goal, path, on_the_way = stop_pos, detour, True
-            if path_length(path) > cfg.long_path_m:
+            if not straight and path_length(path) > cfg.long_path_m:
                 ranked_goal = goal
                 goal, path = closer_on_the_way(plan, goal, path, self.visited, self.failed, radius, rules,
                                                find_path)
                 on_the_way = on_the_way or goal is not ranked_goal
+            self._put_off = (np.asarray(plan.graph.nodes[node]["pos"], float).copy() if on_the_way
+                             else None)
             self.go_to(goal, path)
             self._commit(node)
-            self._record_replan(here, node, path, on_the_way)
+            self._record_replan(here, node, path, on_the_way, straight=straight)
             return
         self._record_replan(here, None, None, False)
         plan.goal, plan.path = None, None
         stuck = bool(self.failed)
         self.failed.clear()  # fallback: forget failures, the next replan gives every goal a second chance
         self.idle(pose, stuck)
+
+    def _put_off_before(self, goal: np.ndarray) -> bool:
+        """Whether `goal` is the one the last replan put off for a stop on the way (`postpone_once_m`)."""
+        limit = self.cfg.postpone_once_m
+        return (limit is not None and self._put_off is not None
+                and float(np.hypot(*(goal - self._put_off))) <= limit)
 
     def _commit(self, node: int) -> None:
         """Remember the goal of a global choice (`commit_global_m`): the ranked node, not a stop on the
@@ -139,7 +149,7 @@ class ActiveSplatExplorer(Explorer):
                              cfg.bridge_gain_m, find_path)
 
     def _record_replan(self, here: np.ndarray, node: int | None, path: np.ndarray | None,
-                       on_the_way: bool, bridge: bool = False) -> None:
+                       on_the_way: bool, bridge: bool = False, straight: bool = False) -> None:
         plan, thr = self.plan, self.cfg.local_score_threshold
         rec = {"step": len(self.visited) - 1, "xz": [round(float(v), 3) for v in here], "stage": plan.stage,
                "candidates": len(plan.scores), "promising": sum(v > thr for v in plan.info.values()),
@@ -151,6 +161,8 @@ class ActiveSplatExplorer(Explorer):
                        info=round(plan.info.get(node, float("nan")), 2), path_m=round(path_length(path), 2))
             if bridge:  # the goal ranked first had no safe path: `plan.goal` is a node on the way to it
                 rec["bridge_to"] = [round(float(v), 3) for v in plan.graph.nodes[node]["pos"]]
+            if straight:  # put off once for a stop on the way already (`postpone_once_m`): no stop now
+                rec["put_off_before"] = True
         rec["ranked"] = [ranked_entry(plan, n) for n in self._ranked]
         self.replans.append(rec)
 
