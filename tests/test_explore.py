@@ -123,6 +123,18 @@ def test_live_evaluation_on_a_worker_thread_gives_the_same_numbers(episode, tmp_
     assert m["evaluation_worker_ms_per_step"] > 0
 
 
+def test_an_error_on_the_evaluation_worker_reaches_the_caller(tmp_path, monkeypatch):
+    from activesplat.sim import Simulator
+
+    def broken(self, pose, width, height):
+        raise RuntimeError("ground truth unavailable")
+
+    monkeypatch.setattr(Simulator, "depth", broken)
+    cfg = {**TINY, "coverage_config": CoverageConfig(n_gt_points=4000, batch_frames=10, background=True)}
+    with pytest.raises(RuntimeError, match="ground truth unavailable"):
+        run_exploration("small-0", policy="activesplat", steps=30, seed=1, out=tmp_path / "e", **cfg)
+
+
 def test_interrupted_run_leaves_a_consistent_partial_episode(tmp_path, monkeypatch):
     from activesplat.planning import activesplat as explorer_mod
 

@@ -275,10 +275,10 @@ class _Completion:
         if self._worker is None:
             self._fold(poses, step, forward)
             return
-        done = [job for job in self._jobs if job.done()]
-        for job in done:  # a worker's error surfaces at the next batch, not at the end of the episode
-            job.result()
-        self._jobs = [job for job in self._jobs if not job.done()]
+        done = [job.done() for job in self._jobs]  # one look at each: a job may finish meanwhile
+        for job in (job for job, d in zip(self._jobs, done, strict=True) if d):
+            job.result()  # a worker's error surfaces at the next batch, not at the end of the episode
+        self._jobs = [job for job, d in zip(self._jobs, done, strict=True) if not d]
         self._jobs.append(self._worker.submit(self._fold, poses, step, forward))
 
     def _wait(self) -> None:
