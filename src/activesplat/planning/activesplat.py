@@ -51,8 +51,8 @@ class ActiveSplatExplorer(Explorer):
         self.promises = None if self.cfg.keep_promise_m is None else Promises(self.cfg.keep_promise_m)
         """What the nodes outside the agent's subregion promised at earlier replans (`keep_promise_m`)."""
         self.commitment = None if self.cfg.commit_global_m is None else Commitment(self.cfg.commit_global_m)
-        self._put_off: np.ndarray | None = None  # the ranked goal the last replan put off (postpone_once_m)
         """The goal of the last global choice, followed until reached or seen (`commit_global_m`)."""
+        self._put_off: np.ndarray | None = None  # the ranked goal the last replan put off (postpone_once_m)
         self._ranked: list = []  # the best candidates of the current replan, for its record
         self.replans: list[dict] = []
         """Every replan: step, floor position, stage (local / global, `Plan.stage`), the goal (None: idle),
@@ -97,7 +97,7 @@ class ActiveSplatExplorer(Explorer):
                 self._commit(node)
                 self._record_replan(here, node, bridge[1], False, bridge=True)
                 return
-            on_the_way = False
+            on_the_way, ranked_pos = False, goal
             radius = cfg.planning.score.unvisited_radius_m
             straight = self._put_off_before(goal)  # put off once already: no stop on the way this time
             if not straight and cfg.detour_m is not None and plan.stage == "global":
@@ -108,12 +108,11 @@ class ActiveSplatExplorer(Explorer):
                 if detour is not None:
                     goal, path, on_the_way = stop_pos, detour, True
             if not straight and path_length(path) > cfg.long_path_m:
-                ranked_goal = goal
+                way_goal = goal
                 goal, path = closer_on_the_way(plan, goal, path, self.visited, self.failed, radius, rules,
                                                find_path)
-                on_the_way = on_the_way or goal is not ranked_goal
-            self._put_off = (np.asarray(plan.graph.nodes[node]["pos"], float).copy() if on_the_way
-                             else None)
+                on_the_way = on_the_way or goal is not way_goal
+            self._put_off = ranked_pos if on_the_way else None
             self.go_to(goal, path)
             self._commit(node)
             self._record_replan(here, node, path, on_the_way, straight=straight)

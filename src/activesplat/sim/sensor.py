@@ -43,6 +43,8 @@ def _in_blocks(fn, n: int) -> None:
         fn(0, n)
         return
     if _POOL is None or _POOL[0] < threads:
+        if _POOL is not None:  # a larger pool replaces it: its idle threads end
+            _POOL[1].shutdown(wait=False)
         _POOL = (threads, ThreadPoolExecutor(threads, thread_name_prefix="sensor"))
     bounds = np.linspace(0, n, threads + 1).astype(int)
     for job in [_POOL[1].submit(fn, lo, hi) for lo, hi in zip(bounds[:-1], bounds[1:], strict=True)]:
