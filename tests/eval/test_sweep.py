@@ -6,7 +6,7 @@ import pytest
 from activesplat.errors import InvalidInputError
 from activesplat.eval.coverage import CoverageConfig
 from activesplat.eval.sweep import SweepConfig, exhaustive_sweep, sweep_poses
-from activesplat.sim import box_room
+from activesplat.sim import box_room, load_scene
 
 CFG = SweepConfig(spacing_m=1.0, yaw_step_deg=90.0, pitches_deg=(-45.0, 0.0, 45.0))
 COV = CoverageConfig(n_gt_points=20_000)
@@ -35,3 +35,29 @@ def test_the_sweep_of_an_empty_room_sees_nearly_everything():
 def test_bad_sweep_config_is_a_clear_error():
     with pytest.raises(InvalidInputError, match="positive spacing"):
         sweep_poses(box_room(), cfg=SweepConfig(spacing_m=0.0))
+
+
+def test_the_mapping_ceiling_tour_is_an_episode_of_neighbouring_look_arounds(tmp_path):
+    """benchmarks/mapper_ceiling.py: the sweep's poses as a replayable episode, rows walked back and forth."""
+    import importlib.util
+    from pathlib import Path
+
+    from activesplat.episode import read_episode
+
+    path = Path(__file__).parents[2] / "benchmarks" / "mapper_ceiling.py"
+    spec = importlib.util.spec_from_file_location("mapper_ceiling", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    cfg = SweepConfig(spacing_m=1.0, yaw_step_deg=90.0, pitches_deg=(0.0, 30.0))
+    n = module.write_tour("small-0", tmp_path / "tour", cfg)
+    episode = read_episode(tmp_path / "tour")
+    assert n == len(episode.poses) and n % 8 == 0 and n >= 8 * 10
+    assert set(episode.actions) == {"turn_left"}  # every frame mapped with the look-around schedule
+    assert episode.meta["scene"] == "small-0" and episode.meta["config"]["tour"]["spacing_m"] == 1.0
+    positions = episode.poses[::8, [0, 2], 3]
+    assert len(np.unique(np.round(positions, 3), axis=0)) == len(positions)  # each grid spot once
+    steps = np.linalg.norm(np.diff(positions, axis=0), axis=1)
+    assert np.median(steps) == pytest.approx(1.0, abs=0.05)
+    # back and forth along the rows: half the long moves of the sweep's own row-major order
+    grid = sweep_poses(load_scene("small-0"), cfg=cfg)[::8, [0, 2], 3]
+    assert (steps > 1.5).sum() <= (np.linalg.norm(np.diff(grid, axis=0), axis=1) > 1.5).sum() // 2

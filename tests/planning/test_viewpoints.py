@@ -7,6 +7,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from activesplat.errors import InvalidInputError
 from activesplat.geometry import camera_pose, heading, wrap_angle
 from activesplat.planning.config import HighLossConfig, PanoramaConfig, ScoreConfig
 from activesplat.planning.panorama import render_panorama
@@ -54,6 +55,12 @@ def test_front_faces_asks_the_world_for_front_facing_opacity_when_it_can_give_it
     assert invisible_share(render_panorama(faces, ORIGIN)) == 0.0
     assert invisible_share(render_panorama(faces, ORIGIN, front_faces=True)) == pytest.approx(1.0)
     assert invisible_share(render_panorama(plain, ORIGIN, front_faces=True)) == 0.0  # plain opacity
+    # a surface seen only from behind counts as the given share seen (PanoramaConfig.scores_back_face_seen)
+    half = render_panorama(faces, ORIGIN, front_faces=True, back_face_seen=0.5)
+    assert np.allclose(half.invisibility, 0.5)
+    assert np.allclose(render_panorama(faces, ORIGIN, front_faces=True, back_face_seen=1.0).invisibility, 0.0)
+    with pytest.raises(InvalidInputError, match="scores_back_face_seen"):
+        PanoramaConfig(scores_back_face_seen=1.5)
 
 
 def test_panorama_rays_point_where_the_pose_looks():

@@ -38,13 +38,22 @@ class PanoramaConfig:
     front_faces_scores: bool = False
     """The same for the panoramas that score candidate nodes (eq. 12's s_o and s_c; ours). Off: every
     interior node then promises the back faces around it; medium-0..3 x 2 seeds 84.26 % against 85.87."""
+    scores_back_face_seen: float = 0.0
+    """With ``front_faces_scores``, the share of a surface seen only from behind that the scoring panoramas
+    count as seen (ours; 0: none of it, the option as it was measured; 1: all of it, the paper's opacity).
+    In between, a room seen only from its door promises its unseen door wall without every back face of
+    the map counting as much as empty space. Renders each scoring panorama twice."""
     back_face_margin_deg: float = 15.0
     """With the two options above, a Gaussian is seen from behind only when the camera lies this far behind
     its plane (ours): walls and floors seen edge-on would otherwise flicker between seen and unseen."""
 
     def __post_init__(self) -> None:
-        check_fields(self, positive=("hfov_deg", "vfov_deg"), non_negative=("back_face_margin_deg",),
+        check_fields(self, positive=("hfov_deg", "vfov_deg"),
+                     non_negative=("back_face_margin_deg", "scores_back_face_seen"),
                      at_least_one=("n_cameras", "width_per_camera", "height"))
+        if self.scores_back_face_seen > 1.0:
+            raise InvalidInputError(f"PanoramaConfig.scores_back_face_seen is a share in [0, 1], got "
+                                    f"{self.scores_back_face_seen}")
         if not (self.hfov_deg < 180 and self.vfov_deg < 180):
             raise InvalidInputError(f"PanoramaConfig fields of view must be < 180 deg, got {self.hfov_deg} / "
                                     f"{self.vfov_deg}")

@@ -300,7 +300,7 @@ def rank_goals(plan: Plan, here: np.ndarray, render: RenderFn, floor_height: flo
     for i in panorama_candidates(nodes, dist, open_, plan.subregions, rules.max_panoramas,
                                   rules.panorama_every_subregion):
         pano = render_panorama(render, [pos[i][0], height, pos[i][1]], pcfg.panorama,
-                               pcfg.panorama.front_faces_scores)
+                               pcfg.panorama.front_faces_scores, pcfg.panorama.scores_back_face_seen)
         scored[i] = True
         inv[i] = invisible_share(pano, pcfg.rotation)
         vol[i] = hull_volume(pano, pcfg.hull)

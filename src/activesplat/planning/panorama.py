@@ -80,10 +80,11 @@ def panorama_poses(origin, cfg: PanoramaConfig) -> list[np.ndarray]:
 
 
 def render_panorama(render: RenderFn, origin, cfg: PanoramaConfig | None = None,
-                    front_faces: bool = False) -> Panorama:
+                    front_faces: bool = False, back_face_seen: float = 0.0) -> Panorama:
     """Render the visibility panorama at `origin` (world, camera height) with `render`. `front_faces`:
     visibility of surfaces from the side that observed them only (`PanoramaConfig.front_faces_targets`),
-    where `render` can tell (a ``front_alpha`` parameter)."""
+    where `render` can tell (a ``front_alpha`` parameter); a surface seen only from behind then counts
+    as `back_face_seen` seen (`PanoramaConfig.scores_back_face_seen`; > 0 renders every camera twice)."""
     cfg = cfg or PanoramaConfig()
     origin = np.asarray(origin, dtype=np.float64)
     K, cam_rays = _camera_rays(cfg)
@@ -93,7 +94,11 @@ def render_panorama(render: RenderFn, origin, cfg: PanoramaConfig | None = None,
              if front_faces and _takes(render, "front_alpha") else {})
     for pose in panorama_poses(origin, cfg):
         out = render(pose, K=K, width=cfg.width_per_camera, height=cfg.height, **front)
-        inv.append(1.0 - _np(out.alpha))
+        seen = _np(out.alpha)
+        if front and back_face_seen > 0.0:
+            every = _np(render(pose, K=K, width=cfg.width_per_camera, height=cfg.height).alpha)
+            seen = seen + back_face_seen * np.maximum(every - seen, 0.0)
+        inv.append(1.0 - seen)
         med.append(_np(out.median_depth))
         rays.append(cam_rays @ pose[:3, :3].T)
     rays_all = np.concatenate(rays, axis=1).astype(np.float32)
