@@ -9,7 +9,7 @@ import pytest
 
 from activesplat.errors import InvalidInputError
 from activesplat.geometry import camera_pose, heading, wrap_angle
-from activesplat.planning.config import HighLossConfig, PanoramaConfig, ScoreConfig
+from activesplat.planning.config import HighLossConfig, PanoramaConfig, RotationCandidateConfig, ScoreConfig
 from activesplat.planning.panorama import render_panorama
 from activesplat.planning.viewpoints import (
     HighLossTracker,
@@ -86,6 +86,24 @@ def test_rotation_candidate_points_at_the_hole(yaw_centre):
     t = targets[0]
     assert math.degrees(abs(wrap_angle(t.yaw - math.radians(yaw_centre)))) < 4
     assert math.degrees(t.pitch) == pytest.approx(5, abs=6)
+
+
+@pytest.mark.parametrize("yaw_centre", [90.0, 60.0])  # 60 deg: the hole straddles the panorama's seam
+def test_a_hole_wider_than_the_sector_limit_gets_a_target_per_sector(yaw_centre):
+    """RotationCandidateConfig.max_cluster_yaw_deg: a 200 deg hole, 90 deg sectors -> three targets spread
+    over the hole (one view at its middle would leave both ends unseen); a 40 deg hole stays one."""
+    wide = render_panorama(fake_renderer((yaw_centre - 100, yaw_centre + 100), (-10, 20)), ORIGIN)
+    cfg = RotationCandidateConfig(max_cluster_yaw_deg=90.0)
+    assert len(rotation_candidates(wide)) == 1
+    targets = rotation_candidates(wide, cfg)
+    assert len(targets) == 3
+    offsets = sorted(math.degrees(wrap_angle(t.yaw - math.radians(yaw_centre))) for t in targets)
+    assert offsets == pytest.approx([-67, 0, 67], abs=5)  # the middles of three 67 deg sectors
+    assert sum(t.weight for t in targets) == pytest.approx(rotation_candidates(wide)[0].weight, rel=1e-6)
+    narrow = render_panorama(fake_renderer((yaw_centre - 20, yaw_centre + 20), (-10, 20)), ORIGIN)
+    assert len(rotation_candidates(narrow, cfg)) == 1
+    with pytest.raises(InvalidInputError, match="max_cluster_yaw_deg"):
+        RotationCandidateConfig(max_cluster_yaw_deg=0.0)
 
 
 def test_no_candidate_when_everything_is_seen():

@@ -75,6 +75,12 @@ class RotationCandidateConfig:
     """A cluster is kept when the sum of its invisibility exceeds this (release: 25)."""
     min_offset_deg: float = 15.0
     """A target is used only if more than this off the current heading (release: 15 deg)."""
+    max_cluster_yaw_deg: float | None = None
+    """A cluster spanning more yaw than this is split into equal yaw sectors no wider than this, each a
+    target of its own (ours; None: one target per cluster, at its mean direction, as paper and release).
+    One view of a 90 deg camera toward the middle of a cluster wrapping half the panorama leaves most of
+    it unseen: a room entered by a step, whose door wall behind the agent and far side ahead read as one
+    unseen region, got a single turn (medium-0 seed 0, step 240)."""
     min_relative_weight: float = 0.0
     """A stop turns to a target only when its weight is at least this share of the heaviest target of the
     same source there (ours; 0: off, as paper and release). A look-around costs ~40 actions, most of the
@@ -85,6 +91,9 @@ class RotationCandidateConfig:
         check_fields(self, unit=("invisibility_threshold", "min_relative_weight"), positive=("dbscan_eps",),
                      non_negative=("min_cluster_invisibility", "min_offset_deg"),
                      at_least_one=("downsample", "dbscan_min_samples"))
+        if self.max_cluster_yaw_deg is not None and not 0 < self.max_cluster_yaw_deg <= 360:
+            raise InvalidInputError(f"RotationCandidateConfig.max_cluster_yaw_deg must be in (0, 360] or "
+                                    f"None, got {self.max_cluster_yaw_deg}")
 
 
 @dataclass(frozen=True)

@@ -62,8 +62,26 @@ def _full_res(pix: np.ndarray, factor: int, shift: int, width: int) -> tuple[np.
     return rows, cols
 
 
+def _yaw_sectors(pix: np.ndarray, yaw: np.ndarray, max_yaw_deg: float | None) -> list[np.ndarray]:
+    """A cluster's pixels split into equal yaw ranges of at most `max_yaw_deg`
+    (`RotationCandidateConfig.max_cluster_yaw_deg`); `yaw`: each pixel's yaw (radians). The cluster's
+    pixels are seam-rolled, so along their columns the yaw changes by small steps and unwraps."""
+    if max_yaw_deg is None or len(pix) < 2:
+        return [pix]
+    order = np.argsort(pix[:, 1], kind="stable")
+    offset = np.empty(len(pix))
+    unwrapped = np.unwrap(yaw[order])
+    offset[order] = np.abs(unwrapped - unwrapped[0])
+    n = math.ceil(float(offset.max()) / math.radians(max_yaw_deg) - 1e-9)
+    if n <= 1:
+        return [pix]
+    part = np.minimum((offset / (offset.max() / n)).astype(np.int64), n - 1)
+    return [pix[part == k] for k in range(n) if (part == k).any()]
+
+
 def rotation_candidates(pano: Panorama, cfg: RotationCandidateConfig | None = None) -> list[RotationTarget]:
-    """Cluster low-visibility pixels with DBSCAN; each cluster's mean ray gives a yaw/pitch target.
+    """Cluster low-visibility pixels with DBSCAN; each cluster's mean ray gives a yaw/pitch target (with
+    ``max_cluster_yaw_deg``, each yaw sector of a wide cluster does).
 
     Sorted by invisibility mass, largest first.
     """
@@ -74,7 +92,11 @@ def rotation_candidates(pano: Panorama, cfg: RotationCandidateConfig | None = No
     inv, mask = np.roll(inv, shift, axis=1), np.roll(mask, shift, axis=1)
     shift *= cfg.downsample
     targets = []
-    for pix in _clusters(mask, cfg.dbscan_eps, cfg.dbscan_min_samples):
+    sectors = []
+    for cluster in _clusters(mask, cfg.dbscan_eps, cfg.dbscan_min_samples):
+        rows, cols = _full_res(cluster, cfg.downsample, shift, pano.shape[1])
+        sectors += _yaw_sectors(cluster, pano.yaw[rows, cols], cfg.max_cluster_yaw_deg)
+    for pix in sectors:
         mass = float(inv[pix[:, 0], pix[:, 1]].sum())
         if mass <= cfg.min_cluster_invisibility:
             continue
