@@ -62,11 +62,11 @@ def _full_res(pix: np.ndarray, factor: int, shift: int, width: int) -> tuple[np.
     return rows, cols
 
 
-def _yaw_sectors(pix: np.ndarray, yaw: np.ndarray, max_yaw_deg: float | None) -> list[np.ndarray]:
+def _yaw_sectors(pix: np.ndarray, yaw: np.ndarray, max_yaw_deg: float) -> list[np.ndarray]:
     """A cluster's pixels split into equal yaw ranges of at most `max_yaw_deg`
     (`RotationCandidateConfig.max_cluster_yaw_deg`); `yaw`: each pixel's yaw (radians). The cluster's
     pixels are seam-rolled, so along their columns the yaw changes by small steps and unwraps."""
-    if max_yaw_deg is None or len(pix) < 2:
+    if len(pix) < 2:
         return [pix]
     order = np.argsort(pix[:, 1], kind="stable")
     offset = np.empty(len(pix))
@@ -94,6 +94,9 @@ def rotation_candidates(pano: Panorama, cfg: RotationCandidateConfig | None = No
     targets = []
     sectors = []
     for cluster in _clusters(mask, cfg.dbscan_eps, cfg.dbscan_min_samples):
+        if cfg.max_cluster_yaw_deg is None:  # the paper's rule: the whole cluster is one target
+            sectors.append(cluster)
+            continue
         rows, cols = _full_res(cluster, cfg.downsample, shift, pano.shape[1])
         sectors += _yaw_sectors(cluster, pano.yaw[rows, cols], cfg.max_cluster_yaw_deg)
     for pix in sectors:
