@@ -8,7 +8,7 @@ over repeats, ``time.process_time``), which stays meaningful on a busy machine; 
 of the forward+backward (Python, torch autograd, input checks).
 
     python benchmarks/raster.py [--sizes 10000 50000 200000] [--repeats 5] [--torch-max 200000] [--image 256]
-                                [--stages]
+                                [--stages] [--planar-depth]
 """
 
 from __future__ import annotations
@@ -28,6 +28,7 @@ from activesplat.splat.raster import numba_backend as _raster_numba
 
 WIDTH = HEIGHT = 256
 ROOM = (6.0, 2.8, 4.0)  # x, y (up), z extents in metres
+PLANAR = False  # --planar-depth
 
 
 def room_gaussians(n: int, seed: int = 0):
@@ -69,7 +70,7 @@ def time_backend(params, backend: str, repeats: int) -> tuple[float, float, int]
     for _ in range(repeats + params[0].is_cuda):  # on the GPU the first run only warms up
         sync()
         t0 = time.perf_counter()
-        out = rasterize(*leaves, view, K, WIDTH, HEIGHT, backend=backend)
+        out = rasterize(*leaves, view, K, WIDTH, HEIGHT, backend=backend, planar_depth=PLANAR)
         sync()
         t1 = time.perf_counter()
         (out.rgb.sum() + out.depth.sum() + out.alpha.sum()).backward()
@@ -94,7 +95,7 @@ def numba_stage_cpu(params, repeats: int) -> dict[str, float]:
         for _ in range(repeats + 1):  # the first run only warms caches
             _raster_numba.STAGE_CPU_MS = {}
             t0 = time.process_time()
-            out = rasterize(*leaves, view, K, WIDTH, HEIGHT, backend="numba")
+            out = rasterize(*leaves, view, K, WIDTH, HEIGHT, backend="numba", planar_depth=PLANAR)
             (out.rgb.sum() + out.depth.sum() + out.alpha.sum()).backward()
             times = dict(_raster_numba.STAGE_CPU_MS, total=1e3 * (time.process_time() - t0))
             times["other"] = times["total"] - sum(times[k] for k in STAGES)
@@ -109,7 +110,7 @@ def stage_table_in_child(sizes, repeats: int) -> None:
     pool threads would otherwise add their spin-waiting to the process CPU time)."""
     env = dict(os.environ, NUMBA_NUM_THREADS="1", OMP_NUM_THREADS="1")
     cmd = [sys.executable, __file__, "--stage-table-only", "--repeats", str(repeats),
-           "--sizes", *map(str, sizes)]
+           "--sizes", *map(str, sizes), *(["--planar-depth"] if PLANAR else [])]
     subprocess.run(cmd, env=env, check=True)
 
 
@@ -142,10 +143,12 @@ def main() -> None:
     parser.add_argument("--torch-repeats", type=int, default=1)
     parser.add_argument("--image", type=int, default=256, help="square image side in pixels")
     parser.add_argument("--stages", action="store_true", help="also print per-stage CPU ms on one thread")
+    parser.add_argument("--planar-depth", action="store_true", help="planar depth (splat.raster.planar)")
     parser.add_argument("--stage-table-only", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
-    global WIDTH, HEIGHT
+    global WIDTH, HEIGHT, PLANAR
     WIDTH = HEIGHT = args.image
+    PLANAR = args.planar_depth
     if args.stage_table_only:
         print_stage_table(args.sizes, args.repeats)
         return

@@ -35,10 +35,10 @@ SCENES = {
 }
 
 
-def render_with_grads(params, backend, width=W, height=H, mask=None, background=BG):
+def render_with_grads(params, backend, width=W, height=H, mask=None, background=BG, planar_depth=False):
     params = [p.detach().clone().requires_grad_(True) for p in params]
     out = rasterize(*params, torch.eye(4), intrinsics(width, height), width, height, backend=backend,
-                    background=background, mask=mask)
+                    background=background, mask=mask, planar_depth=planar_depth)
     out.means2d.retain_grad()
     gen = torch.Generator().manual_seed(7)
     weights = [torch.rand(t.shape, generator=gen) for t in (out.rgb, out.depth, out.alpha)]
@@ -68,6 +68,17 @@ def assert_backends_agree(params, ignore=(), **kwargs):
 def test_numba_matches_reference(scene):
     ref = assert_backends_agree(SCENES[scene](), ignore=("quats",) if scene == "isotropic" else ())
     assert ref.alpha.max() > 0.3  # the scene is actually visible
+
+
+@pytest.mark.parametrize("scene", ["anisotropic", "behind_and_off_screen", "tiny_splats"])
+def test_numba_matches_reference_with_planar_depth(scene):
+    """Planar depth (depth varying over each footprint): outputs and every gradient, including the
+    orientation's (it reaches the depth only through the slopes), as the torch reference."""
+    ref = assert_backends_agree(SCENES[scene](), planar_depth=True)
+    flat = rasterize(*SCENES[scene](), torch.eye(4), intrinsics(W, H), W, H, backend="torch", background=BG)
+    assert (ref.depth - flat.depth).abs().max() > 1e-3  # the option changes the depth...
+    torch.testing.assert_close(ref.rgb, flat.rgb)  # ...and nothing else
+    torch.testing.assert_close(ref.alpha, flat.alpha)
 
 
 def test_large_opaque_splats_terminate_early():
@@ -149,7 +160,8 @@ def test_parallel_tile_lists_are_stable_and_match_the_binned_rows():
                   & (ty < rects[order, 3]))
         np.testing.assert_array_equal(ids[tile_starts[t]:tile_starts[t + 1]], order[inside])
     np.testing.assert_array_equal(ids[slot], np.repeat(order, np.diff(emit_start)))
-    f32 = [rng.random(shape, dtype=np.float32) + 0.5 for shape in ((n, 2), (n, 3), (n,), (n, 3), (n,))]
+    shapes = ((n, 2), (n, 3), (n,), (n, 3), (n,), (n, 2))
+    f32 = [rng.random(shape, dtype=np.float32) + 0.5 for shape in shapes]
     starts2, feat, emit2, slot2 = tiles.bin_features(order, rects, grid_x, grid_x * grid_y, *f32)
     np.testing.assert_array_equal(starts2, tile_starts)
     np.testing.assert_array_equal(emit2, emit_start)
@@ -157,3 +169,4 @@ def test_parallel_tile_lists_are_stable_and_match_the_binned_rows():
     np.testing.assert_array_equal(feat[:, tiles.MX], f32[0][ids, 0])
     np.testing.assert_array_equal(feat[:, tiles.CBL], f32[3][ids, 2])
     np.testing.assert_array_equal(feat[:, tiles.DZ], f32[4][ids])
+    np.testing.assert_array_equal(feat[:, tiles.PV], f32[5][ids, 1])

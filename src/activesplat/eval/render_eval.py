@@ -28,6 +28,8 @@ render, depth error heat map with its colour bar).
 
 from __future__ import annotations
 
+import functools
+import json
 import math
 import sys
 import time
@@ -116,10 +118,24 @@ def sample_test_poses(sim, n: int, seed: int, pitch_deg: float = 0.0) -> np.ndar
 
 
 # --------------------------------------------------------------------------- evaluation
+def map_planar_depth(gaussians_path: str | Path) -> bool:
+    """Whether the map was made with planar depth (``MapperConfig.planar_depth`` in the ``mapper.json``
+    beside it; False without one): its depth is then rendered the way it was trained."""
+    meta = Path(gaussians_path).parent / "mapper.json"
+    if not meta.is_file():
+        return False
+    try:
+        return bool(json.loads(meta.read_text()).get("config", {}).get("planar_depth", False))
+    except (json.JSONDecodeError, AttributeError):
+        return False
+
+
 def render_gaussians_view(gmap, pose: np.ndarray, K: np.ndarray, width: int, height: int,
-                          backend: str = "auto") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                          backend: str = "auto", planar_depth: bool = False
+                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The default renderer of the evaluation: the 3DGS rasterizer seen from camera-to-world ``pose``;
-    returns (rgb clamped to [0, 1], depth sum w_i z_i, alpha) as numpy arrays."""
+    returns (rgb clamped to [0, 1], depth sum w_i z_i, alpha) as numpy arrays. ``planar_depth``: see
+    :func:`activesplat.splat.rasterize`."""
     from activesplat.splat import rasterize
 
     dev = gmap.means.device
@@ -127,7 +143,7 @@ def render_gaussians_view(gmap, pose: np.ndarray, K: np.ndarray, width: int, hei
     Kt = torch.from_numpy(K.astype(np.float32)).to(dev)
     with torch.no_grad():
         out = rasterize(gmap.means, gmap.quats, gmap.scales, gmap.opacities, gmap.colors, viewmat, Kt, width,
-                        height, backend=backend)
+                        height, backend=backend, planar_depth=planar_depth)
     return (out.rgb.clamp(0.0, 1.0).cpu().numpy(), out.depth.cpu().numpy().astype(np.float64),
             out.alpha.cpu().numpy().astype(np.float64))
 
@@ -182,10 +198,11 @@ def render_eval(episode_dir: str | Path, gaussians_path: str | Path | None = Non
     for name, value in (("n_train", n_train), ("n_test", n_test)):
         if isinstance(value, bool) or not isinstance(value, int | np.integer) or value <= 0:
             raise InvalidInputError(f"{name} must be a positive number of views, got {value!r}")
-    renderer = renderer or render_gaussians_view
     cfg = RenderEvalConfig(**{**asdict(config or RenderEvalConfig()), "n_train": int(n_train),
                               "n_test": int(n_test), "seed": int(seed)})
     episode_dir, gaussians_path, out = locate(episode_dir, gaussians_path, out_dir)
+    renderer = renderer or functools.partial(render_gaussians_view,
+                                             planar_depth=map_planar_depth(gaussians_path))
     lpips_model = LPIPS()  # fails early, with the pip command, when the weights are not installed
     meta = _read_meta(episode_dir)
     gmap = load_ply(gaussians_path, device=backend_device(backend))

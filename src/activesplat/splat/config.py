@@ -245,6 +245,11 @@ class MapperConfig:
     mask_downscale: int = 2  # project: the eq. 8 / eq. 10 render runs at 1/2 resolution (CPU time)
     train_downscale: int = 1  # project: Adam iterations render/compare at 1/d resolution (release 1)
 
+    # project: each Gaussian's rendered depth follows its plane over its footprint, in every render of the
+    # mapper (eq. 7 loss, eq. 8 / eq. 10 masks) and of render-eval (paper and release: the centre's depth;
+    # see class docstring "Planar depth")
+    planar_depth: bool = False
+
     # --- densification, eq. 8
     densify_opacity: float = 0.98  # tau_o1 (paper)
     densify_k: float = 5.0  # project: k x median depth error (paper 50, release 2; see class docstring)

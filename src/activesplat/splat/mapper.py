@@ -164,7 +164,8 @@ class Mapper:
             raw = self.gaussians.rows(rows)
         viewmat = torch.from_numpy(np.linalg.inv(pose).astype(np.float32)).to(self.device)
         Kt = torch.from_numpy(K.astype(np.float32)).to(self.device)
-        return rasterize(*activate(raw), viewmat, Kt, width, height, backend=self.backend)
+        return rasterize(*activate(raw), viewmat, Kt, width, height, backend=self.backend,
+                         planar_depth=self.config.planar_depth)
 
     def _view_rows(self, pose: np.ndarray, K: np.ndarray, width: int, height: int,
                    depth: torch.Tensor | None = None) -> torch.Tensor:

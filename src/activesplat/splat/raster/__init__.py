@@ -13,7 +13,8 @@ Semantics (all backends): EWA projection with a 0.3 px low-pass on the 2D covari
 alpha_i = min(0.99, o_i exp(-power)), contributions below 1/255 skipped, front-to-back by view
 depth, a pixel stops before the Gaussian that would bring T below 1e-4;
 rgb = sum w_i c_i + background T, depth = sum w_i z_i (not normalised), alpha = 1 - T,
-median_depth = z of the Gaussian at which T first drops below 0.5 (0 if never).
+median_depth = z of the Gaussian at which T first drops below 0.5 (0 if never). z_i is the view depth
+of the centre, or with ``planar_depth`` its linear extension over the footprint (:mod:`.planar`).
 Pixel (row i, column j) has its centre at (j + 0.5, i + 0.5) in the image plane of K.
 """
 
@@ -86,12 +87,15 @@ def rasterize(
     backend: Backend = "auto",
     background: Tensor | None = None,
     mask: Tensor | None = None,
+    planar_depth: bool = False,
 ) -> RenderOutput:
     """Render N Gaussians into a (height, width) pinhole camera (3DGS, paper eqs. 2-4).
 
     means (N,3) world; quats (N,4) wxyz (normalised here); scales (N,3) linear; opacities (N,)
     in [0,1]; colors (N,3); viewmat (4,4) world-to-camera, OpenCV axes; K (3,3); background (3,)
-    colour (default black); mask (N,) bool renders only that subset.
+    colour (default black); mask (N,) bool renders only that subset. ``planar_depth``: each Gaussian's
+    depth varies linearly over its footprint, the slope of its densest point along the pixel rays
+    (:mod:`activesplat.splat.raster.planar`; a project option, 3DGS renders the centre's depth).
     Raises InvalidInputError on wrong shapes, NaN/inf values or an unknown backend.
     """
     check_size("rasterize", width, height)
@@ -104,7 +108,8 @@ def rasterize(
         from activesplat.splat.raster.numba_backend import rasterize_numba as render
     else:
         from activesplat.splat.raster.gsplat_backend import rasterize_gsplat as render
-    return render(means, quats, scales, opacities, colors, viewmat, K, width, height, background, mask)
+    return render(means, quats, scales, opacities, colors, viewmat, K, width, height, background, mask,
+                  planar_depth=planar_depth)
 
 
 def resolve_backend(backend: str) -> str:

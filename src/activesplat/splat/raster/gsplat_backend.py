@@ -25,13 +25,16 @@ from torch import Tensor
 
 from activesplat.splat.raster import RenderOutput
 from activesplat.splat.raster.constants import RASTER
+from activesplat.splat.raster.planar import depth_slopes
 
 
-def rasterize_gsplat(means, quats, scales, opacities, colors, viewmat, K, width, height, background, mask):
+def rasterize_gsplat(means, quats, scales, opacities, colors, viewmat, K, width, height, background, mask,
+                     planar_depth: bool = False):
     """Render through gsplat's CUDA kernels (one camera) into a :class:`RenderOutput`."""
     if means.device.type != "cuda":  # CPU tensors: render on the GPU, outputs (and gradients) come back
         out = rasterize_gsplat(*(t.cuda() for t in (means, quats, scales, opacities, colors, viewmat, K)),
-                               width, height, background.cuda(), None if mask is None else mask.cuda())
+                               width, height, background.cuda(), None if mask is None else mask.cuda(),
+                               planar_depth)
         return RenderOutput(**{f.name: getattr(out, f.name).to(means.device) for f in fields(out)})
     n, device = means.shape[0], means.device
     if n == 0 or (mask is not None and not bool(mask.any())):
@@ -40,21 +43,28 @@ def rasterize_gsplat(means, quats, scales, opacities, colors, viewmat, K, width,
         means, quats, scales, opacities, colors = (t[mask] for t in (means, quats, scales, opacities, colors))
     f32 = [t.to(device, torch.float32) for t in (means, quats, scales, opacities, colors, viewmat, K)]
     means, quats, scales, opacities, colors, viewmat, K = f32
-    bg = torch.cat([background.to(device, torch.float32), torch.zeros(1, device=device)])[None]
+    n_extra = 3 if planar_depth else 1
+    bg = torch.cat([background.to(device, torch.float32), torch.zeros(n_extra, device=device)])[None]
     rgbd, alphas, radii, means2d, meta = _render(means, quats, scales, opacities, colors, viewmat, K, width,
-                                                 height, bg)
-    median = _median_depth(meta, means, quats, scales, opacities, viewmat, K, width, height).to(device)
+                                                 height, bg, planar_depth)
+    median = _median_depth(meta, means, quats, scales, opacities, viewmat, K, width, height,
+                           planar_depth).to(device)
+    depth = _planar_depth_image(rgbd) if planar_depth else rgbd[..., 3]
     radii, means2d = _per_gaussian(radii, means2d, n, mask, device)
-    return RenderOutput(rgb=rgbd[..., :3], depth=rgbd[..., 3], alpha=alphas[..., 0], median_depth=median,
+    return RenderOutput(rgb=rgbd[..., :3], depth=depth, alpha=alphas[..., 0], median_depth=median,
                         radii=radii, means2d=means2d, depths=_view_depths(means, viewmat, n, mask))
 
 
-def _render(means, quats, scales, opacities, colors, viewmat, K, width, height, bg):
+def _render(means, quats, scales, opacities, colors, viewmat, K, width, height, bg, planar_depth=False):
     """gsplat's projection, tile intersection and blending for one camera (what ``gsplat.rasterization``
     does with ``render_mode="RGB+D"``, classic mode, unpacked), called step by step so that the returned
     (N, 2) ``means2d`` is the tensor the blending reads: its ``.grad`` after backward is the 2D-mean
     gradient 3DGS densification uses. Returns ((H,W,4) colour + depth sum, (H,W,1) alpha, (N,2) radii,
-    (N,2) means2d, the tile lists for the median depth)."""
+    (N,2) means2d, the tile lists for the median depth).
+
+    With ``planar_depth`` the Gaussian's depth at pixel x is z + p . (x - mean2d) (:mod:`.planar`): a
+    sum of per-Gaussian features times 1, u and v, so gsplat blends the three features z - p . mean2d,
+    p_u, p_v (channels 3-5) and :func:`_planar_depth_image` combines them."""
     from gsplat import fully_fused_projection, isect_offset_encode, isect_tiles, rasterize_to_pixels
 
     tile = RASTER.tile_size
@@ -65,13 +75,28 @@ def _render(means, quats, scales, opacities, colors, viewmat, K, width, height, 
     _, isect_ids, flatten_ids = isect_tiles(means2d, radii, depths, tile, tiles_x, tiles_y, n_images=1)
     offsets = isect_offset_encode(isect_ids, 1, tiles_x, tiles_y)
     m2d = means2d[0]
-    features = torch.cat([colors, depths[0, :, None]], dim=-1)[None]
+    if planar_depth:
+        slopes = depth_slopes(means, quats, scales, viewmat, K, radii[0].max(dim=-1).values)
+        offset = depths[0] - (slopes * m2d).sum(dim=-1)
+        features = torch.cat([colors, offset[:, None], slopes], dim=-1)[None]
+    else:
+        slopes = torch.zeros_like(m2d)
+        features = torch.cat([colors, depths[0, :, None]], dim=-1)[None]
     rgbd, alphas = rasterize_to_pixels(m2d[None], conics, features, opacities[None], width, height, tile,
                                        offsets, flatten_ids, backgrounds=bg)
     meta = {"means2d": means2d, "conics": conics, "opacities": opacities[None], "depths": depths,
             "isect_offsets": offsets, "flatten_ids": flatten_ids, "tile_width": tiles_x,
-            "tile_height": tiles_y, "tile_size": tile}
+            "tile_height": tiles_y, "tile_size": tile, "slopes": slopes.detach()[None]}
     return rgbd[0], alphas[0], radii[0], m2d, meta
+
+
+def _planar_depth_image(features: Tensor) -> Tensor:
+    """(H, W) depth from the blended planar-depth features (channels 3-5 of (H, W, 6)) at the pixel
+    centres (j + 0.5, i + 0.5)."""
+    h, w = features.shape[:2]
+    u = torch.arange(w, device=features.device, dtype=features.dtype) + 0.5
+    v = torch.arange(h, device=features.device, dtype=features.dtype) + 0.5
+    return features[..., 3] + u[None, :] * features[..., 4] + v[:, None] * features[..., 5]
 
 
 def _background_only(background: Tensor, n: int, width: int, height: int, device) -> RenderOutput:
@@ -101,21 +126,22 @@ def _view_depths(means: Tensor, viewmat: Tensor, n: int, mask: Tensor | None) ->
     return torch.zeros(n, dtype=z.dtype, device=z.device).index_put((mask,), z)
 
 
-def _median_depth(meta, means, quats, scales, opacities, viewmat, K, width, height) -> Tensor:
+def _median_depth(meta, means, quats, scales, opacities, viewmat, K, width, height, planar_depth) -> Tensor:
     """Median depth on the GPU from gsplat's tile lists (Triton), else from the numba backend."""
     try:
         from activesplat.splat.raster.median_triton import median_depth_from_meta
     except ImportError:
-        return _median_depth_cpu(means, quats, scales, opacities, viewmat, K, width, height)
+        return _median_depth_cpu(means, quats, scales, opacities, viewmat, K, width, height, planar_depth)
     return median_depth_from_meta(meta, width, height)
 
 
 @torch.no_grad()
-def _median_depth_cpu(means, quats, scales, opacities, viewmat, K, width, height) -> Tensor:
+def _median_depth_cpu(means, quats, scales, opacities, viewmat, K, width, height, planar_depth) -> Tensor:
     """Median depth (T first below 0.5) from the numba backend: gsplat does not provide it."""
     from activesplat.splat.raster.numba_backend import rasterize_numba
 
     cpu = [t.detach().cpu() for t in (means, quats, scales, opacities)]
     colors = torch.zeros(cpu[0].shape[0], 3)
-    out = rasterize_numba(*cpu, colors, viewmat.cpu(), K.cpu(), width, height, torch.zeros(3), None)
+    out = rasterize_numba(*cpu, colors, viewmat.cpu(), K.cpu(), width, height, torch.zeros(3), None,
+                          planar_depth)
     return out.median_depth

@@ -25,8 +25,9 @@ CHUNK = 32
 
 
 @triton.jit
-def _median_depth_kernel(offsets, ids, means2d, conics, opacities, depths, out, tiles_x, width, height,
-                         alpha_max, alpha_min, t_min, t_median, TILE: tl.constexpr, CHUNK: tl.constexpr):
+def _median_depth_kernel(offsets, ids, means2d, conics, opacities, depths, slopes, out, tiles_x, width,
+                         height, alpha_max, alpha_min, t_min, t_median, TILE: tl.constexpr,
+                         CHUNK: tl.constexpr):
     """One program per tile. The tile's depth-sorted list is read CHUNK Gaussians at a time: the
     transmittance after each of them comes from a cumulative sum of log(1 - alpha) (the blending rules of
     the numba backend, alpha clamped and skipped below alpha_min), and a pixel is done at the first
@@ -63,7 +64,9 @@ def _median_depth_kernel(offsets, ids, means2d, conics, opacities, depths, out, 
         first = tl.min(tl.where(hit & (t_after < t_median), b[None, :], CHUNK), axis=1)
         at_first = b[None, :] == first[:, None]
         t_first = tl.sum(tl.where(at_first, t_after, 0.0), axis=1)
-        depth = tl.load(depths + g, mask=valid, other=0.0)[None, :]
+        depth = (tl.load(depths + g, mask=valid, other=0.0)[None, :]  # at the pixel (planar depth: slopes)
+                 - tl.load(slopes + 2 * g, mask=valid, other=0.0)[None, :] * dx
+                 - tl.load(slopes + 2 * g + 1, mask=valid, other=0.0)[None, :] * dy)
         depth_first = tl.sum(tl.where(at_first, depth, 0.0), axis=1)
         done = live & (first < CHUNK)
         median = tl.where(done & (t_first >= t_min), depth_first, median)
@@ -77,7 +80,8 @@ def _median_depth_kernel(offsets, ids, means2d, conics, opacities, depths, out, 
 @torch.no_grad()
 def median_depth_from_meta(meta: dict, width: int, height: int) -> torch.Tensor:
     """(height, width) median depth of camera 0 of a ``gsplat.rasterization`` call (``packed=False``,
-    one camera), 0 where T never drops below 0.5."""
+    one camera), 0 where T never drops below 0.5. ``meta["slopes"]`` (1, N, 2), where present, are the
+    planar-depth slopes (:mod:`.planar`)."""
     tile = int(meta["tile_size"])
     offsets = meta["isect_offsets"][0].reshape(-1).to(torch.int64)
     ids = meta["flatten_ids"].to(torch.int64)
@@ -85,8 +89,10 @@ def median_depth_from_meta(meta: dict, width: int, height: int) -> torch.Tensor:
     out = torch.zeros(height, width, dtype=torch.float32, device=offsets.device)
     if ids.numel() == 0:
         return out
+    if "slopes" not in meta:  # centre depths (no planar depth)
+        meta = {**meta, "slopes": torch.zeros_like(meta["means2d"])}
     f32 = [meta[k][0].detach().to(torch.float32).contiguous()
-           for k in ("means2d", "conics", "opacities", "depths")]
+           for k in ("means2d", "conics", "opacities", "depths", "slopes")]
     tiles_x = int(meta["tile_width"])
     grid = (tiles_x * int(meta["tile_height"]),)
     _median_depth_kernel[grid](offsets, ids, *f32, out, tiles_x, width, height, RASTER.alpha_max,

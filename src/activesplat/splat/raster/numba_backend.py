@@ -56,17 +56,18 @@ class _Project(torch.autograd.Function):
         arrays = [_np(means), _np(quats), _np(scales)]
         means2d, conics = np.empty((n, 2), np.float32), np.empty((n, 3), np.float32)
         depths, radii = np.empty(n, np.float32), np.empty(n, np.int32)
-        rects = np.empty((n, 4), np.int32)
+        rects, slopes = np.empty((n, 4), np.int32), np.empty((n, 2), np.float32)
         with _stage("project"):
             proj.project_forward(*arrays, view, intr, width, height, mask, means2d, conics, depths, radii,
-                                 rects)
+                                 rects, slopes)
         ctx.arrays, ctx.view, ctx.intr, ctx.radii, ctx.conics = arrays, view, intr, radii, conics
-        radii_t, rects_t = torch.from_numpy(radii), torch.from_numpy(rects)
-        ctx.mark_non_differentiable(radii_t, rects_t)
-        return torch.from_numpy(means2d), torch.from_numpy(conics), torch.from_numpy(depths), radii_t, rects_t
+        radii_t, rects_t, slopes_t = (torch.from_numpy(a) for a in (radii, rects, slopes))
+        ctx.mark_non_differentiable(radii_t, rects_t, slopes_t)
+        return (torch.from_numpy(means2d), torch.from_numpy(conics), torch.from_numpy(depths), radii_t,
+                rects_t, slopes_t)
 
     @staticmethod
-    def backward(ctx, v_means2d, v_conics, v_depths, _v_radii, _v_rects):
+    def backward(ctx, v_means2d, v_conics, v_depths, _v_radii, _v_rects, _v_slopes):
         means, quats, scales = ctx.arrays
         v_means, v_quats, v_scales = np.empty_like(means), np.empty_like(quats), np.empty_like(scales)
         with _stage("project_backward"):
@@ -78,7 +79,8 @@ class _Project(torch.autograd.Function):
 
 class _Composite(torch.autograd.Function):
     @staticmethod
-    def forward(ctx, means2d, conics, depths, opacities, colors, background, radii, rects, width, height):
+    def forward(ctx, means2d, conics, depths, slopes, opacities, colors, background, radii, rects, width,
+                height):
         rects = rects.numpy()
         depth_np = _np(depths)
         with _stage("sort"):
@@ -87,7 +89,7 @@ class _Composite(torch.autograd.Function):
         with _stage("bin"):
             tile_starts, feat, emit_start, slot = tiles.bin_features(
                 order, rects, grid_x, grid_x * grid_y, _np(means2d), _np(conics), _np(opacities), _np(colors),
-                depth_np)
+                depth_np, _np(slopes))
         if np.diff(tile_starts).max(initial=0) >= tiles.MAX_TILE_LIST:
             raise InvalidInputError(f"rasterize: more than {tiles.MAX_TILE_LIST} Gaussians overlap one "
                                     "16x16 tile, which the numba backend cannot composite")
@@ -114,10 +116,11 @@ class _Composite(torch.autograd.Function):
             sums = tiles.sum_instance_grads(order, emit_start, slot, grads, ctx.n)
         v_means2d, v_conics, v_opacities, v_colors, v_depths = (torch.from_numpy(a) for a in sums)
         v_bg = torch.from_numpy((v_rgb_np * trans[..., None]).sum(axis=(0, 1)))
-        return v_means2d, v_conics, v_depths, v_opacities, v_colors, v_bg, None, None, None, None
+        return v_means2d, v_conics, v_depths, None, v_opacities, v_colors, v_bg, None, None, None, None
 
 
-def rasterize_numba(means, quats, scales, opacities, colors, viewmat, K, width, height, background, mask):
+def rasterize_numba(means, quats, scales, opacities, colors, viewmat, K, width, height, background, mask,
+                    planar_depth: bool = False):
     """The numba backend of :func:`activesplat.splat.rasterize` (float32, CPU)."""
     device = means.device
     f32 = [t.to("cpu", torch.float32) for t in (means, quats, scales, opacities, colors, background)]
@@ -127,9 +130,11 @@ def rasterize_numba(means, quats, scales, opacities, colors, viewmat, K, width, 
     n = means.shape[0]
     mask_np = np.ones(n, np.bool_) if mask is None else np.ascontiguousarray(mask.cpu().numpy())
     projected = _Project.apply(means, quats, scales, view, intr, width, height, mask_np)
-    means2d, conics, depths, radii, rects = projected
-    rgb, depth, alpha, median = _Composite.apply(means2d, conics, depths, opacities, colors, background,
-                                                 radii, rects, width, height)
+    means2d, conics, depths, radii, rects, slopes = projected
+    if not planar_depth:
+        slopes = torch.zeros(n, 2)
+    rgb, depth, alpha, median = _Composite.apply(means2d, conics, depths, slopes, opacities, colors,
+                                                 background, radii, rects, width, height)
     return RenderOutput(rgb=rgb.to(device), depth=depth.to(device), alpha=alpha.to(device),
                         median_depth=median.to(device), radii=radii.to(device),
                         means2d=means2d.to(device), depths=depths.to(device))

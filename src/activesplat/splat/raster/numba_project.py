@@ -13,6 +13,8 @@ vectorises it. All arithmetic is float32 (constants are np.float32 so nothing pr
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit, prange
 
@@ -29,6 +31,7 @@ from activesplat.splat.kernels import (
     transpose3,
 )
 from activesplat.splat.raster.constants import RASTER
+from activesplat.splat.raster.planar import MAX_TILT_DEG, MIN_SCALE
 
 NEAR = F32(RASTER.near)
 LOW_PASS = F32(RASTER.low_pass)
@@ -39,11 +42,14 @@ TILE_F = F32(RASTER.tile_size)
 BLOCK = 256  # Gaussians per parallel block
 # offsets of the fields in the scratch array (uint64 so the indices need no negative wrap-around)
 (M0, M1, M2, QW, QX, QY, QZ, S0, S1, S2, KEEP,  # inputs of both passes
- MX, MY, CA, CB, CC, DZ, RAD, X0, X1, Y0, Y1) = (np.uint64(k * BLOCK) for k in range(22))  # forward out
-N_FWD = 22
+ MX, MY, CA, CB, CC, DZ, RAD, X0, X1, Y0, Y1, PU, PV,  # forward outputs
+ ) = (np.uint64(k * BLOCK) for k in range(24))
+N_FWD = 24
 (VU, VV, VA, VB, VC, VZ,  # backward inputs after M0..KEEP and CA..CC
- GM0, GM1, GM2, GQW, GQX, GQY, GQZ, GS0, GS1, GS2) = (np.uint64(k * BLOCK) for k in range(22, 38))
-N_BWD = 38
+ GM0, GM1, GM2, GQW, GQX, GQY, GQZ, GS0, GS1, GS2) = (np.uint64(k * BLOCK) for k in range(24, 40))
+N_BWD = 40
+MAX_SLOPE = F32(math.tan(math.radians(MAX_TILT_DEG)))  # planar depth: |p| <= MAX_SLOPE z / f
+MIN_SCALE_F = F32(MIN_SCALE)
 
 
 @njit(cache=True, error_model="numpy")
@@ -97,6 +103,25 @@ def screen_cov(j00, j02, j11, j12, cv):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
+def depth_slope(ax, px, py, z, s0, s1, s2, intr):
+    """Planar depth (:mod:`activesplat.splat.raster.planar`): (dz/du, dz/dv) at the projected centre of
+    the Gaussian at (px, py, z) with axes ``ax`` (row-major, columns in camera coordinates) and scales
+    s0..s2: -(Sigma^-1 mu)_(x, y) z^2 / (mu^T Sigma^-1 mu) / (fx, fy), at most MAX_SLOPE z / f long."""
+    l0 = ax[0] * px + ax[3] * py + ax[6] * z  # mu in the Gaussian's frame
+    l1 = ax[1] * px + ax[4] * py + ax[7] * z
+    l2 = ax[2] * px + ax[5] * py + ax[8] * z
+    t0, t1, t2 = max(s0, MIN_SCALE_F), max(s1, MIN_SCALE_F), max(s2, MIN_SCALE_F)
+    w0, w1, w2 = l0 / (t0 * t0), l1 / (t1 * t1), l2 / (t2 * t2)
+    q = max(l0 * w0 + l1 * w1 + l2 * w2, F32(1e-30))
+    k = z * z / q
+    pu = -(ax[0] * w0 + ax[1] * w1 + ax[2] * w2) * k / intr[0]
+    pv = -(ax[3] * w0 + ax[4] * w1 + ax[5] * w2) * k / intr[1]
+    limit = MAX_SLOPE * z / min(intr[0], intr[1])
+    shrink = min(ONE, limit / max(np.sqrt(pu * pu + pv * pv), F32(1e-30)))
+    return pu * shrink, pv * shrink
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def camera_point(view, m0, m1, m2):
     """W m + t for the 12-tuple ``view`` (the top three rows of the 4x4 world-to-camera matrix)."""
     return (view[0] * m0 + view[1] * m1 + view[2] * m2 + view[3],
@@ -136,8 +161,8 @@ def project_block(s, cnt, view, rot, intr, grid_x, grid_y):
         px, py, z = camera_point(view, s[M0 + u], s[M1 + u], s[M2 + u])
         front = (s[KEEP + u] != ZERO) & (z > NEAR)
         zs = z if front else ONE  # culled lanes stay finite
-        _q, _n, _r, _m, cv = view_covariance(s[QW + u], s[QX + u], s[QY + u], s[QZ + u],
-                                             s[S0 + u], s[S1 + u], s[S2 + u], rot)
+        _q, _n, r, _m, cv = view_covariance(s[QW + u], s[QX + u], s[QY + u], s[QZ + u],
+                                            s[S0 + u], s[S1 + u], s[S2 + u], rot)
         j00, j02, j11, j12, _tx, _ty, _xin, _yin = jacobian(px, py, zs, intr)
         s00, s01, s11, _a0, _a1 = screen_cov(j00, j02, j11, j12, cv)
         det = s00 * s11 - s01 * s01
@@ -158,12 +183,15 @@ def project_block(s, cnt, view, rot, intr, grid_x, grid_y):
         s[RAD + u] = radius if ok else ZERO
         s[X0 + u], s[X1 + u] = (x0 if ok else ZERO), (x1 if ok else ZERO)
         s[Y0 + u], s[Y1 + u] = (y0 if ok else ZERO), (y1 if ok else ZERO)
+        pu, pv = depth_slope(_matmul3(rot, r), px, py, zs, s[S0 + u], s[S1 + u], s[S2 + u], intr)
+        s[PU + u], s[PV + u] = (pu if ok else ZERO), (pv if ok else ZERO)
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
 def project_forward(means, quats, scales, view, intr, width, height, mask,
-                    means2d, conics, depths, radii, rects):
-    """Fill means2d (N,2), conics (N,3), depths (N,), radii (N,) and tile rects (N,4) [x0,x1,y0,y1).
+                    means2d, conics, depths, radii, rects, slopes):
+    """Fill means2d (N,2), conics (N,3), depths (N,), radii (N,), tile rects (N,4) [x0,x1,y0,y1) and the
+    planar-depth slopes (N,2) (:func:`depth_slope`, zero where culled).
     A culled Gaussian (masked, z <= near, singular, off-screen) gets radius 0 and a zero rect; its
     means2d / conic are zero too unless only its rectangle missed the screen."""
     rows, rot, lim = camera_tuples(view, intr)
@@ -178,6 +206,7 @@ def project_forward(means, quats, scales, view, intr, width, height, mask,
             means2d[i, 0], means2d[i, 1], depths[i] = s[MX + u], s[MY + u], s[DZ + u]
             conics[i, 0], conics[i, 1], conics[i, 2] = s[CA + u], s[CB + u], s[CC + u]
             radii[i] = int(s[RAD + u])
+            slopes[i, 0], slopes[i, 1] = s[PU + u], s[PV + u]
             rects[i, 0], rects[i, 1], rects[i, 2], rects[i, 3] = (int(s[X0 + u]), int(s[X1 + u]),
                                                                   int(s[Y0 + u]), int(s[Y1 + u]))
 

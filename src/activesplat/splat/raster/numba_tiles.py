@@ -29,10 +29,10 @@ LOG_255 = F32(np.log(1.0 / RASTER.alpha_min))
 ZERO, HALF, ONE, TWO = F32(0.0), F32(0.5), F32(1.0), F32(2.0)
 BOX_PAD = F32(0.01)  # pixels added to the alpha >= 1/255 box against rounding
 # columns of the per-instance feature rows
-MX, MY, CA, CB, CC, OP, CR, CG, CBL, DZ, HX, HY, PMAX = range(13)
-N_FEAT = 13
+MX, MY, CA, CB, CC, OP, CR, CG, CBL, DZ, HX, HY, PMAX, PU, PV = range(15)
+N_FEAT = 15
 POWER_PAD = F32(1e-3)  # margin on the power cut-off so rounding never skips a term the exact test keeps
-N_GRAD = 10  # v_mean2d (2), v_conic (3), v_opacity, v_colour (3), v_depth
+N_GRAD = 10  # v_mean2d (2), v_conic (3), v_opacity, v_colour (3), v_depth (the slopes have no gradient)
 NEG1 = F32(-1.0)
 HW = 8  # width of a half tile: its pixel q sits at row q >> 3, column q & 7
 NH = TILE // HW  # half tiles per tile
@@ -136,11 +136,12 @@ def stable_depth_order(candidates, depths):
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def bin_features(order, rects, grid_x, n_tiles, means2d, conics, opacities, colors, depths):
-    """:func:`build_tile_lists` that writes the instance rows directly: feat (n_inst, 13), contiguous
+def bin_features(order, rects, grid_x, n_tiles, means2d, conics, opacities, colors, depths, slopes):
+    """:func:`build_tile_lists` that writes the instance rows directly: feat (n_inst, 15), contiguous
     per tile: mean2d, conic, opacity, colour, depth, the half extents of the box where alpha can reach
     1/255 (|dx| <= sqrt(2 ln(255 o) Sigma_xx)) and the power above which alpha < 1/255 for sure
-    (ln(255 o) plus a margin, at most ``POWER_CAP``). Returns tile_starts, feat, emit_start, slot.
+    (ln(255 o) plus a margin, at most ``POWER_CAP``), the depth slope (dz/du, dz/dv; zero unless planar
+    depth, :mod:`activesplat.splat.raster.planar`). Returns tile_starts, feat, emit_start, slot.
 
     The rows are first gathered in depth order (independent random reads, in parallel), so the
     counting and filling passes read them sequentially."""
@@ -158,6 +159,7 @@ def bin_features(order, rects, grid_x, n_tiles, means2d, conics, opacities, colo
         rows[r, HX] = np.sqrt(max(ZERO, level * c / det)) + BOX_PAD
         rows[r, HY] = np.sqrt(max(ZERO, level * a / det)) + BOX_PAD
         rows[r, PMAX] = min(HALF * level + POWER_PAD, POWER_CAP)
+        rows[r, PU], rows[r, PV] = slopes[g, 0], slopes[g, 1]
         for m in range(4):
             rects_o[r, m] = rects[g, m]
     tile_starts, emit_start, bounds, fill = tile_offsets(np.arange(n_vis), rects_o, grid_x, n_tiles)
@@ -282,10 +284,12 @@ def composite_forward(tile_starts, feat, width, height, background, rgb, depth, 
             b, o, pmax, kk = feat[k, CB], feat[k, OP], feat[k, PMAX], F32(k - k0)
             ha, hc, myl = HALF * feat[k, CA], HALF * feat[k, CC], feat[k, MY] - F32(y0) - HALF
             cr, cg, cb, z = feat[k, CR], feat[k, CG], feat[k, CBL], feat[k, DZ]
+            pu, pv = feat[k, PU], feat[k, PV]
             for h in range(h0, h1 + 1):
                 mxl = feat[k, MX] - F32(x0 + h * HW) - HALF
                 for q in range(q0, q1):
-                    alpha, _g, _dx, _dy = pixel_alpha(q, mxl, myl, ha, b, hc, o, pmax)
+                    alpha, _g, dx, dy = pixel_alpha(q, mxl, myl, ha, b, hc, o, pmax)
+                    zp = z - pu * dx - pv * dy  # depth at this pixel (dx = mean - pixel)
                     hit = (s[F_LIVE, h, q] != ZERO) & (alpha != ZERO)
                     t_now = s[F_T, h, q]
                     t_next = t_now * (ONE - alpha)
@@ -295,9 +299,9 @@ def composite_forward(tile_starts, feat, width, height, background, rgb, depth, 
                     s[F_R, h, q] += w * cr
                     s[F_G, h, q] += w * cg
                     s[F_B, h, q] += w * cb
-                    s[F_D, h, q] += w * z
+                    s[F_D, h, q] += w * zp
                     crosses = blend & (t_now >= T_MEDIAN) & (t_next < T_MEDIAN)
-                    s[F_MED, h, q] = z if crosses else s[F_MED, h, q]
+                    s[F_MED, h, q] = zp if crosses else s[F_MED, h, q]
                     s[F_T, h, q] = t_next if blend else t_now
                     s[F_LAST, h, q] = kk if blend else s[F_LAST, h, q]
                     s[F_LIVE, h, q] = ZERO if stop else s[F_LIVE, h, q]
@@ -320,7 +324,8 @@ def composite_backward(tile_starts, feat, width, height, background, trans_final
 
     Per pixel, with T_i the transmittance before Gaussian i and S_i the sums of w_j c_j (w_j z_j)
     over the Gaussians behind it: dC/dalpha_i = c_i T_i - (S_i + bg T_final) / (1 - alpha_i),
-    dD/dalpha_i = z_i T_i - S_i / (1 - alpha_i), d(1 - T_final)/dalpha_i = T_final / (1 - alpha_i).
+    dD/dalpha_i = z_i T_i - S_i / (1 - alpha_i) (z_i: the Gaussian's depth at the pixel),
+    d(1 - T_final)/dalpha_i = T_final / (1 - alpha_i).
     A skipped pixel has alpha = 0, which leaves T and S unchanged and adds nothing. ``reassoc`` lets
     LLVM vectorise the per-instance gradient sums; alpha itself comes from :func:`pixel_alpha`,
     compiled without it, so the skips are those of the forward pass.
@@ -350,6 +355,7 @@ def composite_backward(tile_starts, feat, width, height, background, trans_final
             kk = F32(k - k0)
             ha, hc, myl = HALF * a, HALF * c, feat[k, MY] - F32(y0) - HALF
             cr, cg, cb, z = feat[k, CR], feat[k, CG], feat[k, CBL], feat[k, DZ]
+            pu, pv = feat[k, PU], feat[k, PV]
             g_mx = g_my = g_a = g_b = g_c = g_o = g_r = g_g = g_bl = g_z = ZERO
             for h in range(h0, h1 + 1):
                 mxl = feat[k, MX] - F32(x0 + h * HW) - HALF
@@ -360,22 +366,24 @@ def composite_backward(tile_starts, feat, width, height, background, trans_final
                     t_before = s[B_T, h, q] * inv_one_minus
                     s[B_T, h, q] = t_before
                     w = alpha * t_before
+                    zp = z - pu * dx - pv * dy
                     vr, vg, vb, vd = s[B_VR, h, q], s[B_VG, h, q], s[B_VB, h, q], s[B_VD, h, q]
                     sr, sg, sb, sd = s[B_SR, h, q], s[B_SG, h, q], s[B_SB, h, q], s[B_SD, h, q]
                     v_al = ((s[B_Q, h, q] - vr * sr - vg * sg - vb * sb - vd * sd) * inv_one_minus
-                            + (vr * cr + vg * cg + vb * cb + vd * z) * t_before)
+                            + (vr * cr + vg * cg + vb * cb + vd * zp) * t_before)
                     g_r += w * vr
                     g_g += w * vg
                     g_bl += w * vb
-                    g_z += w * vd
+                    wd = w * vd
+                    g_z += wd
                     s[B_SR, h, q], s[B_SG, h, q] = sr + w * cr, sg + w * cg
-                    s[B_SB, h, q], s[B_SD, h, q] = sb + w * cb, sd + w * z
+                    s[B_SB, h, q], s[B_SD, h, q] = sb + w * cb, sd + w * zp
                     # alpha clamped at 0.99: no gradient to opacity or the footprint
                     v_al = v_al if (alpha != ZERO) & (o * gauss <= ALPHA_MAX) else ZERO
                     g_o += gauss * v_al
                     v_pow = -alpha * v_al
-                    g_mx += v_pow * (a * dx + b * dy)
-                    g_my += v_pow * (b * dx + c * dy)
+                    g_mx += v_pow * (a * dx + b * dy) - wd * pu
+                    g_my += v_pow * (b * dx + c * dy) - wd * pv
                     g_a += v_pow * dx * dx
                     g_b += v_pow * dx * dy
                     g_c += v_pow * dy * dy

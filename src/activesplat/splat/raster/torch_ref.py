@@ -16,6 +16,7 @@ from torch import Tensor
 from activesplat.splat.kernels import quat_to_rotmat
 from activesplat.splat.raster import Projection, RenderOutput
 from activesplat.splat.raster.constants import RASTER
+from activesplat.splat.raster.planar import depth_slopes, pixel_depths
 
 
 def fov_limits(K: Tensor, width: int, height: int) -> tuple[float, float, float, float]:
@@ -91,14 +92,17 @@ def blend_weights(alpha: Tensor) -> tuple[Tensor, Tensor, Tensor]:
 
 
 def median_of(z: Tensor, t_before: Tensor, t_after: Tensor) -> Tensor:
-    """(P,) the depth z of the term at which T first drops below 0.5 (0 where it never does), no gradient."""
+    """(P,) the depth z (P, M) of the term at which T first drops below 0.5 (0 where it never does), no
+    gradient."""
     with torch.no_grad():
         crossing = (t_after < RASTER.median_transmittance) & (t_before >= RASTER.median_transmittance)
         return (crossing * z.detach()).sum(dim=1)
 
 
-def composite_tile(proj: Projection, ids: Tensor, opacities, colors, pix: Tensor, background):
-    """Front-to-back blending of the depth-sorted Gaussians ``ids`` at pixel centres ``pix`` (P,2)."""
+def composite_tile(proj: Projection, ids: Tensor, opacities, colors, pix: Tensor, background,
+                   slopes: Tensor | None = None):
+    """Front-to-back blending of the depth-sorted Gaussians ``ids`` at pixel centres ``pix`` (P,2); with
+    ``slopes`` (N,2) each Gaussian's depth varies over its footprint (:mod:`.planar`)."""
     d = proj.means2d[ids][None, :, :] - pix[:, None, :]
     a, b, c = proj.conics[ids].unbind(-1)
     power = 0.5 * (a * d[..., 0] ** 2 + c * d[..., 1] ** 2) + b * d[..., 0] * d[..., 1]
@@ -106,13 +110,13 @@ def composite_tile(proj: Projection, ids: Tensor, opacities, colors, pix: Tensor
     alpha = torch.where((power >= 0) & (alpha >= RASTER.alpha_min), alpha, torch.zeros_like(alpha))
     weights, t_before, t_after = blend_weights(alpha)
     t_final = t_after[:, -1]
-    z = proj.depths[ids]
+    z = pixel_depths(proj.depths[ids], None if slopes is None else slopes[ids], proj.means2d[ids], pix)
     rgb = weights @ colors[ids] + t_final[:, None] * background
-    depth = weights @ z
+    depth = (weights * z).sum(dim=1)
     return rgb, depth, 1 - t_final, median_of(z, t_before, t_after)
 
 
-def composite_torch(proj: Projection, opacities, colors, width, height, background):
+def composite_torch(proj: Projection, opacities, colors, width, height, background, slopes=None):
     """Blend every tile of the image; returns (rgb, depth, alpha, median_depth) images."""
     ts = RASTER.tile_size
     dtype, device = proj.means2d.dtype, proj.means2d.device
@@ -134,17 +138,19 @@ def composite_torch(proj: Projection, opacities, colors, width, height, backgrou
                 torch.arange(cols.start, cols.stop, device=device), indexing="ij",
             )
             pix = torch.stack([jj.reshape(-1), ii.reshape(-1)], dim=-1).to(dtype) + 0.5
-            out = composite_tile(proj, order[hit], opacities, colors, pix, background)
+            out = composite_tile(proj, order[hit], opacities, colors, pix, background, slopes)
             shape = ii.shape
             rgb[rows, cols] = out[0].reshape(*shape, 3)
             depth[rows, cols], alpha[rows, cols], median[rows, cols] = (o.reshape(shape) for o in out[1:])
     return rgb, depth, alpha, median
 
 
-def rasterize_torch(means, quats, scales, opacities, colors, viewmat, K, width, height, background, mask):
+def rasterize_torch(means, quats, scales, opacities, colors, viewmat, K, width, height, background, mask,
+                    planar_depth: bool = False):
     """The torch reference backend of :func:`activesplat.splat.rasterize`."""
     proj = project_torch(means, quats, scales, viewmat, K, width, height, mask)
-    rgb, depth, alpha, median = composite_torch(proj, opacities, colors, width, height, background)
+    slopes = depth_slopes(means, quats, scales, viewmat, K, proj.radii) if planar_depth else None
+    rgb, depth, alpha, median = composite_torch(proj, opacities, colors, width, height, background, slopes)
     return RenderOutput(
         rgb=rgb, depth=depth, alpha=alpha, median_depth=median, radii=proj.radii,
         means2d=proj.means2d, depths=proj.depths,
