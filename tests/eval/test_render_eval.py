@@ -13,6 +13,7 @@ from activesplat.cli import main
 from activesplat.errors import ActiveSplatError
 from activesplat.eval.render_eval import (
     METRIC_KEYS,
+    map_planar_depth,
     render_eval,
     render_gaussians_view,
     sample_test_poses,
@@ -178,3 +179,15 @@ def test_cli_renders_a_refined_2dgs_folder_with_the_surfel_rasterizer(tmp_path, 
     (refined / "refine.json").write_text(json.dumps({"method": "2dgs"}))
     reval.render_eval_from_args(args)
     assert seen["renderer"] is render_surfel_view
+
+
+def test_a_map_is_rendered_with_the_depth_it_was_trained_with(tmp_path):
+    """render-eval reads ``planar_depth`` from the mapper.json beside the map; no (or a broken) mapper.json
+    means centre depths."""
+    ply = tmp_path / "gaussians.ply"
+    assert not map_planar_depth(ply)
+    for planar in (True, False):
+        (tmp_path / "mapper.json").write_text(json.dumps({"config": {"planar_depth": planar}}))
+        assert map_planar_depth(ply) is planar
+    (tmp_path / "mapper.json").write_text("{not json")
+    assert not map_planar_depth(ply)

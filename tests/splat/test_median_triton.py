@@ -29,6 +29,7 @@ from gsplat.cuda._torch_impl import (  # noqa: E402
 
 from activesplat.splat.raster.constants import RASTER  # noqa: E402
 from activesplat.splat.raster.median_triton import median_depth_from_meta  # noqa: E402
+from activesplat.splat.raster.planar import depth_slopes  # noqa: E402
 
 W, H = 40, 36  # not multiples of the 16-px tile: partial tiles on both axes
 
@@ -42,17 +43,22 @@ def gsplat_meta(means, quats, scales, opacities, viewmat, K, width, height) -> d
     tw, th = math.ceil(width / tile), math.ceil(height / tile)
     _, isect_ids, flatten_ids = _isect_tiles(means2d, radii, depths, tile, tw, th)
     return {"means2d": means2d, "conics": conics, "opacities": opacities[None], "depths": depths,
-            "isect_offsets": _isect_offset_encode(isect_ids, 1, tw, th), "flatten_ids": flatten_ids,
-            "tile_width": tw, "tile_height": th, "tile_size": tile}
+            "radii": radii, "isect_offsets": _isect_offset_encode(isect_ids, 1, tw, th),
+            "flatten_ids": flatten_ids, "tile_width": tw, "tile_height": th, "tile_size": tile}
 
 
+@pytest.mark.parametrize("planar", [False, True])
 @pytest.mark.parametrize(("seed", "n", "opacity"), [(0, 200, (0.3, 0.98)), (1, 400, (0.3, 0.98)),
                                                     (2, 3000, (0.02, 0.3))])  # lists of many chunks
-def test_median_kernel_matches_numba(seed, n, opacity):
+def test_median_kernel_matches_numba(seed, n, opacity, planar):
     params = random_scene(n, seed, scale=(0.03, 0.3), opacity=opacity)
     K = intrinsics(W, H)
-    ref = rasterize(*params, torch.eye(4), K, W, H, backend="numba").median_depth
-    got = median_depth_from_meta(gsplat_meta(*params[:4], torch.eye(4), K, W, H), W, H)
+    ref = rasterize(*params, torch.eye(4), K, W, H, backend="numba", planar_depth=planar).median_depth
+    meta = gsplat_meta(*params[:4], torch.eye(4), K, W, H)
+    if planar:  # what the gsplat adapter adds to the meta (gsplat_backend._render)
+        radii = meta["radii"][0].max(dim=-1).values if meta["radii"].ndim == 3 else meta["radii"][0]
+        meta["slopes"] = depth_slopes(*params[:3], torch.eye(4), K, radii)[None]
+    got = median_depth_from_meta(meta, W, H)
     assert got.shape == (H, W)
     assert (ref > 0).float().mean() > 0.3  # the scene covers the image: the check means something
     same = torch.isclose(got, ref, atol=1e-5, rtol=0)

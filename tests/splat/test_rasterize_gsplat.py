@@ -15,10 +15,10 @@ W, H = 96, 72
 NAMES = ("means", "quats", "scales", "opacities", "colors")
 
 
-def render_with_grads(params, backend, device, bg):
+def render_with_grads(params, backend, device, bg, planar_depth=False):
     leaves = [p.detach().clone().to(device).requires_grad_(True) for p in params]
     out = rasterize(*leaves, torch.eye(4, device=device), intrinsics(W, H).to(device), W, H, backend=backend,
-                    background=bg.to(device))
+                    background=bg.to(device), planar_depth=planar_depth)
     out.means2d.retain_grad()
     # a loss that weighs every output channel differently, so each gradient term is exercised
     g = torch.Generator().manual_seed(7)
@@ -34,20 +34,23 @@ def rel_err(a: torch.Tensor, b: torch.Tensor) -> float:
     return float((a - b).norm() / b.norm().clamp_min(1e-12))
 
 
+@pytest.mark.parametrize("planar_depth", [False, True])
 @pytest.mark.parametrize("seed", [0, 1, 2])
-def test_gsplat_matches_numba(seed):
+def test_gsplat_matches_numba(seed, planar_depth):
+    """With ``planar_depth`` the gsplat adapter blends three depth features and its Triton median kernel
+    reads the slopes (splat/raster/planar.py); both written without a GPU at hand, this is their check."""
     # opacities below 0.99 so the backends' different alpha clamps (0.99 / 0.999) never apply
     params = random_scene(300, seed, scale=(0.02, 0.2), opacity=(0.05, 0.9))
     bg = torch.tensor([0.1, 0.2, 0.3])
-    ref, ref_grads = render_with_grads(params, "numba", "cpu", bg)
-    out, grads = render_with_grads(params, "gsplat", "cuda", bg)
+    ref, ref_grads = render_with_grads(params, "numba", "cpu", bg, planar_depth)
+    out, grads = render_with_grads(params, "gsplat", "cuda", bg, planar_depth)
     report = {name: float((out[name].detach().cpu() - ref[name]).abs().max())
               for name in ("rgb", "depth", "alpha")}
     same = torch.isclose(out.median_depth.cpu(), ref.median_depth, atol=1e-4, rtol=0)
     report["median_equal"] = float(same.float().mean())
     for name, g in grads.items():
         report[f"d_{name}"] = rel_err(g, ref_grads[name])
-    print(f"\nseed {seed}: " + ", ".join(f"{k} {v:.2e}" for k, v in report.items()))
+    print(f"\nseed {seed}, planar {planar_depth}: " + ", ".join(f"{k} {v:.2e}" for k, v in report.items()))
     for name in ("rgb", "depth", "alpha"):
         torch.testing.assert_close(out[name].detach().cpu(), ref[name], atol=5e-3, rtol=1e-3, msg=name)
     assert report["median_equal"] > 0.99

@@ -106,14 +106,17 @@ def screen_cov(j00, j02, j11, j12, cv):
 def depth_slope(ax, px, py, z, s0, s1, s2, intr):
     """Planar depth (:mod:`activesplat.splat.raster.planar`): (dz/du, dz/dv) at the projected centre of
     the Gaussian at (px, py, z) with axes ``ax`` (row-major, columns in camera coordinates) and scales
-    s0..s2: -(Sigma^-1 mu)_(x, y) z^2 / (mu^T Sigma^-1 mu) / (fx, fy), at most MAX_SLOPE z / f long."""
+    s0..s2: -(Sigma^-1 mu)_(x, y) z^2 / (mu^T Sigma^-1 mu) / (fx, fy) times the flatness
+    1 - (s_min / s_mid)^2, at most MAX_SLOPE z / f long."""
     l0 = ax[0] * px + ax[3] * py + ax[6] * z  # mu in the Gaussian's frame
     l1 = ax[1] * px + ax[4] * py + ax[7] * z
     l2 = ax[2] * px + ax[5] * py + ax[8] * z
     t0, t1, t2 = max(s0, MIN_SCALE_F), max(s1, MIN_SCALE_F), max(s2, MIN_SCALE_F)
     w0, w1, w2 = l0 / (t0 * t0), l1 / (t1 * t1), l2 / (t2 * t2)
     q = max(l0 * w0 + l1 * w1 + l2 * w2, F32(1e-30))
-    k = z * z / q
+    s_min, s_max = min(t0, min(t1, t2)), max(t0, max(t1, t2))
+    ratio = s_min / (t0 + t1 + t2 - s_min - s_max)
+    k = z * z / q * (ONE - ratio * ratio)
     pu = -(ax[0] * w0 + ax[1] * w1 + ax[2] * w2) * k / intr[0]
     pv = -(ax[3] * w0 + ax[4] * w1 + ax[5] * w2) * k / intr[1]
     limit = MAX_SLOPE * z / min(intr[0], intr[1])

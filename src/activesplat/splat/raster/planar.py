@@ -67,7 +67,9 @@ def depth_slopes(means: Tensor, quats: Tensor, scales: Tensor, viewmat: Tensor, 
     q = (local * w).sum(-1)  # mu^T Sigma^-1 mu
     z = mu[:, 2]
     focal = torch.stack([K[0, 0], K[1, 1]]).to(means.dtype)
-    p = -a_mu[:, :2] * (z * z / q)[:, None] / focal
+    ordered = s.sort(dim=-1).values
+    flatness = 1.0 - (ordered[:, 0] / ordered[:, 1]) ** 2
+    p = -a_mu[:, :2] * (z * z / q * flatness)[:, None] / focal
     limit = math.tan(math.radians(MAX_TILT_DEG)) * z / focal.min()
     shrink = torch.clamp(limit / p.norm(dim=-1).clamp_min(1e-30), max=1.0)
     return slopes.index_put((vis,), p * shrink[:, None])
