@@ -86,3 +86,21 @@ def test_blended_features_give_the_planar_depth():
     blended = rasterize(*params[:4], features, torch.eye(4), K, W, H, backend="torch")
     image = torch.cat([blended.rgb, blended.rgb], dim=-1)  # channels 3-5 are read
     torch.testing.assert_close(_planar_depth_image(image), ref.depth, atol=1e-4, rtol=1e-4)
+
+
+def test_isotropic_gaussians_keep_their_centre_depth():
+    """The flatness factor: an isotropic Gaussian off the image axis has no slope (its densest point along
+    each ray would tilt it towards the camera centre), a flat one has its plane's."""
+    K = intrinsics(W, H)
+    means = torch.tensor([[1.0, 0.5, 2.0], [1.0, 0.5, 2.0]])
+    quats = torch.tensor([[1.0, 0.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0]])
+    scales = torch.tensor([[0.05, 0.05, 0.05], [0.05, 0.05, 0.0005]])
+    p = depth_slopes(means, quats, scales, torch.eye(4), K, torch.ones(2, dtype=torch.int32))
+    assert torch.all(p[0] == 0)
+    assert p[1].abs().max() < 1e-4  # a frontal plane (normal along z): next to none (z / f = 0.06)
+    one = (means[:1], quats[:1], scales[:1], torch.full((1,), 0.9), torch.ones(1, 3))
+    out = rasterize(*one, torch.eye(4), K,
+                    W, H, backend="numba", planar_depth=True)
+    covered = out.alpha > 0.1
+    depth = out.depth[covered] / out.alpha[covered]
+    torch.testing.assert_close(depth, torch.full_like(depth, 2.0))

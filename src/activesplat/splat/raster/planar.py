@@ -1,4 +1,4 @@
-"""Planar depth: each Gaussian's depth varies over its footprint (project option, off in 3DGS).
+"""Planar depth: each Gaussian's depth varies over its footprint (project default; 3DGS: constant).
 
 3DGS blends one depth per Gaussian, the view z of its centre, over every pixel it covers. On a wall
 seen at an angle, a flat Gaussian 3 cm wide then renders a step of up to a few centimetres across its
@@ -9,13 +9,17 @@ that pixel's ray is largest, linearised at its projected centre (RaDe-GS, Zhang 
 same in ray space):
 
     z_i(u, v) = z_i + p_i . ((u, v) - mean2d_i),
-    p_i = -(Sigma^-1 mu)_(x, y) z_i^2 / (mu^T Sigma^-1 mu) / (fx, fy),
+    p_i = -(Sigma^-1 mu)_(x, y) z_i^2 / (mu^T Sigma^-1 mu) / (fx, fy) * (1 - (s_min / s_mid)^2),
 
 with mu the centre and Sigma the covariance in camera coordinates. Along the ray d = (x, y, 1) of a
 pixel the density is largest at t*(d) = d^T Sigma^-1 mu / d^T Sigma^-1 d; p is its derivative at the
 centre's ray, d = mu / z. For a flat Gaussian Sigma^-1 is dominated by n n^T / s_n^2 and p is the
-slope of the tangent plane (exact to first order: 1 / z is affine in (u, v) on a plane); for an
-isotropic one p is the slope of the closest point on each ray, close to zero near the image centre.
+slope of the tangent plane (exact to first order: 1 / z is affine in (u, v) on a plane). For an
+isotropic one it would be the slope of the closest point on each ray, a plane facing the camera
+centre, which off the image axis is tilted against a wall the Gaussian lies on (a frontal wall of
+19 cm Gaussians in a 32 px test image rendered up to 10 cm off): the last factor, the flatness from
+the smallest and middle scales, keeps the centre's depth for isotropic Gaussians (0.99 of the slope
+for the mapper's flat ones, scale ratio 0.1; 13 % of a medium-house map stays isotropic).
 
 The slope is bounded by that of a plane turned ``MAX_TILT_DEG`` = 45 degrees away from facing the
 camera, |p| <= z / f. A plane seen edge-on has an unbounded slope; the formula bounds itself near
@@ -23,9 +27,10 @@ tan = s_tangent / (2 s_normal), 5 for the mapper's flat Gaussians, but measured,
 colour: mapping 700 frames of a look-around of medium-1, keyframe PSNR 34.08 dB and depth L1 1.61 cm
 with centre depths; 33.10 dB / 1.16 cm with a bound at 84 degrees, 33.67 / 1.19 at 60, 34.03 / 1.28 at
 45, 34.08 / 1.35 at 30 (steep slopes extrapolated past silhouettes give large depth residuals, whose
-gradient lowers opacities). The footprint is not a bound: the mapper's Gaussians are about a pixel wide,
-so the 0.3 px low-pass sets their footprint, and over the blurred part of it the plane's continuation
-is the depth the neighbouring Gaussians of the same surface render there.
+gradient lowers opacities); with the flatness factor at 45 degrees 34.06 / 1.28. The footprint is not
+a bound: the mapper's Gaussians are about a pixel wide, so the 0.3 px low-pass sets their footprint, and
+over the blurred part of it the plane's continuation is the depth the neighbouring Gaussians of the
+same surface render there.
 
 Sorting, opacity and colour are unchanged; the depth and the median depth of every backend use
 z_i(u, v). The slopes carry no gradient: the depth loss moves a Gaussian (its centre's depth and its
