@@ -76,7 +76,8 @@ def _render(means, quats, scales, opacities, colors, viewmat, K, width, height, 
     offsets = isect_offset_encode(isect_ids, 1, tiles_x, tiles_y)
     m2d = means2d[0]
     if planar_depth:
-        slopes = depth_slopes(means, quats, scales, viewmat, K, radii[0].max(dim=-1).values)
+        r = radii[0].max(dim=-1).values if radii.ndim == 3 else radii[0]  # per-axis radii in gsplat >= 1.5
+        slopes = depth_slopes(means, quats, scales, viewmat, K, r)
         offset = depths[0] - (slopes * m2d).sum(dim=-1)
         features = torch.cat([colors, offset[:, None], slopes], dim=-1)[None]
     else:
