@@ -13,6 +13,7 @@ from activesplat.cli import main
 from activesplat.errors import ActiveSplatError
 from activesplat.eval.render_eval import (
     METRIC_KEYS,
+    default_renderer,
     map_planar_depth,
     render_eval,
     render_gaussians_view,
@@ -189,5 +190,6 @@ def test_a_map_is_rendered_with_the_depth_it_was_trained_with(tmp_path):
     for planar in (True, False):
         (tmp_path / "mapper.json").write_text(json.dumps({"config": {"planar_depth": planar}}))
         assert map_planar_depth(ply) is planar
+        assert default_renderer(ply).keywords == {"planar_depth": planar}  # render-eval's and the budget's
     (tmp_path / "mapper.json").write_text("{not json")
     assert not map_planar_depth(ply)

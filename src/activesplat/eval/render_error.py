@@ -213,7 +213,8 @@ def error_budget(episode_dir: str | Path, gaussians_path: str | Path | None = No
                  progress: bool = True, sim_overrides: dict | None = None, renderer=None,
                  figure: str | Path | None = None, figure_views: int = 4) -> dict:
     """The error budget (module docstring) of an exploration episode's map on render-eval's views
-    (``sim_overrides``, ``renderer``: as render-eval's; default renderer: the 3DGS rasterizer). With
+    (``sim_overrides``, ``renderer``: as render-eval's; default renderer: the 3DGS rasterizer with the
+    map's own depth, as render-eval's). With
     ``figure``, a PNG of the ``figure_views`` test views with the largest squared error: ground truth,
     render, and the pixel classes."""
     from activesplat.episode import read_episode
@@ -221,8 +222,8 @@ def error_budget(episode_dir: str | Path, gaussians_path: str | Path | None = No
         SPLITS,
         RenderEvalConfig,
         _simulated_setup,
+        default_renderer,
         locate,
-        render_gaussians_view,
     )
     from activesplat.geometry import backproject
     from activesplat.splat.ply import load_ply
@@ -241,7 +242,7 @@ def error_budget(episode_dir: str | Path, gaussians_path: str | Path | None = No
     if len(gmap) == 0:
         raise EpisodeError(f"{gaussians_path} holds no Gaussians: nothing to render")
     W, H, K = setup.width, setup.height, setup.K
-    renderer = renderer or render_gaussians_view
+    renderer = renderer or default_renderer(gaussians_path)
     rows, cols = np.mgrid[0:H, 0:W]
     bar = _progress(sum(len(setup.poses[s]) for s in splits) + len(episode.poses), progress)
     # 1. every view: squared error and classes, holes provisionally "observed"; their surface points

@@ -130,6 +130,12 @@ def map_planar_depth(gaussians_path: str | Path) -> bool:
         return False
 
 
+def default_renderer(gaussians_path: str | Path) -> Renderer:
+    """The renderer of a 3D Gaussian map without one of its own: :func:`render_gaussians_view`, with the
+    depth the map was trained with (:func:`map_planar_depth`). render-eval and the error budget use it."""
+    return functools.partial(render_gaussians_view, planar_depth=map_planar_depth(gaussians_path))
+
+
 def render_gaussians_view(gmap, pose: np.ndarray, K: np.ndarray, width: int, height: int,
                           backend: str = "auto", planar_depth: bool = False
                           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -201,8 +207,7 @@ def render_eval(episode_dir: str | Path, gaussians_path: str | Path | None = Non
     cfg = RenderEvalConfig(**{**asdict(config or RenderEvalConfig()), "n_train": int(n_train),
                               "n_test": int(n_test), "seed": int(seed)})
     episode_dir, gaussians_path, out = locate(episode_dir, gaussians_path, out_dir)
-    renderer = renderer or functools.partial(render_gaussians_view,
-                                             planar_depth=map_planar_depth(gaussians_path))
+    renderer = renderer or default_renderer(gaussians_path)
     lpips_model = LPIPS()  # fails early, with the pip command, when the weights are not installed
     meta = _read_meta(episode_dir)
     gmap = load_ply(gaussians_path, device=backend_device(backend))
