@@ -75,19 +75,19 @@ def _render(means, quats, scales, opacities, colors, viewmat, K, width, height, 
     _, isect_ids, flatten_ids = isect_tiles(means2d, radii, depths, tile, tiles_x, tiles_y, n_images=1)
     offsets = isect_offset_encode(isect_ids, 1, tiles_x, tiles_y)
     m2d = means2d[0]
+    meta = {"means2d": means2d, "conics": conics, "opacities": opacities[None], "depths": depths,
+            "isect_offsets": offsets, "flatten_ids": flatten_ids, "tile_width": tiles_x,
+            "tile_height": tiles_y, "tile_size": tile}
     if planar_depth:
         r = radii[0].max(dim=-1).values if radii.ndim == 3 else radii[0]  # per-axis radii in gsplat >= 1.5
         slopes = depth_slopes(means, quats, scales, viewmat, K, r)
         offset = depths[0] - (slopes * m2d).sum(dim=-1)
         features = torch.cat([colors, offset[:, None], slopes], dim=-1)[None]
+        meta["slopes"] = slopes[None]  # the median kernel's (no slopes: centre depths)
     else:
-        slopes = torch.zeros_like(m2d)
         features = torch.cat([colors, depths[0, :, None]], dim=-1)[None]
     rgbd, alphas = rasterize_to_pixels(m2d[None], conics, features, opacities[None], width, height, tile,
                                        offsets, flatten_ids, backgrounds=bg)
-    meta = {"means2d": means2d, "conics": conics, "opacities": opacities[None], "depths": depths,
-            "isect_offsets": offsets, "flatten_ids": flatten_ids, "tile_width": tiles_x,
-            "tile_height": tiles_y, "tile_size": tile, "slopes": slopes.detach()[None]}
     return rgbd[0], alphas[0], radii[0], m2d, meta
 
 
