@@ -1,6 +1,7 @@
 """Time a whole gsplat render with the median depth (the Triton kernel of splat/raster/median_triton.py) on
-a sensor camera and on one panorama face, for 300k and 1M Gaussians on the walls of a room (the scene of
-benchmarks/raster.py). Needs CUDA, gsplat and Triton. docs/gpu.md, "The whole loop, second session".
+a sensor camera and on one panorama face, with centre and planar depth (splat/raster/planar.py), for 300k
+and 1M Gaussians on the walls of a room (the scene of benchmarks/raster.py). Needs CUDA, gsplat and Triton.
+docs/gpu.md, "Planar depth on the GPU".
 
     python benchmarks/median_gpu.py [--sizes 300000 1000000] [--repeats 20]
 """
@@ -38,20 +39,24 @@ def main() -> None:
     cameras = {"256 x 256, 90 deg": (256, 256, intrinsics(256, 256, 90.0)),
                f"panorama face {w} x {h}, {pano.hfov_deg:.0f} x {pano.vfov_deg:.0f} deg":
                (w, h, intrinsics(w, h, pano.hfov_deg, pano.vfov_deg))}
-    print("| Gaussians | camera | render with median depth, ms |\n|---|---|---|")
+    print("| Gaussians | camera | render with median depth, ms: centre depth | planar depth |")
+    print("|---|---|---|---|")
     for n in args.sizes:
         params = [t.cuda() for t in room_gaussians(n)]
         for name, (w, h, K) in cameras.items():
             Kt = torch.tensor(K, dtype=torch.float32).cuda()
             call = (*params, view, Kt, w, h, torch.zeros(3).cuda(), None)
-            for _ in range(3):
-                rasterize_gsplat(*call)
-            torch.cuda.synchronize()
-            t0 = time.perf_counter()
-            for _ in range(args.repeats):
-                rasterize_gsplat(*call)
-            torch.cuda.synchronize()
-            print(f"| {n:,} | {name} | {1000 * (time.perf_counter() - t0) / args.repeats:.2f} |", flush=True)
+            ms = []
+            for planar in (False, True):
+                for _ in range(3):
+                    rasterize_gsplat(*call, planar_depth=planar)
+                torch.cuda.synchronize()
+                t0 = time.perf_counter()
+                for _ in range(args.repeats):
+                    rasterize_gsplat(*call, planar_depth=planar)
+                torch.cuda.synchronize()
+                ms.append(1000 * (time.perf_counter() - t0) / args.repeats)
+            print(f"| {n:,} | {name} | {ms[0]:.2f} | {ms[1]:.2f} |", flush=True)
 
 
 if __name__ == "__main__":
