@@ -21,6 +21,8 @@ explore() {  # explore THREADS SCENE STEPS NAME
     NUMBA_NUM_THREADS=$1 OMP_NUM_THREADS=$1 python3 -m activesplat explore --scene "$2" --steps "$3" --seed 0 \
         --backend "${BACKEND:-gsplat}" --out "$OUT/$4" --overwrite --no-progress 2>&1 | tail -7 | tee -a "$LOG"
     cp "$OUT/$4/metrics.json" "$OUT/$4.json" 2>/dev/null
+    python3 -c "import json; m = json.load(open('$OUT/$4.json')); print('mapper phases (ms/step)', \
+{k: round(v, 1) for k, v in m.get('mapper_phases_ms', {}).items()})" 2>/dev/null | tee -a "$LOG"
 }
 ms_per_step() { python3 -c "import json; print(json.load(open('$OUT/$1/metrics.json'))['ms_per_step'])"; }
 

@@ -38,6 +38,9 @@ def test_episode_folder_is_complete(episode):
                 "wall_time_s", "timing_ms"):
         assert key in saved
     assert set(TIMING_KEYS) <= set(saved["timing_ms"])
+    phases = saved["mapper_phases_ms"]  # the mapper's time split by phase, within the mapper's total
+    assert {"render_masks", "densify", "window", "optimize", "prune"} <= set(phases)
+    assert 0 < sum(phases.values()) <= saved["timing_ms"]["mapper"]
     assert saved["path_length_m"] == pytest.approx(0.065 * ep.actions.count("move_forward"))
     assert 0 < saved["completion_ratio_pct"] < 100
     # multi-room measures: action shares, rooms of the built-in house, per-point coverage, trajectory figure

@@ -126,13 +126,16 @@ def explore_environment(env, run, out: str | Path, overwrite: bool = False, prog
     actions: list[str] = []
     causes: list[str] = []
     forward = 0
+    mapper_phases: dict[str, float] = {}  # ms summed over the episode, per phase of Mapper._map_frame
     t_start = time.perf_counter()
     bar = _progress(steps, name, policy, progress)
     step = 0
     try:
         for step in range(1, steps + 1):
-            timers.time("mapper", mapper.add_frame, obs.rgb, obs.depth, obs.pose,
-                        dense=explorer.dense_mapping)
+            frame = timers.time("mapper", mapper.add_frame, obs.rgb, obs.depth, obs.pose,
+                                dense=explorer.dense_mapping)
+            for phase, ms in frame.timings.items():
+                mapper_phases[phase] = mapper_phases.get(phase, 0.0) + ms
             explorer.observe_mapping(obs, env.K)
             if evaluator is not None:
                 timers.time("evaluation", evaluator.observe, obs.pose)
@@ -183,6 +186,7 @@ def explore_environment(env, run, out: str | Path, overwrite: bool = False, prog
         "evaluation_ms_per_step": timers.per_step(steps).get("evaluation", 0.0),
         "simulator_ms_per_step": timers.per_step(steps).get("simulator", 0.0),
         "timing_ms": {k: timers.per_step(steps).get(k, 0.0) for k in TIMING_KEYS},
+        "mapper_phases_ms": {k: v / steps for k, v in mapper_phases.items()},
         "n_gaussians": len(mapper.gaussians),
         "scene": name, "policy": policy, "seed": seed,
         "curve": curve,
