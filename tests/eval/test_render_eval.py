@@ -183,8 +183,8 @@ def test_cli_renders_a_refined_2dgs_folder_with_the_surfel_rasterizer(tmp_path, 
 
 
 def test_a_map_is_rendered_with_the_depth_it_was_trained_with(tmp_path):
-    """render-eval reads ``planar_depth`` from the mapper.json beside the map; no (or a broken) mapper.json
-    means centre depths."""
+    """render-eval reads ``planar_depth`` from the mapper.json beside the map (or the refine.json beside a
+    refined map); no (or a broken) mapper.json means centre depths."""
     ply = tmp_path / "gaussians.ply"
     assert not map_planar_depth(ply)
     for planar in (True, False):
@@ -193,3 +193,7 @@ def test_a_map_is_rendered_with_the_depth_it_was_trained_with(tmp_path):
         assert default_renderer(ply).keywords == {"planar_depth": planar}  # render-eval's and the budget's
     (tmp_path / "mapper.json").write_text("{not json")
     assert not map_planar_depth(ply)
+    (tmp_path / "mapper.json").unlink()  # a refined map: refine.json says how its depth was trained
+    for planar in (True, False):
+        (tmp_path / "refine.json").write_text(json.dumps({"method": "3dgs", "planar_depth": planar}))
+        assert map_planar_depth(ply) is planar

@@ -11,6 +11,7 @@ from _refine_scene import make_episode
 
 from activesplat.cli import main
 from activesplat.errors import EpisodeError, InvalidInputError
+from activesplat.eval.render_eval import map_planar_depth
 from activesplat.refine import RefineConfig, Refiner, refine
 from activesplat.refine.trainer import CHECKPOINT
 from activesplat.splat import load_ply
@@ -54,6 +55,26 @@ def test_outputs(fresh):
     assert (out / CHECKPOINT).is_file()
     # the online map is left as it was
     assert len(load_ply(fresh / "gaussians.ply")) == res.n_gaussians_initial
+    # depth is rendered as the online map was trained, and render-eval reads that from refine.json
+    assert info["planar_depth"] is json.loads((fresh / "mapper.json").read_text())["config"]["planar_depth"]
+    assert map_planar_depth(out / "gaussians.ply") is info["planar_depth"]
+
+
+@pytest.mark.parametrize("planar", [True, False, None])
+def test_refinement_renders_depth_as_the_online_map_was_trained(fresh, planar):
+    """3DGS refinement takes ``planar_depth`` from the episode's mapper.json; a mapper.json written before
+    the option existed (no key) made its map with centre depths."""
+    meta = json.loads((fresh / "mapper.json").read_text())
+    meta["config"].pop("planar_depth")
+    if planar is not None:
+        meta["config"]["planar_depth"] = planar
+    (fresh / "mapper.json").write_text(json.dumps(meta))
+    refiner = Refiner(fresh, "3dgs", 1, backend="numba", progress=False)
+    assert refiner.method.planar_depth is bool(planar)
+    assert refiner.method.eval_renderer().endswith("planar depth") is bool(planar)
+    forced = Refiner(fresh, "3dgs", 1, config=RefineConfig(planar_depth=not planar), backend="numba",
+                     progress=False, out_dir=fresh / "forced")
+    assert forced.method.planar_depth is (not planar)
 
 
 def test_resume_gives_the_same_map_as_an_uninterrupted_run(episode, tmp_path):

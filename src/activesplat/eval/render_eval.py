@@ -119,15 +119,18 @@ def sample_test_poses(sim, n: int, seed: int, pitch_deg: float = 0.0) -> np.ndar
 
 # --------------------------------------------------------------------------- evaluation
 def map_planar_depth(gaussians_path: str | Path) -> bool:
-    """Whether the map was made with planar depth (``MapperConfig.planar_depth`` in the ``mapper.json``
-    beside it; False without one): its depth is then rendered the way it was trained."""
-    meta = Path(gaussians_path).parent / "mapper.json"
-    if not meta.is_file():
-        return False
-    try:
-        return bool(json.loads(meta.read_text()).get("config", {}).get("planar_depth", False))
-    except (json.JSONDecodeError, AttributeError):
-        return False
+    """Whether the map was made with planar depth: ``MapperConfig.planar_depth`` in the ``mapper.json``
+    beside it (an online map), or ``planar_depth`` in the ``refine.json`` beside it (a refined map); False
+    without either. Its depth is then rendered the way it was trained."""
+    folder = Path(gaussians_path).parent
+    for name, read in (("mapper.json", lambda d: d.get("config", {}).get("planar_depth", False)),
+                       ("refine.json", lambda d: d.get("planar_depth", False))):
+        if (folder / name).is_file():
+            try:
+                return bool(read(json.loads((folder / name).read_text())))
+            except (json.JSONDecodeError, AttributeError):
+                return False
+    return False
 
 
 def default_renderer(gaussians_path: str | Path) -> Renderer:

@@ -21,8 +21,11 @@ class Splatting3D:
     name = "3dgs"
     ply_layout = "3dgs: the standard 3DGS PLY, as optimised"
 
-    def __init__(self, cfg: RefineConfig, iters: int, backend: str = "auto"):
+    def __init__(self, cfg: RefineConfig, iters: int, backend: str = "auto", planar_depth: bool = False):
         self.cfg, self.iters, self.backend = cfg, iters, backend
+        self.planar_depth = planar_depth
+        """Render depth as the online map was trained (``MapperConfig.planar_depth``, from its mapper.json):
+        the refined map keeps it, and render-eval reads it from refine.json."""
 
     def prepare(self, gmap: GaussianMap) -> GaussianMap:
         """The map the method optimises, made from the online map (3DGS: unchanged)."""
@@ -33,7 +36,7 @@ class Splatting3D:
         from activesplat.splat.rasterize import rasterize
 
         out = rasterize(gmap.means, gmap.quats, gmap.scales, gmap.opacities, gmap.colors, viewmat, K,
-                        width, height, backend=self.backend)
+                        width, height, backend=self.backend, planar_depth=self.planar_depth)
         if track_grad2d and out.means2d.requires_grad:
             out.means2d.retain_grad()
         return out
@@ -60,13 +63,14 @@ class Splatting3D:
 
     def eval_renderer(self) -> str:
         """Which rasterizer render_metrics.json is computed with (recorded in refine.json)."""
-        return "3D Gaussian rasterizer"
+        return "3D Gaussian rasterizer" + (", planar depth" if self.planar_depth else "")
 
 
-def make_method(name: str, cfg: RefineConfig, iters: int, backend: str = "auto"):
-    """The adapter of method ``name`` (validated by the caller)."""
+def make_method(name: str, cfg: RefineConfig, iters: int, backend: str = "auto", planar_depth: bool = False):
+    """The adapter of method ``name`` (validated by the caller); ``planar_depth`` applies to 3DGS only (the
+    surfels of 2DGS have their own depth)."""
     if name == "3dgs":
-        return Splatting3D(cfg, iters, backend)
+        return Splatting3D(cfg, iters, backend, planar_depth)
     from activesplat.refine.surfels import Surfels2D
 
     return Surfels2D(cfg, iters, backend)

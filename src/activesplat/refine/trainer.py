@@ -8,7 +8,9 @@ and the mapper's settings (``mapper.json``: intrinsics, learning rates) of an ep
 
 over the pixels with valid depth (the mapper's :func:`~activesplat.splat.losses.mapping_loss` with the
 3DGS weights of :class:`~activesplat.refine.config.RefineConfig`), with 3DGS adaptive density control
-(:mod:`activesplat.refine.adc`) and the 3DGS position learning-rate decay.
+(:mod:`activesplat.refine.adc`) and the 3DGS position learning-rate decay. 3DGS renders depth the way
+the online map was trained (planar depth when its mapper.json says so, ``MapperConfig.planar_depth``);
+refine.json records it, and render-eval renders the refined map the same way.
 
 Outputs, in ``DIR/refined_<method>/``: ``gaussians.ply`` (the refined map), ``render_metrics.json``
 (train / test PSNR, SSIM, LPIPS, depth L1 from :func:`activesplat.eval.render_eval.render_eval`),
@@ -216,7 +218,8 @@ class Refiner:
         self.loss_cfg = replace(mapper.config, lambda_l1=1.0 - lam, lambda_ssim=lam,
                                 weight_color=self.cfg.weight_color, weight_depth=self.cfg.weight_depth)
         self.lr, self.adam_eps = mapper.config.lr, mapper.config.adam_eps
-        self.method = make_method(method, self.cfg, self.iters, backend)
+        planar = mapper.config.planar_depth if self.cfg.planar_depth is None else self.cfg.planar_depth
+        self.method = make_method(method, self.cfg, self.iters, backend, planar)
         self.densify_until = self.cfg.densify_until(self.iters)
         extent = scene_extent(torch.from_numpy(poses[:, :3, 3]), self.cfg.extent_margin)
         if restart:
@@ -423,6 +426,7 @@ class Refiner:
             "densify": res.densify, "densify_until": self.densify_until,
             "loss_ema": res.loss, "psnr_ema": res.psnr, "ply_layout": self.method.ply_layout,
             "eval_renderer": self.method.eval_renderer(),
+            "planar_depth": bool(getattr(self.method, "planar_depth", False)),
             "config": asdict(self.cfg), "history": self.history,
         }
         (self.out_dir / "refine.json").write_text(json.dumps(info, indent=1))

@@ -340,8 +340,10 @@ class MapperConfig:
 
     @classmethod
     def from_dict(cls, d: dict) -> MapperConfig:
-        """The config back from `dataclasses.asdict` output (mapper.json, checkpoints)."""
+        """The config back from `dataclasses.asdict` output (mapper.json, checkpoints). A config written
+        before ``planar_depth`` existed made its map with centre depths, so a missing key reads False."""
         d = dict(d)
+        d.setdefault("planar_depth", False)
         d["lr"] = LearningRates(**d["lr"])
         d["schedule"] = Schedule(**d["schedule"])
         d["dense_schedule"] = Schedule(**d["dense_schedule"])
