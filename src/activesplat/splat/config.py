@@ -34,7 +34,7 @@ class LearningRates:
     colors: float = 2.5e-3  # release: on plain RGB, converted to f_dc units by GaussianMap
     quats: float = 1e-3  # release
     opacities: float = 0.05  # release: on the opacity logit
-    scales: float = 1e-3  # release: on the log-scale
+    scales: float = 1e-3  # release: on the log-scale (1e-2: MapperConfig "Scale learning rate")
 
 
 @dataclass(frozen=True)
@@ -203,6 +203,22 @@ class MapperConfig:
     30.99 -> 31.03 dB, train 31.52 -> 31.45, LPIPS 0.185 either way. Explorations on fresh houses
     (medium-100..109, seed 0): completion 86.13 -> 85.69 %, within the spread of one seed per house
     (README, "Mapping at house scale").
+
+    Scale learning rate (``lr.scales``; release and SplaTAM 1e-3, 3DGS 5e-3; an option, the release's
+    rate stays the default). At 1e-3 per Adam step on the log-scale a Gaussian's size changes by at most
+    0.1 % per iteration and it sees a few dozen iterations, so the 2-px grid's Gaussians keep the radius
+    they were born with and, along silhouettes, reach past the edge and mix the near and the far depth.
+    At 1e-2 the losses shrink them there. 700 frames of the medium-1 tour (``benchmarks/mapper.py
+    --episode T --steps 700 --set lr.scales=V``), keyframe PSNR / depth L1: 1e-3 34.06 dB / 1.28 cm, 3e-3
+    34.09 / 1.21, 5e-3 34.11 / 1.16, 1e-2 34.10 / 1.10, 2e-2 33.95 / 1.08. Tours of medium-0..3 at 1e-2:
+    test depth L1 2.14 -> 1.88 cm, test PSNR 31.03 -> 31.17 dB, LPIPS 0.185 -> 0.183, train depth L1
+    1.87 -> 1.68 cm (train LPIPS 0.186 -> 0.191), the plain house test 32.68 -> 32.95 dB, 3-5 % fewer
+    Gaussians. Not the default because of what it does to exploration (README, "Mapping at house
+    scale"): medium-0..3 x 2 seeds 86.20 -> 85.73 %; fresh medium-100..109 seed 0 85.69 -> 84.34 %, one
+    house collapsing (medium-105, 84.07 -> 70.54 %: room 1's goals had no path from the corridor at step
+    957 and stayed closed; with ``--explorer.retry-unreachable`` the same run gives 83.64 %), the other
+    nine 85.87 % either way; small-100..109 88.52 -> 88.31 %, their
+    live maps test 30.79 -> 30.67 dB. ``refine`` takes the learning rates of the map's mapper.json.
 
     Floater pruning (``prune_floater_margin_m``): a Gaussian whose centre the current frame sees as free
     space (projects in front of the observed depth by more than the margin, where the whole 3x3
