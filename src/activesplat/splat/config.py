@@ -216,9 +216,9 @@ class MapperConfig:
     Gaussians. Not the default because of what it does to exploration (README, "Mapping at house
     scale"): medium-0..3 x 2 seeds 86.20 -> 85.73 %; fresh medium-100..109 seed 0 85.69 -> 84.34 %, one
     house collapsing (medium-105, 84.07 -> 70.54 %: room 1's goals had no path from the corridor at step
-    957 and stayed closed; with ``--explorer.retry-unreachable`` the same run gives 83.64 %), the other
-    nine 85.87 % either way; small-100..109 88.52 -> 88.31 %, their
-    live maps test 30.79 -> 30.67 dB. ``refine`` takes the learning rates of the map's mapper.json.
+    957 and stayed closed; with ``--explorer.retry-unreachable`` the same run gives 83.64 %, but the ten
+    houses with both options 85.00 %), the other nine 85.87 % either way; small-100..109 88.52 -> 88.31 %,
+    their live maps test 30.79 -> 30.67 dB. ``refine`` takes the learning rates of the map's mapper.json.
 
     Floater pruning (``prune_floater_margin_m``): a Gaussian whose centre the current frame sees as free
     space (projects in front of the observed depth by more than the margin, where the whole 3x3
