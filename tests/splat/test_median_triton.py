@@ -28,6 +28,7 @@ from gsplat.cuda._torch_impl import (  # noqa: E402
 )
 
 from activesplat.splat.raster.constants import RASTER  # noqa: E402
+from activesplat.splat.raster.gsplat_backend import scalar_radii  # noqa: E402
 from activesplat.splat.raster.median_triton import median_depth_from_meta  # noqa: E402
 from activesplat.splat.raster.planar import depth_slopes  # noqa: E402
 
@@ -56,8 +57,7 @@ def test_median_kernel_matches_numba(seed, n, opacity, planar):
     ref = rasterize(*params, torch.eye(4), K, W, H, backend="numba", planar_depth=planar).median_depth
     meta = gsplat_meta(*params[:4], torch.eye(4), K, W, H)
     if planar:  # what the gsplat adapter adds to the meta (gsplat_backend._render)
-        radii = meta["radii"][0].max(dim=-1).values if meta["radii"].ndim == 3 else meta["radii"][0]
-        meta["slopes"] = depth_slopes(*params[:3], torch.eye(4), K, radii)[None]
+        meta["slopes"] = depth_slopes(*params[:3], torch.eye(4), K, scalar_radii(meta["radii"][0]))[None]
     got = median_depth_from_meta(meta, W, H)
     assert got.shape == (H, W)
     assert (ref > 0).float().mean() > 0.3  # the scene covers the image: the check means something

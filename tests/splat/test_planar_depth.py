@@ -99,8 +99,7 @@ def test_isotropic_gaussians_keep_their_centre_depth():
     assert torch.all(p[0] == 0)
     assert p[1].abs().max() < 1e-4  # a frontal plane (normal along z): next to none (z / f = 0.06)
     one = (means[:1], quats[:1], scales[:1], torch.full((1,), 0.9), torch.ones(1, 3))
-    out = rasterize(*one, torch.eye(4), K,
-                    W, H, backend="numba", planar_depth=True)
+    out = rasterize(*one, torch.eye(4), K, W, H, backend="numba", planar_depth=True)
     covered = out.alpha > 0.1
     depth = out.depth[covered] / out.alpha[covered]
     torch.testing.assert_close(depth, torch.full_like(depth, 2.0))

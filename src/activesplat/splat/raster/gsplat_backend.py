@@ -79,8 +79,7 @@ def _render(means, quats, scales, opacities, colors, viewmat, K, width, height, 
             "isect_offsets": offsets, "flatten_ids": flatten_ids, "tile_width": tiles_x,
             "tile_height": tiles_y, "tile_size": tile}
     if planar_depth:
-        r = radii[0].max(dim=-1).values if radii.ndim == 3 else radii[0]  # per-axis radii in gsplat >= 1.5
-        slopes = depth_slopes(means, quats, scales, viewmat, K, r)
+        slopes = depth_slopes(means, quats, scales, viewmat, K, scalar_radii(radii[0]))
         offset = depths[0] - (slopes * m2d).sum(dim=-1)
         features = torch.cat([colors, offset[:, None], slopes], dim=-1)[None]
         meta["slopes"] = slopes[None]  # the median kernel's (no slopes: centre depths)
@@ -108,10 +107,16 @@ def _background_only(background: Tensor, n: int, width: int, height: int, device
                         means2d=torch.zeros(n, 2, device=device), depths=torch.zeros(n, device=device))
 
 
+def scalar_radii(radii: Tensor) -> Tensor:
+    """One pixel radius per Gaussian, (N,): gsplat >= 1.5 returns per-axis radii (N, 2), of which the
+    larger; older versions return (N,) already."""
+    return radii.max(dim=-1).values if radii.ndim == 2 else radii
+
+
 def _per_gaussian(radii: Tensor, means2d: Tensor, n: int, mask: Tensor | None,
                   device) -> tuple[Tensor, Tensor]:
     """radii (N,) int32 (the larger of gsplat's per-axis radii) and means2d (N,2), zero outside ``mask``."""
-    radii = radii.max(dim=-1).values if radii.ndim == 2 else radii
+    radii = scalar_radii(radii)
     if mask is None:
         return radii.to(torch.int32), means2d
     full_radii = torch.zeros(n, dtype=torch.int32, device=device)
