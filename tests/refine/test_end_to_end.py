@@ -76,7 +76,7 @@ def test_cli_runs_resumes_and_restarts(episode, tmp_path, capsys, monkeypatch):
 def test_image_size_renders_the_keyframes_again(episode, tmp_path, capsys):
     """--image-size: the keyframes are rendered again by the simulator at that size from their poses (the
     paper refines at 512 x 512 what it explored at 256 x 256), and the evaluation uses that size too."""
-    from activesplat.refine.trainer import load_episode_map, rerender_keyframes
+    from activesplat.refine.episode_map import load_episode_map, rerender_keyframes
 
     ep = shutil.copytree(episode, tmp_path / "ep", ignore=shutil.ignore_patterns("refined_*"))
     online = load_episode_map(ep)
