@@ -21,7 +21,6 @@ from activesplat.planning.goals import (  # noqa: E402
     bridge_toward,
     closer_on_the_way,
     distance_to_polyline,
-    entry_term,
     local_then_global,
     panorama_candidates,
     rank_goals,
@@ -309,33 +308,6 @@ def test_the_sampled_surface_term_adds_to_the_information_of_the_scored_nodes_on
     # node (information above 0) gains the full weight and the others nothing
     for node, info in plain.items():
         assert sampled[node] == (info + 20.0 if info > 0 else info)
-
-
-def test_the_entry_term_raises_the_information_of_open_nodes_no_position_came_near():
-    base = ExplorerConfig(workspace=WCFG)
-    cfg = dataclasses.replace(base, planning=dataclasses.replace(
-        base.planning, score=dataclasses.replace(base.planning.score, w_entry=10.0, entry_radius_m=1.0)))
-    score = cfg.planning.score
-    pos = np.array([[0.0, 0.0], [0.9, 0.0], [3.0, 0.0], [3.0, 0.1]])
-    open_ = np.array([True, True, True, False])
-    visited = [np.array([0.0, 0.0])]
-    assert entry_term(pos, visited, open_, score).tolist() == [0.0, 0.0, 10.0, 0.0]  # near, near, far, closed
-    assert entry_term(pos, [], open_, score).tolist() == [10.0, 10.0, 10.0, 0.0]
-    assert not entry_term(pos, visited, open_, base.planning.score).any()  # off by default
-    infos = []
-    for c in (base, cfg):
-        ws = extract_workspace(corridor(), HERE, WCFG)
-        plan = Plan(workspace=ws, graph=build_voronoi_graph(ws, WCFG))
-        rank_goals(plan, HERE, HalfSeen().render, 0.0, [HERE], [], c.planning, WCFG, goal_rules(c),
-                   np.random.default_rng(0))
-        infos.append((plan.info, {n: np.asarray(plan.graph.nodes[n]["pos"], float) for n in plan.info}))
-    (plain, where), (entered, _) = infos
-    far = [n for n in plain if np.hypot(*(where[n] - HERE)) > 1.0]
-    assert far and len(far) < len(plain)
-    for n in plain:  # every node is open here: only the far ones gain
-        assert entered[n] == pytest.approx(plain[n] + (10.0 if n in far else 0.0))
-    with pytest.raises(InvalidInputError, match="entry_radius_m"):
-        dataclasses.replace(score, entry_radius_m=0.0)
 
 
 def test_a_node_keeps_its_promise_until_its_subregion_is_entered_or_it_is_visited():

@@ -204,21 +204,10 @@ class ScoreConfig:
     samples it densely)."""
     quality_voxel_m: float = 0.1
     """Voxel size of the sampled-surface memory (ours: twice the completion measure's 5 cm threshold)."""
-    w_entry: float = 0.0
-    """Information added in the global stage to an open node farther than `entry_radius_m` from every
-    position the agent has stood at (ours; 0 = off, eq. 12 as published). A room looked into from its door
-    shows eq. 12 little left to see, but its far side was sampled from 3-4 m at a slant, too sparsely for
-    the completion measure's 5 cm; the term makes such a room worth entering. It counts in the global
-    stage only (the information that ranks the nodes, decides which promise something to see and which
-    are worth a detour), never in the local stage."""
-    entry_radius_m: float = 2.0
-    """A node nearer than this to a past position counts as entered for the `w_entry` term (ours: about
-    half a room's width, so that a node in the middle of a room looked into from its door is not)."""
 
     def __post_init__(self) -> None:
         check_fields(self, non_negative=("w_o", "w_c", "w_u", "w_h", "failed_penalty", "unvisited_radius_m",
-                                         "w_q", "w_entry"),
-                     positive=("quality_radius_m", "quality_voxel_m", "entry_radius_m"))
+                                         "w_q"), positive=("quality_radius_m", "quality_voxel_m"))
         if self.preset not in ("paper", "release"):
             raise InvalidInputError(f"ScoreConfig.preset must be 'paper' or 'release', got {self.preset!r}")
 

@@ -11,10 +11,9 @@ from dataclasses import dataclass
 
 import networkx as nx
 import numpy as np
-from scipy.spatial import cKDTree
 
 from activesplat.geometry import wrap_angle
-from activesplat.planning.config import PlanningConfig, ScoreConfig
+from activesplat.planning.config import PlanningConfig
 from activesplat.planning.controller import ControllerConfig, fewest_actions_order
 from activesplat.planning.observed import ObservedSurface, poorly_observed_share
 from activesplat.planning.panorama import RenderFn, render_panorama
@@ -71,19 +70,6 @@ def worth_a_visit(info: np.ndarray | float, open_: np.ndarray | bool, threshold:
     """Nodes that promise something to see: open (unvisited, not failed) with an information part above
     `threshold` (the local-score threshold of both planning stages). Arrays or one node's scalars."""
     return np.asarray(open_, bool) & (np.asarray(info, float) > threshold)
-
-
-def entry_term(pos: np.ndarray, visited: Sequence[np.ndarray], open_: np.ndarray,
-               cfg: ScoreConfig) -> np.ndarray:
-    """`ScoreConfig.w_entry` for each open node (pos (N, 2)) farther than `entry_radius_m` from every past
-    position in `visited`, else 0 (ours): a node no position came near is in a room not yet entered."""
-    out = np.zeros(len(pos))
-    if cfg.w_entry <= 0 or not len(pos):
-        return out
-    if not len(visited):
-        return np.where(open_, cfg.w_entry, 0.0)
-    near = cKDTree(np.asarray(visited, float)).query(pos, distance_upper_bound=cfg.entry_radius_m)[0]
-    return np.where(open_ & ~np.isfinite(near), cfg.w_entry, 0.0)
 
 
 def goal_candidates(graph: nx.Graph) -> list[int]:
@@ -343,17 +329,10 @@ def rank_goals(plan: Plan, here: np.ndarray, render: RenderFn, floor_height: flo
     plan.scores = {n: float(s) for n, s in zip(nodes, scores, strict=True)}
     travel = travel_lengths(graph, here, nodes, pos)
     plan.travel = {n: float(t) for n, t in zip(nodes, travel, strict=True)}
+    plan.info = {n: float(v) for n, v in zip(nodes, info, strict=True)}
     # with `quality_in_local` off the sampled-surface term does not keep the agent in its subregion: it
     # only makes poorly sampled rooms worth a trip in the global stage
     local_info = info if score_cfg.quality_in_local else info - extra
-    # the entry term (ours, off by default) counts in the global stage only, like the term above
-    entry = entry_term(pos, visited, open_, score_cfg)
-    info = info + entry
-    if global_scores is None:
-        global_scores = scores + entry
-    else:
-        global_scores = global_scores + entry
-    plan.info = {n: float(v) for n, v in zip(nodes, info, strict=True)}
     rules = dataclasses.replace(rules, hierarchical=hierarchical)
     promising = worth_a_visit(info, open_, rules.local_score_threshold)
     local_promising = worth_a_visit(local_info, open_, rules.local_score_threshold)
@@ -497,7 +476,7 @@ def select_rotation_targets(targets: Sequence[RotationTarget], yaw: float, pcfg:
     return [chosen[i] for i in order]
 
 
-__all__ = ["GoalRules", "closer_on_the_way", "distance_to_polyline", "entry_term",
+__all__ = ["GoalRules", "closer_on_the_way", "distance_to_polyline",
            "goal_candidates", "local_then_global", "node_state", "pairwise_travel", "panorama_candidates",
            "rank_goals", "select_rotation_targets", "shortest_tour", "tour_first", "travel_lengths",
            "worth_a_detour", "worth_a_visit"]
