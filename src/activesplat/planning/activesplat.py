@@ -241,7 +241,8 @@ def goal_rules(cfg: ExplorerConfig) -> GoalRules:
                      on_the_way_m=cfg.on_the_way_m, global_in_horizon=cfg.global_in_horizon,
                      global_information_first=cfg.global_information_first,
                      panorama_every_subregion=cfg.panorama_every_subregion,
-                     global_halving_m=cfg.global_halving_m, global_tour=cfg.global_tour)
+                     global_halving_m=cfg.global_halving_m, global_tour=cfg.global_tour,
+                     local_near_m=cfg.local_near_m)
 
 
 def ranked_entry(plan: Plan, node: int) -> dict:

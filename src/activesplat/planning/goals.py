@@ -55,6 +55,7 @@ class GoalRules:
     panorama_every_subregion: bool = True
     global_halving_m: float | None = None
     global_tour: bool = False
+    local_near_m: float | None = None
 
 
 def node_state(node_pos: np.ndarray, visited: Sequence[np.ndarray], failed: Sequence[np.ndarray],
@@ -329,6 +330,8 @@ def rank_goals(plan: Plan, here: np.ndarray, render: RenderFn, floor_height: flo
     plan.scores = {n: float(s) for n, s in zip(nodes, scores, strict=True)}
     travel = travel_lengths(graph, here, nodes, pos)
     plan.travel = {n: float(t) for n, t in zip(nodes, travel, strict=True)}
+    if hierarchical and rules.local_near_m is not None:  # nodes this near count as local (ours)
+        in_local = in_local | (travel <= rules.local_near_m)
     plan.info = {n: float(v) for n, v in zip(nodes, info, strict=True)}
     # with `quality_in_local` off the sampled-surface term does not keep the agent in its subregion: it
     # only makes poorly sampled rooms worth a trip in the global stage

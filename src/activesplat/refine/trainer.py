@@ -2,7 +2,8 @@
 
 ``refine(DIR, method, iters)`` loads the online map (``gaussians.ply``), the keyframes (``keyframes.npz``)
 and the mapper's settings (``mapper.json``: intrinsics, learning rates) of an episode folder and runs
-``iters`` Adam iterations (the folder is read by :mod:`activesplat.refine.episode_map`). Each iteration renders one keyframe drawn uniformly at random and minimises
+``iters`` Adam iterations (the folder is read by :mod:`activesplat.refine.episode_map`). Each iteration
+renders one keyframe drawn uniformly at random and minimises
 
     L = w_c ((1 - lambda) L1(C) + lambda (1 - SSIM(C))) + w_d L1(D)   (+ the 2DGS regularisers)
 
