@@ -352,6 +352,26 @@ def test_a_global_choice_is_followed_until_its_subregion_holds_nothing_to_see():
         ExplorerConfig(commit_global_m=-1.0)
 
 
+def test_nodes_near_the_agent_join_the_local_stage_whatever_their_subregion_only_when_asked():
+    ws = extract_workspace(corridor(), HERE, WCFG)
+    graph = build_voronoi_graph(ws, WCFG)
+    pos = {n: np.asarray(graph.nodes[n]["pos"], float) for n in graph.nodes}
+    own = min(pos, key=lambda n: np.hypot(*(pos[n] - HERE)))
+    stages = []
+    for near in (None, 3.0, 5.0):  # the corridor's far end is 4 m along the graph
+        cfg = ExplorerConfig(workspace=WCFG, local_near_m=near)
+        plan = Plan(workspace=ws, graph=graph)
+        # the far end in a subregion of its own; the agent's holds only the node it stands on (visited)
+        plan.subregions = {n: 0 if n == own else 1 for n in graph.nodes}
+        ranked = rank_goals(plan, HERE, HalfSeen().render, 0.0, [pos[own]], [], cfg.planning, WCFG,
+                            goal_rules(cfg), np.random.default_rng(0))
+        stages.append(plan.stage)
+        assert ranked[0] != own and 3.0 < plan.travel[ranked[0]] < 5.0
+    assert stages == ["global", "global", "local"]
+    with pytest.raises(InvalidInputError, match="local_near_m"):
+        ExplorerConfig(local_near_m=0.0)
+
+
 def test_rank_goals_applies_kept_promises_outside_the_agents_subregion_only():
     cfg = ExplorerConfig(workspace=WCFG, keep_promise_m=0.3)
     ws = extract_workspace(corridor(), HERE, WCFG)
