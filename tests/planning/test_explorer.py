@@ -249,6 +249,26 @@ def test_a_goal_with_no_path_is_skipped_for_the_replan_or_marked_failed_and_logg
     assert [f["why"] for f in ex.failures] == ["no path, skipped"]
 
 
+def test_an_agent_with_no_path_to_any_goal_escapes_instead_of_turning_on_the_spot(monkeypatch):
+    """`retry_unreachable` closes nothing, so with every goal cut off the same graph comes back at every
+    replan: the agent must move (an escape), as when every goal was marked failed (small-101 turned on
+    one spot for 376 of its 1000 steps)."""
+    ws = extract_workspace(corridor(), HERE, WCFG)
+    graph = build_voronoi_graph(ws, WCFG)
+    pos = {n: np.asarray(d["pos"], float) for n, d in graph.nodes(data=True)}
+    far = max(pos, key=lambda n: pos[n][0])
+    monkeypatch.setattr(explorer_module, "build_plan", lambda *a, **k: Plan(workspace=ws, graph=graph))
+    monkeypatch.setattr(explorer_module, "rank_goals", lambda *a, **k: [far])
+    monkeypatch.setattr(explorer_module, "plan_safe_path", lambda *a: None)
+    for retry in (True, False):
+        ex = ActiveSplatExplorer(WORLD, 0.0, ExplorerConfig(workspace=WCFG, retry_unreachable=retry))
+        obs = _obs(HERE)
+        _after_bootstrap(ex, obs)
+        ex.act(obs)
+        assert ex.plan.goal is None and ex.failed == []
+        assert ex.last_cause == "escape" and "move_forward" in ex.queue, retry
+
+
 def test_a_global_replan_stops_first_at_a_node_worth_a_detour(monkeypatch):
     """`detour_m`: the far goal ranked first is reached by way of a nearer node that promises enough (the
     door of a room passed on the way); with the rule off, or in the local stage, straight to the goal."""

@@ -76,6 +76,7 @@ class ActiveSplatExplorer(Explorer):
                                     cfg.workspace)
 
         self._ranked = goal_order[:self.cfg.replan_log_top]
+        skipped = False  # a goal with no path skipped for this replan (`retry_unreachable`)
         for node in goal_order:
             goal = np.asarray(plan.graph.nodes[node]["pos"], float)
             if np.hypot(*(goal - here)) <= cfg.controller.arrive_radius:
@@ -88,6 +89,7 @@ class ActiveSplatExplorer(Explorer):
                 if bridge is None:
                     if cfg.retry_unreachable:
                         self._log_failure(goal, "no path, skipped")
+                        skipped = True
                     else:
                         self._mark_failed(goal, "no path")
                     continue
@@ -119,7 +121,9 @@ class ActiveSplatExplorer(Explorer):
             return
         self._record_replan(here, None, None, False)
         plan.goal, plan.path = None, None
-        stuck = bool(self.failed)
+        # goals exist but none has a path from here: escape first, as when they were all marked failed (with
+        # skipped goals alone, turning on the spot would find the same graph at every replan)
+        stuck = bool(self.failed) or skipped
         self.failed.clear()  # fallback: forget failures, the next replan gives every goal a second chance
         self.idle(pose, stuck)
 
