@@ -41,6 +41,7 @@ def test_episode_folder_is_complete(episode):
     phases = saved["mapper_phases_ms"]  # the mapper's time split by phase, within the mapper's total
     assert {"render_masks", "densify", "window", "optimize", "prune"} <= set(phases)
     assert 0 < sum(phases.values()) <= saved["timing_ms"]["mapper"]
+    assert 0 <= saved["backend_setup_s"] < saved["wall_time_s"] + 60  # kernels loaded before the clock
     assert saved["path_length_m"] == pytest.approx(0.065 * ep.actions.count("move_forward"))
     assert 0 < saved["completion_ratio_pct"] < 100
     # multi-room measures: action shares, rooms of the built-in house, per-point coverage, trajectory figure

@@ -79,3 +79,9 @@ def test_gsplat_mask_and_empty():
     out = rasterize(*[e.cuda() for e in empty], torch.eye(4).cuda(), intrinsics(W, H).cuda(), W, H,
                     backend="gsplat")
     assert out.alpha.abs().max() == 0
+
+
+def test_prepare_backend_loads_the_cuda_extension():
+    from activesplat.splat.raster import prepare_backend
+
+    assert 0.0 <= prepare_backend("gsplat", planar_depth=True) < 600.0

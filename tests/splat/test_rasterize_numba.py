@@ -6,7 +6,9 @@ import torch
 from raster_scenes import intrinsics, random_scene
 from test_rasterize_torch import assert_top_down_pixels
 
+from activesplat.errors import InvalidInputError
 from activesplat.splat import rasterize
+from activesplat.splat.raster import prepare_backend
 from activesplat.splat.raster.numba_tiles import POWER_CAP, exp_neg
 
 W, H = 40, 30  # partial tiles on the right and bottom edges
@@ -170,3 +172,11 @@ def test_parallel_tile_lists_are_stable_and_match_the_binned_rows():
     np.testing.assert_array_equal(feat[:, tiles.CBL], f32[3][ids, 2])
     np.testing.assert_array_equal(feat[:, tiles.DZ], f32[4][ids])
     np.testing.assert_array_equal(feat[:, tiles.PV], f32[5][ids, 1])
+
+
+@pytest.mark.parametrize("backend", ["numba", "torch"])
+@pytest.mark.parametrize("planar", [False, True])
+def test_prepare_backend_renders_a_tiny_image_and_reports_its_time(backend, planar):
+    assert 0.0 <= prepare_backend(backend, planar_depth=planar) < 120.0
+    with pytest.raises(InvalidInputError, match="unknown rasterizer backend"):
+        prepare_backend("opengl")

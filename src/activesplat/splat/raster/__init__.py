@@ -126,6 +126,40 @@ def backend_device(backend: str) -> torch.device:
     return torch.device("cuda" if resolve_backend(backend) == "gsplat" else "cpu")
 
 
+def prepare_backend(backend: Backend = "auto", planar_depth: bool = False) -> float:
+    """Render and back-propagate a tiny image with ``backend`` so that its compiled code is loaded
+    before an episode's clock starts; returns the seconds it took.
+
+    The first call of a process pays one-time costs that are not per-step work: gsplat loads its CUDA
+    extension (and its JIT builder recompiles the extension whenever its sources carry new file times,
+    e.g. after a reinstall: 80-90 s on 16 cores), Triton compiles the median-depth kernel, numba loads
+    (or compiles) its kernels. ``activesplat explore`` calls this first and reports the time as
+    ``backend_setup_s`` instead of folding it into the first step (docs/gpu.md)."""
+    import time
+
+    name = resolve_backend(backend)
+    device = torch.device("cuda" if name == "gsplat" else "cpu")
+    t0 = time.perf_counter()
+    if name == "gsplat":
+        from gsplat.cuda._backend import _C
+
+        if _C is None:
+            raise InvalidInputError("gsplat's CUDA extension could not be built or loaded (is the CUDA "
+                                    "toolkit installed? see docs/gpu.md); use --backend numba")
+    means = torch.tensor([[0.0, 0.0, 2.0], [0.1, -0.05, 2.5], [-0.1, 0.05, 3.0]], device=device,
+                         requires_grad=True)
+    quats = torch.tensor([[1.0, 0.0, 0.0, 0.0]], device=device).repeat(3, 1)
+    scales = torch.full((3, 3), 0.1, device=device)
+    K = torch.tensor([[20.0, 0.0, 16.0], [0.0, 20.0, 16.0], [0.0, 0.0, 1.0]], device=device)
+    opacities, colors = torch.full((3,), 0.8, device=device), torch.rand(3, 3, device=device)
+    out = rasterize(means, quats, scales, opacities, colors, torch.eye(4, device=device), K, 32, 32,
+                    backend=name, planar_depth=planar_depth)
+    (out.rgb.sum() + out.depth.sum()).backward()
+    if device.type == "cuda":
+        torch.cuda.synchronize()
+    return time.perf_counter() - t0
+
+
 @functools.cache
 def gsplat_available() -> bool:
     """True when CUDA is available and ``gsplat`` imports."""
