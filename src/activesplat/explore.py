@@ -129,6 +129,9 @@ def explore_environment(env, run, out: str | Path, overwrite: bool = False, prog
     forward = 0
     mapper_phases: dict[str, float] = {}  # ms summed over the episode, per phase of Mapper._map_frame
     # one-time loading / compiling of the rasterizer's kernels, kept out of the per-step timings
+    if progress and mapper.device.type == "cuda":  # gsplat's JIT build can take minutes, silently
+        print("loading gsplat's CUDA kernels (the first use after an install compiles them: 1-2 minutes)",
+              file=sys.stderr)
     setup_s = prepare_backend(mapper.backend, planar_depth=run.mapper.planar_depth)
     t_start = time.perf_counter()
     bar = _progress(steps, name, policy, progress)
