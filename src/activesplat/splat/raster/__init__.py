@@ -146,14 +146,12 @@ def prepare_backend(backend: Backend = "auto", planar_depth: bool = False) -> fl
         if _C is None:
             raise InvalidInputError("gsplat's CUDA extension could not be built or loaded (is the CUDA "
                                     "toolkit installed? see docs/gpu.md); use --backend numba")
-    means = torch.tensor([[0.0, 0.0, 2.0], [0.1, -0.05, 2.5], [-0.1, 0.05, 3.0]], device=device,
-                         requires_grad=True)
-    quats = torch.tensor([[1.0, 0.0, 0.0, 0.0]], device=device).repeat(3, 1)
-    scales = torch.full((3, 3), 0.1, device=device)
-    K = torch.tensor([[20.0, 0.0, 16.0], [0.0, 20.0, 16.0], [0.0, 0.0, 1.0]], device=device)
-    opacities, colors = torch.full((3,), 0.8, device=device), torch.rand(3, 3, device=device)
-    out = rasterize(means, quats, scales, opacities, colors, torch.eye(4, device=device), K, 32, 32,
-                    backend=name, planar_depth=planar_depth)
+    from activesplat.splat.raster.numba_backend import warm_up_scene
+
+    params, K = warm_up_scene(3)
+    params = [p.detach().to(device).requires_grad_(True) for p in params]
+    out = rasterize(*params, torch.eye(4, device=device), K.to(device), 32, 32, backend=name,
+                    planar_depth=planar_depth)
     (out.rgb.sum() + out.depth.sum()).backward()
     if device.type == "cuda":
         torch.cuda.synchronize()
