@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import errno
 import sys
 from collections.abc import Callable, Sequence
 
@@ -427,7 +428,19 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("activesplat: interrupted", file=sys.stderr)
         return 130
+    except OSError as exc:
+        if exc.errno not in _CANNOT_WRITE:
+            raise
+        where = f": {exc.filename}" if exc.filename else ""
+        print(f"activesplat: error: cannot write{where} ({exc.strerror}). Free some space or choose another "
+              "--out / --root, then run the same command again: a benchmark keeps its complete runs and "
+              "resumes after them.", file=sys.stderr)
+        return 1
     return int(code or 0)
+
+
+_CANNOT_WRITE = {errno.ENOSPC, errno.EDQUOT, errno.EROFS}
+"""Errors of a full or read-only disk: a message instead of a traceback (anything else still raises)."""
 
 
 if __name__ == "__main__":  # pragma: no cover
