@@ -189,3 +189,18 @@ def test_panorama_config_shape():
     cfg = PanoramaConfig(width_per_camera=60, height=75)
     pano = render_panorama(fake_renderer((0, 0), (0, 0)), ORIGIN, cfg)
     assert pano.shape == (75, 180)
+
+
+def test_an_absolute_information_scale_does_not_lift_the_best_node_to_full_marks():
+    from activesplat.planning.viewpoints import information_scores
+
+    inv, vol = np.array([0.04, 0.02, 0.0]), np.array([1.5, 0.5, 0.0])
+    assert information_scores(inv, vol, ScoreConfig())[0] == pytest.approx(30.0)  # relative: best = w_o + w_c
+    absolute = ScoreConfig(inv_reference=0.4, vol_reference_m3=30.0)
+    expected = [20 * 0.1 + 10 * 0.05, 20 * 0.05 + 10 / 60, 0.0]
+    assert information_scores(inv, vol, absolute) == pytest.approx(expected)
+    assert information_scores(np.array([0.8]), np.array([90.0]), absolute) == pytest.approx([30.0])  # capped
+    with pytest.raises(InvalidInputError, match="set together"):
+        ScoreConfig(inv_reference=0.4)
+    with pytest.raises(InvalidInputError, match="inv_reference must be > 0"):
+        ScoreConfig(inv_reference=0.0, vol_reference_m3=30.0)

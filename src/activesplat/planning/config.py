@@ -204,10 +204,26 @@ class ScoreConfig:
     samples it densely)."""
     quality_voxel_m: float = 0.1
     """Voxel size of the sampled-surface memory (ours: twice the completion measure's 5 cm threshold)."""
+    inv_reference: float | None = None
+    """When set (with `vol_reference_m3`), s_o = min(1, invisible share / this) instead of the share
+    divided by its maximum over the candidates: an absolute information scale (ours; None = relative, as
+    the paper). With the relative scale the best candidate always promises w_o + w_c, however little it
+    shows, and the global stage's cost per metre trades against that; with an absolute one a node that
+    shows little promises little wherever the others stand. 0.4 with 30 m^3 (about the best candidate's
+    values mid-episode) on medium-0 x seeds 0, 1: 85.68 / 85.88 -> 83.97 / 78.90 %, so off
+    (docs/benchmark.md "An absolute information scale")."""
+    vol_reference_m3: float | None = None
+    """The hull volume (m^3) that counts as full information, s_c = min(1, volume / this), with
+    `inv_reference` (ours; None = relative)."""
 
     def __post_init__(self) -> None:
         check_fields(self, non_negative=("w_o", "w_c", "w_u", "w_h", "failed_penalty", "unvisited_radius_m",
-                                         "w_q"), positive=("quality_radius_m", "quality_voxel_m"))
+                                         "w_q"), positive=("quality_radius_m", "quality_voxel_m",
+                                                           "inv_reference", "vol_reference_m3"),
+                     optional=("inv_reference", "vol_reference_m3"))
+        if (self.inv_reference is None) != (self.vol_reference_m3 is None):
+            raise InvalidInputError("ScoreConfig.inv_reference and vol_reference_m3 are set together (an "
+                                    "absolute information scale) or both left None (relative)")
         if self.preset not in ("paper", "release"):
             raise InvalidInputError(f"ScoreConfig.preset must be 'paper' or 'release', got {self.preset!r}")
 

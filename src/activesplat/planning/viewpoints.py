@@ -263,12 +263,16 @@ class HighLossTracker:
 def information_scores(inv_share, hull_vol, cfg: ScoreConfig | None = None) -> np.ndarray:
     """The information part of eq. 12 (what a node promises to show): w_o s_o + w_c s_c, with s_o and s_c
     the invisible share and hull volume divided by their maximum over the candidates (release:
-    2*ceil(10*inv/max) + 1*ceil(10*vol/max))."""
+    2*ceil(10*inv/max) + 1*ceil(10*vol/max)), or with `ScoreConfig.inv_reference` by fixed references."""
     cfg = cfg or ScoreConfig()
     inv = np.asarray(inv_share, float)
     vol = np.asarray(hull_vol, float)
-    s_o = inv / inv.max() if inv.size and inv.max() > 0 else np.zeros_like(inv)
-    s_c = vol / vol.max() if vol.size and vol.max() > 0 else np.zeros_like(vol)
+    if cfg.inv_reference is not None:  # an absolute scale (ours, off by default)
+        s_o = np.minimum(1.0, inv / cfg.inv_reference)
+        s_c = np.minimum(1.0, vol / cfg.vol_reference_m3)
+    else:
+        s_o = inv / inv.max() if inv.size and inv.max() > 0 else np.zeros_like(inv)
+        s_c = vol / vol.max() if vol.size and vol.max() > 0 else np.zeros_like(vol)
     if cfg.preset == "release":
         return 2 * np.ceil(10 * s_o) + 1 * np.ceil(10 * s_c)
     if cfg.preset != "paper":
