@@ -22,7 +22,8 @@ explore() {  # explore THREADS SCENE STEPS NAME
         --backend "${BACKEND:-gsplat}" --out "$OUT/$4" --overwrite --no-progress 2>&1 | tail -7 | tee -a "$LOG"
     cp "$OUT/$4/metrics.json" "$OUT/$4.json" 2>/dev/null
     python3 -c "import json; m = json.load(open('$OUT/$4.json')); print('mapper phases (ms/step)', \
-{k: round(v, 1) for k, v in m.get('mapper_phases_ms', {}).items()})" 2>/dev/null | tee -a "$LOG"
+{k: round(v, 1) for k, v in m.get('mapper_phases_ms', {}).items()}, \
+'| rasterizer setup before the clock %.1f s' % m.get('backend_setup_s', float('nan')))" 2>/dev/null | tee -a "$LOG"
 }
 ms_per_step() { python3 -c "import json; print(json.load(open('$OUT/$1/metrics.json'))['ms_per_step'])"; }
 
