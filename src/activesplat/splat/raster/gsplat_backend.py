@@ -37,8 +37,17 @@ def rasterize_gsplat(means, quats, scales, opacities, colors, viewmat, K, width,
                                planar_depth)
         return RenderOutput(**{f.name: getattr(out, f.name).to(means.device) for f in fields(out)})
     n, device = means.shape[0], means.device
+    # the view depth of every Gaussian asked for, drawn or not (as numba); 0 outside the caller's mask
+    depths = means.float() @ viewmat[2, :3].float() + viewmat[2, 3].float()
+    if mask is not None:
+        depths = torch.where(mask, depths, torch.zeros_like(depths))
+    if n and RASTER.cull_outside_clamp:  # gsplat clamps the Jacobian instead; cull here as the others do
+        clamped = ~_inside_clamp(means, viewmat, K, width, height)
+        mask = ~clamped if mask is None else mask & ~clamped
     if n == 0 or (mask is not None and not bool(mask.any())):
-        return _background_only(background, n, width, height, device)
+        out = _background_only(background, n, width, height, device)
+        out.depths = depths
+        return out
     if mask is not None:
         means, quats, scales, opacities, colors = (t[mask] for t in (means, quats, scales, opacities, colors))
     f32 = [t.to(device, torch.float32) for t in (means, quats, scales, opacities, colors, viewmat, K)]
@@ -52,7 +61,20 @@ def rasterize_gsplat(means, quats, scales, opacities, colors, viewmat, K, width,
     depth = _planar_depth_image(rgbd) if planar_depth else rgbd[..., 3]
     radii, means2d = _per_gaussian(radii, means2d, n, mask, device)
     return RenderOutput(rgb=rgbd[..., :3], depth=depth, alpha=alphas[..., 0], median_depth=median,
-                        radii=radii, means2d=means2d, depths=_view_depths(means, viewmat, n, mask))
+                        radii=radii, means2d=means2d, depths=depths)
+
+
+def _inside_clamp(means: Tensor, viewmat: Tensor, K: Tensor, width: int, height: int) -> Tensor:
+    """(N,) bool: the centre lies where the projection Jacobian is not clamped (``RASTER.cull_outside_clamp``;
+    Gaussians behind the near plane count as inside, gsplat culls them itself)."""
+    from activesplat.splat.raster.torch_ref import inside_clamp
+
+    with torch.no_grad():
+        p = means.detach().float() @ viewmat[:3, :3].float().T + viewmat[:3, 3].float()
+        z = p[:, 2]
+        front = z > RASTER.near
+        safe_z = torch.where(front, z, torch.ones_like(z))
+        return ~front | inside_clamp(p[:, 0], p[:, 1], safe_z, K, width, height)
 
 
 def _render(means, quats, scales, opacities, colors, viewmat, K, width, height, bg, planar_depth=False):
@@ -123,13 +145,6 @@ def _per_gaussian(radii: Tensor, means2d: Tensor, n: int, mask: Tensor | None,
     full_radii[mask] = radii.to(torch.int32)
     full_means2d = torch.zeros(n, 2, dtype=means2d.dtype, device=device).index_put((mask,), means2d)
     return full_radii, full_means2d
-
-
-def _view_depths(means: Tensor, viewmat: Tensor, n: int, mask: Tensor | None) -> Tensor:
-    z = means @ viewmat[2, :3] + viewmat[2, 3]
-    if mask is None:
-        return z
-    return torch.zeros(n, dtype=z.dtype, device=z.device).index_put((mask,), z)
 
 
 def _median_depth(meta, means, quats, scales, opacities, viewmat, K, width, height, planar_depth) -> Tensor:

@@ -27,6 +27,16 @@ def fov_limits(K: Tensor, width: int, height: int) -> tuple[float, float, float,
     return cx / fx + pad_x, (width - cx) / fx + pad_x, cy / fy + pad_y, (height - cy) / fy + pad_y
 
 
+def inside_clamp(x: Tensor, y: Tensor, z: Tensor, K: Tensor, width: int, height: int) -> Tensor:
+    """(N,) bool: the centre (camera coordinates x, y, z > 0) lies within the window where the Jacobian is
+    not clamped (:func:`fov_limits`); True everywhere unless ``RASTER.cull_outside_clamp``."""
+    if not RASTER.cull_outside_clamp:
+        return torch.ones_like(z, dtype=torch.bool)
+    lim_xn, lim_xp, lim_yn, lim_yp = fov_limits(K, width, height)
+    rx, ry = x / z, y / z
+    return (rx >= -lim_xn) & (rx <= lim_xp) & (ry >= -lim_yn) & (ry <= lim_yp)
+
+
 def project_torch(means, quats, scales, viewmat, K, width, height, mask=None) -> Projection:
     """EWA splatting: world Gaussians -> 2D means, conics, view depths and screen radii."""
     rot, trans = viewmat[:3, :3], viewmat[:3, 3]
@@ -52,7 +62,8 @@ def project_torch(means, quats, scales, viewmat, K, width, height, mask=None) ->
     means2d = torch.stack([fx * x / zs + cx, fy * y / zs + cy], dim=-1)
     with torch.no_grad():
         radii = screen_radii(s00, s11, det, means2d, width, height)
-        keep = in_front & (det > 0) & (mask if mask is not None else True)
+        keep = in_front & (det > 0) & inside_clamp(x, y, zs, K, width, height)
+        keep = keep & (mask if mask is not None else True)
         radii = torch.where(keep, radii, torch.zeros_like(radii))
     return Projection(means2d=means2d, conics=conics, depths=z, radii=radii)
 
