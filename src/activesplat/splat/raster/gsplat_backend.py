@@ -43,7 +43,8 @@ def rasterize_gsplat(means, quats, scales, opacities, colors, viewmat, K, width,
         depths = torch.where(mask, depths, torch.zeros_like(depths))
     if n and RASTER.cull_outside_clamp:  # gsplat clamps the Jacobian instead; cull here as the others do
         clamped = ~_inside_clamp(means, viewmat, K, width, height)
-        mask = ~clamped if mask is None else mask & ~clamped
+        if bool(clamped.any()):  # else no mask: the subset copy costs a few ms on a large map
+            mask = ~clamped if mask is None else mask & ~clamped
     if n == 0 or (mask is not None and not bool(mask.any())):
         out = _background_only(background, n, width, height, device)
         out.depths = depths
