@@ -36,9 +36,9 @@ class RasterConstants:
     and gsplat render them with the Jacobian of the window's edge). Their screen covariance is then that of
     a Gaussian somewhere else: a flat Gaussian of a wall a few cm beside and in front of the camera, seen
     edge-on, becomes a blob over much of the image, and render-eval's test views that stand beside a wall
-    showed that wall where the corridor beyond it is (a 39 cm depth L1 view on medium-3). On the live
-    seed-0 maps of medium-0..3 test depth L1 4.65 -> 4.26 cm, the other metrics equal or better
-    (docs/protocol.md §6, "Views beside a wall")."""
+    showed that wall where the corridor beyond it is (a 39 cm depth L1 view on medium-3). The live seed-0
+    maps of medium-0..3 rendered again with it: test depth L1 4.65 -> 4.26 cm, the other metrics equal or
+    better (docs/protocol.md §6, "Views beside a wall")."""
 
 
 RASTER = RasterConstants()
