@@ -183,14 +183,16 @@ def test_prepare_backend_renders_a_tiny_image_and_reports_its_time(backend, plan
 
 
 @pytest.mark.parametrize("backend", ["numba", "torch"])
-def test_gaussians_centred_outside_the_jacobian_clamp_are_culled(backend):
-    """RASTER.cull_outside_clamp: x/z = 1.5 lies beyond the clamp window (1.3 at a 90 deg view); its
-    footprint would still reach the image, and the one at x/z = 1.2 is drawn."""
+def test_gaussians_centred_outside_the_jacobian_clamp_follow_the_cull_flag(backend):
+    """x/z = 1.5 lies beyond the clamp window (1.3 at a 90 deg view) and its footprint reaches the image:
+    drawn (3DGS) unless RASTER.cull_outside_clamp; the one at x/z = 1.2 is drawn either way."""
+    from activesplat.splat.raster.constants import RASTER
+
     K = torch.tensor([[16.0, 0, 16], [0, 16, 16], [0, 0, 1]])
     means = torch.tensor([[0.75, 0.0, 0.5], [0.6, 0.0, 0.5]])  # x/z = 1.5 and 1.2
     n = len(means)
     quats = torch.tensor([[1.0, 0, 0, 0]]).repeat(n, 1)
     out = rasterize(means, quats, torch.full((n, 3), 0.1), torch.full((n,), 0.9), torch.ones(n, 3),
                     torch.eye(4), K, 32, 32, backend=backend)
-    assert out.radii[0] == 0 and out.radii[1] > 0
+    assert (out.radii[0] == 0) == RASTER.cull_outside_clamp and out.radii[1] > 0
     assert 16 * 1.5 + 16 - 3 * 16 * 0.1 / 0.5 < 32  # the culled one's 3-sigma footprint reaches the image

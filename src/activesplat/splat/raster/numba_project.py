@@ -34,7 +34,7 @@ from activesplat.splat.raster.constants import RASTER
 from activesplat.splat.raster.planar import MAX_TILT_DEG, MIN_SCALE
 
 NEAR = F32(RASTER.near)
-CULL_CLAMP = RASTER.cull_outside_clamp
+CULL_CLAMP = RASTER.cull_outside_clamp  # compile-time constant; off since 2026-11-27 (see RASTER)
 LOW_PASS = F32(RASTER.low_pass)
 SIGMAS = F32(RASTER.extent_sigmas)
 EIGEN_GAP = F32(RASTER.min_eigen_gap)
