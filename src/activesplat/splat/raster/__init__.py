@@ -152,7 +152,7 @@ def prepare_backend(backend: Backend = "auto", planar_depth: bool = False) -> fl
     params = [p.detach().to(device).requires_grad_(True) for p in params]
     out = rasterize(*params, torch.eye(4, device=device), K.to(device), 32, 32, backend=name,
                     planar_depth=planar_depth)
-    (out.rgb.sum() + out.depth.sum()).backward()
+    (out.rgb.sum() + out.depth.sum() + out.alpha.sum()).backward()
     if device.type == "cuda":
         torch.cuda.synchronize()
     return time.perf_counter() - t0

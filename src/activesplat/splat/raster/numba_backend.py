@@ -153,8 +153,8 @@ def warm_up_scene(scale_dims: int, n: int = 8) -> tuple[list[Tensor], Tensor]:
 
 
 def warm_up() -> None:
-    """Compile (or load from the on-disk cache) every numba kernel: one tiny forward + backward."""
-    params, K = warm_up_scene(3)
-    n = len(params[0])
-    out = rasterize_numba(*params, torch.eye(4), K, 32, 32, torch.zeros(3), torch.ones(n, dtype=torch.bool))
-    (out.rgb.sum() + out.depth.sum() + out.alpha.sum()).backward()
+    """Compile (or load from the on-disk cache) every numba kernel: one tiny forward + backward of
+    :func:`warm_up_scene` (:func:`activesplat.splat.raster.prepare_backend`)."""
+    from activesplat.splat.raster import prepare_backend
+
+    prepare_backend("numba")
