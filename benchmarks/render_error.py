@@ -8,8 +8,9 @@ EPISODE is an exploration episode folder with its ``gaussians.ply`` (or ``--gaus
 render-eval's. Every pixel gets one class (``activesplat.eval.render_error``): holes the trajectory never
 saw (the explorer's share), holes it saw (the mapper's), translucent gaps, depth in front / behind by
 more than 10 cm, depth edges, floor, ceiling and the rest. The table gives each class's share of the
-pixels and of the squared colour error, and how much the split's PSNR would rise were the class's error
-halved (at most 3.01 dB). With several episodes, a last table averages them.
+pixels and of the squared colour error, how much the split's PSNR would rise were the class's error
+halved (at most 3.01 dB), and its part of the depth L1 (cm; the parts add up to render-eval's depth
+L1). With several episodes, a last table averages them.
 """
 
 from __future__ import annotations
@@ -26,9 +27,14 @@ from activesplat.eval.render_error import PIXEL_CLASSES, error_budget, format_bu
 
 def average(results: list[dict], split: str) -> dict:
     rows = [r[split] for r in results if split in r]
-    return {"psnr": float(np.mean([r["psnr"] for r in rows])), "n_views": sum(r["n_views"] for r in rows),
-            "classes": {name: {key: float(np.mean([r["classes"][name][key] for r in rows]))
-                               for key in ("pixels_pct", "error_pct", "gain_db")} for name in PIXEL_CLASSES}}
+    keys = ["pixels_pct", "error_pct", "gain_db"]
+    out = {"psnr": float(np.mean([r["psnr"] for r in rows])), "n_views": sum(r["n_views"] for r in rows)}
+    if all(r.get("depth_l1_cm") is not None for r in rows):
+        keys.append("depth_l1_cm")
+        out["depth_l1_cm"] = float(np.mean([r["depth_l1_cm"] for r in rows]))
+    out["classes"] = {name: {key: float(np.mean([r["classes"][name][key] for r in rows])) for key in keys}
+                      for name in PIXEL_CLASSES}
+    return out
 
 
 def main() -> None:

@@ -35,6 +35,25 @@ def test_view_budget_halving_gain():
     assert v["psnr_if_halved"][PIXEL_CLASSES[0]] - v["psnr"] == pytest.approx(-10 * math.log10(0.75))
     assert v["psnr_if_halved"]["rest"] == pytest.approx(v["psnr"])  # no error there, no gain
     assert sum(v["pixels"].values()) == 16
+    assert "depth_l1_cm" not in v
+
+
+def test_view_budget_depth_parts_add_up_to_the_depth_l1():
+    from activesplat.eval.render_error import depth_error
+
+    gt_depth = np.full((4, 4), 2.0)
+    gt_depth[3] = 0.0  # no ground truth on the last row: left out, as render-eval leaves it out
+    depth = gt_depth.copy()
+    depth[0, 0] = 0.0  # a hole: 2 m off
+    depth[1, 1] = 2.1  # 10 cm off
+    depth[3, 3] = 5.0  # no ground truth there: not counted
+    label = np.full((4, 4), PIXEL_CLASSES.index("rest"))
+    label[0, 0] = PIXEL_CLASSES.index("hole_unobserved")
+    v = view_budget(np.zeros((4, 4)), label, depth_err=depth_error(depth, gt_depth))
+    assert v["depth_l1_cm"] == pytest.approx(100.0 * 2.1 / 12)
+    assert v["depth_l1_part_cm"]["hole_unobserved"] == pytest.approx(100.0 * 2.0 / 12)
+    assert v["depth_l1_part_cm"]["rest"] == pytest.approx(100.0 * 0.1 / 12)
+    assert sum(v["depth_l1_part_cm"].values()) == pytest.approx(v["depth_l1_cm"])
 
 
 def test_observed_by_checks_image_front_and_depth():
@@ -83,6 +102,8 @@ def test_budget_of_a_full_and_a_quarter_look_around(episode, quarter_episode):
             assert sum(c["pixels_pct"] for c in classes.values()) == pytest.approx(100.0)
             assert sum(c["error_pct"] for c in classes.values()) == pytest.approx(100.0)
             assert all(0.0 <= c["gain_db"] <= 10 * math.log10(2) + 1e-9 for c in classes.values())
+            parts = sum(c["depth_l1_cm"] for c in classes.values())
+            assert parts == pytest.approx(result[split]["depth_l1_cm"])
         # a train view is a frame of the trajectory: whatever it shows, the trajectory saw
         assert result["train"]["classes"]["hole_unobserved"]["pixels_pct"] == 0.0
     # the quarter turn never saw most walls: its test views are mostly holes nobody observed
@@ -90,6 +111,9 @@ def test_budget_of_a_full_and_a_quarter_look_around(episode, quarter_episode):
     assert quarter["test"]["classes"]["hole_unobserved"]["pixels_pct"] > \
         5 * full["test"]["classes"]["hole_unobserved"]["pixels_pct"]
     assert quarter["test"]["psnr"] < full["test"]["psnr"]
+    # and those holes hold most of its depth error (a hole renders ~0 m where the wall is metres away)
+    test = quarter["test"]
+    assert test["classes"]["hole_unobserved"]["depth_l1_cm"] > 0.5 * test["depth_l1_cm"]
 
 
 def test_budget_refuses_what_it_cannot_measure(episode, tmp_path):

@@ -185,7 +185,8 @@ def test_prepare_backend_renders_a_tiny_image_and_reports_its_time(backend, plan
 @pytest.mark.parametrize("backend", ["numba", "torch"])
 def test_gaussians_centred_outside_the_jacobian_clamp_follow_the_cull_flag(backend):
     """x/z = 1.5 lies beyond the clamp window (1.3 at a 90 deg view) and its footprint reaches the image:
-    drawn (3DGS) unless RASTER.cull_outside_clamp; the one at x/z = 1.2 is drawn either way."""
+    drawn (3DGS) unless RASTER.clamp_cull_depth is beyond its depth (0.5 m); the one at x/z = 1.2 is drawn
+    either way."""
     from activesplat.splat.raster.constants import RASTER
 
     K = torch.tensor([[16.0, 0, 16], [0, 16, 16], [0, 0, 1]])
@@ -194,5 +195,5 @@ def test_gaussians_centred_outside_the_jacobian_clamp_follow_the_cull_flag(backe
     quats = torch.tensor([[1.0, 0, 0, 0]]).repeat(n, 1)
     out = rasterize(means, quats, torch.full((n, 3), 0.1), torch.full((n,), 0.9), torch.ones(n, 3),
                     torch.eye(4), K, 32, 32, backend=backend)
-    assert (out.radii[0] == 0) == RASTER.cull_outside_clamp and out.radii[1] > 0
+    assert (out.radii[0] == 0) == (RASTER.clamp_cull_depth > 0.5) and out.radii[1] > 0
     assert 16 * 1.5 + 16 - 3 * 16 * 0.1 / 0.5 < 32  # the culled one's 3-sigma footprint reaches the image

@@ -18,8 +18,11 @@ The views, ground truth and renders are exactly those of :func:`activesplat.eval
    above the camera; ``rest``: everything else (walls, furniture).
 
 For each class the budget reports its share of the pixels, its share of the summed squared colour error
-of the split, and ``gain_db``: how much the split's PSNR (the mean over views of each view's PSNR, as
-render-eval computes it) would rise if that class's squared error were halved in every view. Halving, not
+of the split, ``depth_l1_cm``: the class's part of render-eval's depth L1 (|sum w_i z_i - D_gt| summed
+over the class's pixels with ground-truth depth, divided by the view's count of such pixels, averaged over
+views; the parts add up to the split's depth L1), and ``gain_db``: how much the split's PSNR (the mean
+over views of each view's PSNR, as render-eval computes it) would rise if that class's squared error were
+halved in every view. Halving, not
 removing: a view whose error is nearly all one class would otherwise jump to the 100 dB cap and swamp the
 mean. The gain of a view is at most 10 log10 2 = 3.01 dB (all its error in the class); for a class holding
 a share s of a view's error it is -10 log10(1 - s / 2). Gains of different classes do not add up, but they
@@ -167,9 +170,19 @@ def squared_error(rgb: np.ndarray, gt_rgb: np.ndarray) -> np.ndarray:
     return np.mean((np.clip(rgb.astype(np.float64), 0.0, 1.0) - gt) ** 2, axis=-1)
 
 
-def view_budget(se: np.ndarray, label: np.ndarray, psnr_max_db: float = 100.0) -> dict:
+def depth_error(depth: np.ndarray, gt_depth: np.ndarray) -> np.ndarray:
+    """(H, W) |sum w_i z_i - D_gt| in metres where the ground truth has depth, NaN elsewhere: the pixels
+    and the error of render-eval's depth L1."""
+    gt = np.asarray(gt_depth, dtype=np.float64)
+    err = np.abs(np.asarray(depth, dtype=np.float64) - gt)
+    return np.where(gt > 0, err, np.nan)
+
+
+def view_budget(se: np.ndarray, label: np.ndarray, psnr_max_db: float = 100.0,
+                depth_err: np.ndarray | None = None) -> dict:
     """One view from its squared error image ``se`` and pixel classes: its PSNR, and per class the pixel
-    count, summed squared error and the PSNR with that class's squared error halved."""
+    count, summed squared error and the PSNR with that class's squared error halved. With ``depth_err``
+    (:func:`depth_error`), also the view's depth L1 and each class's part of it (cm; the parts add up)."""
     se = se.astype(np.float64)
     floor = 10.0 ** (-psnr_max_db / 10.0)
     total = float(se.sum())
@@ -179,12 +192,20 @@ def view_budget(se: np.ndarray, label: np.ndarray, psnr_max_db: float = 100.0) -
         return -10.0 * math.log10(max(sum_se / n, floor))
 
     out = {"psnr": to_db(total), "pixels": {}, "squared_error": {}, "psnr_if_halved": {}}
+    valid = None
+    if depth_err is not None:
+        valid = np.isfinite(depth_err)
+        n_valid = int(valid.sum())
+        out["depth_l1_cm"] = 100.0 * float(depth_err[valid].mean()) if n_valid else None
+        out["depth_l1_part_cm"] = {}
     for k, name in enumerate(PIXEL_CLASSES):
         mask = label == k
         class_se = float(se[mask].sum())
         out["pixels"][name] = int(mask.sum())
         out["squared_error"][name] = class_se
         out["psnr_if_halved"][name] = to_db(total - 0.5 * class_se)
+        if valid is not None and n_valid:
+            out["depth_l1_part_cm"][name] = 100.0 * float(depth_err[mask & valid].sum()) / n_valid
     return out
 
 
@@ -196,6 +217,7 @@ def summarise_budget(views: list[dict]) -> dict:
     base = float(np.mean([v["psnr"] for v in views]))
     pixels = sum(sum(v["pixels"].values()) for v in views)
     error = sum(sum(v["squared_error"].values()) for v in views)
+    with_depth = [v for v in views if v.get("depth_l1_cm") is not None]
     classes = {}
     for name in PIXEL_CLASSES:
         classes[name] = {
@@ -203,7 +225,12 @@ def summarise_budget(views: list[dict]) -> dict:
             "error_pct": 100.0 * sum(v["squared_error"][name] for v in views) / max(error, 1e-30),
             "gain_db": float(np.mean([v["psnr_if_halved"][name] for v in views])) - base,
         }
-    return {"psnr": base, "n_views": len(views), "classes": classes}
+        if with_depth:
+            classes[name]["depth_l1_cm"] = float(np.mean([v["depth_l1_part_cm"][name] for v in with_depth]))
+    out = {"psnr": base, "n_views": len(views), "classes": classes}
+    if with_depth:
+        out["depth_l1_cm"] = float(np.mean([v["depth_l1_cm"] for v in with_depth]))
+    return out
 
 
 # --------------------------------------------------------------------------- an episode
@@ -260,7 +287,8 @@ def error_budget(episode_dir: str | Path, gaussians_path: str | Path | None = No
                                     cfg=cfg)
             r, c = np.nonzero((label == _HOLE_OBSERVED) & valid)
             holes.append((split, i, r, c, points[r, c]))
-            views[split].append((squared_error(rgb, gt_rgb).astype(np.float32), label.astype(np.int8)))
+            views[split].append((squared_error(rgb, gt_rgb).astype(np.float32), label.astype(np.int8),
+                                 depth_error(depth, gt_depth).astype(np.float32)))
             if figure is not None and split == splits[-1]:
                 shown.append((float(views[split][-1][0].mean()), split, i, gt_rgb, np.clip(rgb, 0.0, 1.0)))
             if bar is not None:
@@ -284,7 +312,8 @@ def error_budget(episode_dir: str | Path, gaussians_path: str | Path | None = No
     result = {"episode": str(episode_dir), "gaussians": str(gaussians_path), "scene": setup.name,
               "classes": list(PIXEL_CLASSES), "config": cfg.__dict__.copy()}
     for split in splits:
-        result[split] = summarise_budget([view_budget(se, label) for se, label in views[split]])
+        result[split] = summarise_budget([view_budget(se, label, depth_err=err)
+                                          for se, label, err in views[split]])
     if figure is not None:
         worst = sorted(shown, key=lambda v: -v[0])[:figure_views]
         rows = [(f"{s} view {i}, PSNR {-10 * math.log10(max(e, 1e-10)):.1f} dB", gt, rgb, views[s][i][1])
@@ -333,16 +362,21 @@ def _progress(total: int, enabled: bool):
 
 
 def format_budget(result: dict) -> str:
-    """A markdown table per split: class, % pixels, % squared error, dB gained if its error were halved."""
+    """A markdown table per split: class, % pixels, % squared error, dB gained if its error were halved,
+    and the class's part of the depth L1 (cm) where the budget has it."""
     lines = []
     for split in ("train", "test"):
         if split not in result:
             continue
         s = result[split]
-        lines += [f"{split}: {s['n_views']} views, PSNR {s['psnr']:.2f} dB", "",
-                  "| pixel class | pixels % | squared error % | PSNR gain if halved (dB) |",
-                  "|---|---|---|---|"]
+        depth = s.get("depth_l1_cm") is not None
+        head = f"{split}: {s['n_views']} views, PSNR {s['psnr']:.2f} dB"
+        lines += [head + (f", depth L1 {s['depth_l1_cm']:.2f} cm" if depth else ""), "",
+                  "| pixel class | pixels % | squared error % | PSNR gain if halved (dB) |"
+                  + (" depth L1 part (cm) |" if depth else ""),
+                  "|---|---|---|---|" + ("---|" if depth else "")]
         for name, c in s["classes"].items():
-            lines.append(f"| {name} | {c['pixels_pct']:.1f} | {c['error_pct']:.1f} | +{c['gain_db']:.2f} |")
+            row = f"| {name} | {c['pixels_pct']:.1f} | {c['error_pct']:.1f} | +{c['gain_db']:.2f} |"
+            lines.append(row + (f" {c['depth_l1_cm']:.2f} |" if depth else ""))
         lines.append("")
     return "\n".join(lines)

@@ -31,15 +31,18 @@ class RasterConstants:
     """3DGS floors (mid^2 - det) at this before the square root of the eigenvalue computation."""
     fov_clamp: float = 0.3
     """The Jacobian is evaluated at x/z clamped to the image edge plus this fraction of tan(fov/2) (3DGS)."""
-    cull_outside_clamp: bool = False
-    """Cull Gaussians whose centre lies outside that clamp window (ours, off: 3DGS and gsplat render them
-    with the Jacobian of the window's edge). Their screen covariance is that of a Gaussian elsewhere: a
-    flat Gaussian of a wall just beside and in front of the camera, seen edge-on, becomes a blob over much
-    of the image (a render-eval test view 16 cm from a wall on medium-3: 39 cm depth L1). The live seed-0
-    maps of medium-0..3 rendered again with it: test depth L1 4.65 -> 4.26 cm, the rest equal or better.
-    Mapping and exploring with it lost completion: tuning houses 86.60 -> 86.48 %, small houses 98.7 ->
-    98.5 % of the ceiling, fresh medium-100..109 seed 0 86.37 -> 85.60 % (7 of 10 lower), so it is off
-    (docs/protocol.md §6, "Views beside a wall"). A compile-time constant of the numba kernels: change
+    clamp_cull_depth: float = 0.0
+    """Cull a Gaussian whose centre lies outside that clamp window and nearer than this view depth
+    (metres; ours; 0 = never, as 3DGS and gsplat, which render it with the Jacobian of the window's edge;
+    inf = at any depth). Its screen covariance is that of a Gaussian elsewhere: a flat Gaussian of a wall
+    just beside and in front of the camera, seen edge-on, becomes a blob over much of the image (a
+    render-eval test view 16 cm from a wall on medium-3: 39 cm depth L1). The live seed-0 maps of
+    medium-0..3 rendered again with inf: test depth L1 4.65 -> 4.26 cm, the rest equal or better; mapping
+    and exploring with inf lost completion (tuning houses 86.60 -> 86.48 %, small houses 98.7 -> 98.5 % of
+    the ceiling, fresh medium-100..109 seed 0 86.37 -> 85.60 %, 7 of 10 lower). Nearly all of the depth
+    gain comes from Gaussians nearer than 0.5 m (medium-2 / medium-3 maps: 5.13 / 4.34 cm -> 4.65 / 3.44
+    with 0.5, 4.64 / 3.44 with inf), which a frame of the robot's meets only beside a wall (docs/protocol.md
+    §6, "Views beside a wall"). A compile-time constant of the numba kernels: change
     `raster/numba_project.py` with it (numba's cache is keyed on that file)."""
 
 

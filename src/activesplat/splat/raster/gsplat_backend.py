@@ -41,7 +41,7 @@ def rasterize_gsplat(means, quats, scales, opacities, colors, viewmat, K, width,
     depths = means.float() @ viewmat[2, :3].float() + viewmat[2, 3].float()
     if mask is not None:
         depths = torch.where(mask, depths, torch.zeros_like(depths))
-    if n and RASTER.cull_outside_clamp:  # gsplat clamps the Jacobian instead; cull here as the others do
+    if n and RASTER.clamp_cull_depth > 0.0:  # gsplat clamps the Jacobian instead; cull as the others do
         clamped = ~_inside_clamp(means, viewmat, K, width, height)
         if bool(clamped.any()):  # else no mask: the subset copy costs a few ms on a large map
             mask = ~clamped if mask is None else mask & ~clamped
@@ -66,7 +66,7 @@ def rasterize_gsplat(means, quats, scales, opacities, colors, viewmat, K, width,
 
 
 def _inside_clamp(means: Tensor, viewmat: Tensor, K: Tensor, width: int, height: int) -> Tensor:
-    """(N,) bool: the centre lies where the projection Jacobian is not clamped (``RASTER.cull_outside_clamp``;
+    """(N,) bool: drawn by the clamp rule (``RASTER.clamp_cull_depth``, ``torch_ref.inside_clamp``;
     Gaussians behind the near plane count as inside, gsplat culls them itself)."""
     from activesplat.splat.raster.torch_ref import inside_clamp
 

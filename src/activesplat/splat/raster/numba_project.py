@@ -34,7 +34,7 @@ from activesplat.splat.raster.constants import RASTER
 from activesplat.splat.raster.planar import MAX_TILT_DEG, MIN_SCALE
 
 NEAR = F32(RASTER.near)
-CULL_CLAMP = RASTER.cull_outside_clamp  # compile-time constant; off since 2026-11-27 (see RASTER)
+CULL_DEPTH = F32(RASTER.clamp_cull_depth)  # compile-time constant (see RASTER)
 LOW_PASS = F32(RASTER.low_pass)
 SIGMAS = F32(RASTER.extent_sigmas)
 EIGEN_GAP = F32(RASTER.min_eigen_gap)
@@ -170,7 +170,7 @@ def project_block(s, cnt, view, rot, intr, grid_x, grid_y):
         j00, j02, j11, j12, _tx, _ty, _xin, _yin = jacobian(px, py, zs, intr)
         s00, s01, s11, _a0, _a1 = screen_cov(j00, j02, j11, j12, cv)
         det = s00 * s11 - s01 * s01
-        ok = front & (det > ZERO) & ((_xin & _yin) | (not CULL_CLAMP))
+        ok = front & (det > ZERO) & ((_xin & _yin) | (z >= CULL_DEPTH))
         det_ok = det if ok else ONE
         mx, my = intr[0] * px / zs + intr[2], intr[1] * py / zs + intr[3]
         s[CA + u] = s11 / det_ok if ok else ZERO

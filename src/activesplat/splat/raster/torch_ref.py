@@ -28,13 +28,15 @@ def fov_limits(K: Tensor, width: int, height: int) -> tuple[float, float, float,
 
 
 def inside_clamp(x: Tensor, y: Tensor, z: Tensor, K: Tensor, width: int, height: int) -> Tensor:
-    """(N,) bool: the centre (camera coordinates x, y, z > 0) lies within the window where the Jacobian is
-    not clamped (:func:`fov_limits`); True everywhere unless ``RASTER.cull_outside_clamp``."""
-    if not RASTER.cull_outside_clamp:
+    """(N,) bool: the Gaussian is drawn by the clamp rule: its centre (camera coordinates x, y, z > 0) lies
+    within the window where the Jacobian is not clamped (:func:`fov_limits`), or it is at least
+    ``RASTER.clamp_cull_depth`` away (True everywhere when that is 0)."""
+    if RASTER.clamp_cull_depth <= 0.0:
         return torch.ones_like(z, dtype=torch.bool)
     lim_xn, lim_xp, lim_yn, lim_yp = fov_limits(K, width, height)
     rx, ry = x / z, y / z
-    return (rx >= -lim_xn) & (rx <= lim_xp) & (ry >= -lim_yn) & (ry <= lim_yp)
+    inside = (rx >= -lim_xn) & (rx <= lim_xp) & (ry >= -lim_yn) & (ry <= lim_yp)
+    return inside | (z >= RASTER.clamp_cull_depth)
 
 
 def project_torch(means, quats, scales, viewmat, K, width, height, mask=None) -> Projection:
