@@ -183,17 +183,20 @@ def test_prepare_backend_renders_a_tiny_image_and_reports_its_time(backend, plan
 
 
 @pytest.mark.parametrize("backend", ["numba", "torch"])
-def test_gaussians_centred_outside_the_jacobian_clamp_follow_the_cull_flag(backend):
-    """x/z = 1.5 lies beyond the clamp window (1.3 at a 90 deg view) and its footprint reaches the image:
-    drawn (3DGS) unless RASTER.clamp_cull_depth is beyond its depth (0.5 m); the one at x/z = 1.2 is drawn
-    either way."""
+def test_gaussians_centred_outside_the_jacobian_clamp_follow_the_cull_depth(backend):
+    """x/z = 1.5 lies beyond the clamp window (1.3 at a 90 deg view) and both such footprints reach the
+    image: each is drawn (3DGS) unless RASTER.clamp_cull_depth lies beyond its depth (0.4 m, 2 m); the one
+    at x/z = 1.2 is drawn whatever the depth."""
     from activesplat.splat.raster.constants import RASTER
 
     K = torch.tensor([[16.0, 0, 16], [0, 16, 16], [0, 0, 1]])
-    means = torch.tensor([[0.75, 0.0, 0.5], [0.6, 0.0, 0.5]])  # x/z = 1.5 and 1.2
+    means = torch.tensor([[0.6, 0.0, 0.4], [0.48, 0.0, 0.4], [3.0, 0.0, 2.0]])  # x/z = 1.5, 1.2, 1.5
+    scales = torch.tensor([[0.1] * 3, [0.1] * 3, [0.5] * 3])
     n = len(means)
     quats = torch.tensor([[1.0, 0, 0, 0]]).repeat(n, 1)
-    out = rasterize(means, quats, torch.full((n, 3), 0.1), torch.full((n,), 0.9), torch.ones(n, 3),
-                    torch.eye(4), K, 32, 32, backend=backend)
-    assert (out.radii[0] == 0) == (RASTER.clamp_cull_depth > 0.5) and out.radii[1] > 0
-    assert 16 * 1.5 + 16 - 3 * 16 * 0.1 / 0.5 < 32  # the culled one's 3-sigma footprint reaches the image
+    out = rasterize(means, quats, scales, torch.full((n,), 0.9), torch.ones(n, 3), torch.eye(4), K, 32, 32,
+                    backend=backend)
+    depth = RASTER.clamp_cull_depth
+    assert (out.radii[0] == 0) == (depth > 0.4) and out.radii[1] > 0 and (out.radii[2] == 0) == (depth > 2.0)
+    for x, z, s in ((0.6, 0.4, 0.1), (3.0, 2.0, 0.5)):  # 3-sigma footprints reaching into the 32 px image
+        assert 16 * x / z + 16 - 3 * 16 * s / z < 32
