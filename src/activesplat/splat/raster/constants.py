@@ -41,9 +41,10 @@ class RasterConstants:
     and exploring with inf lost completion (tuning houses 86.60 -> 86.48 %, small houses 98.7 -> 98.5 % of
     the ceiling, fresh medium-100..109 seed 0 86.37 -> 85.60 %, 7 of 10 lower). Nearly all of the depth
     gain comes from Gaussians nearer than 0.5 m (medium-2 / medium-3 maps: 5.13 / 4.34 cm -> 4.65 / 3.44
-    with 0.5, 4.64 / 3.44 with inf), which a frame of the robot's meets only beside a wall (docs/protocol.md
-    §6, "Views beside a wall"). A compile-time constant of the numba kernels: change
-    `raster/numba_project.py` with it (numba's cache is keyed on that file)."""
+    with 0.5, 4.64 / 3.44 with inf), yet mapping and exploring with 0.5 lost as much: tuning houses 86.33
+    vs 86.60 %, fresh 85.38 vs 86.37 % (docs/protocol.md §6, "Views beside a wall"). A compile-time
+    constant of the numba kernels: change `raster/numba_project.py` with it (numba's cache is keyed on
+    that file)."""
 
 
 RASTER = RasterConstants()
