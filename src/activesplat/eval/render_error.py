@@ -22,11 +22,10 @@ of the split, ``depth_l1_cm``: the class's part of render-eval's depth L1 (|sum 
 over the class's pixels with ground-truth depth, divided by the view's count of such pixels, averaged over
 views; the parts add up to the split's depth L1), and ``gain_db``: how much the split's PSNR (the mean
 over views of each view's PSNR, as render-eval computes it) would rise if that class's squared error were
-halved in every view. Halving, not
-removing: a view whose error is nearly all one class would otherwise jump to the 100 dB cap and swamp the
-mean. The gain of a view is at most 10 log10 2 = 3.01 dB (all its error in the class); for a class holding
-a share s of a view's error it is -10 log10(1 - s / 2). Gains of different classes do not add up, but they
-rank what to fix.
+halved in every view. Halving, not removing: a view whose error is nearly all one class would otherwise
+jump to the 100 dB cap and swamp the mean. The gain of a view is at most 10 log10 2 = 3.01 dB (all its
+error in the class); for a class holding a share s of a view's error it is -10 log10(1 - s / 2). Gains
+of different classes do not add up, but they rank what to fix.
 """
 
 from __future__ import annotations
