@@ -29,7 +29,7 @@ from activesplat.planning.goals import (  # noqa: E402
     tour_first,
     worth_a_detour,
 )
-from activesplat.planning.replan_memory import Commitment, Promises  # noqa: E402
+from activesplat.planning.replan_memory import Commitment, Promises, RouteMemory  # noqa: E402
 from activesplat.planning.viewpoints import RotationTarget  # noqa: E402
 from activesplat.workspace.clean import extract_workspace  # noqa: E402
 from activesplat.workspace.config import WorkspaceConfig  # noqa: E402
@@ -250,6 +250,41 @@ def test_tour_first_orders_one_node_per_subregion_along_the_route():
     # one subregion with something to see: the ranking stands
     assert tour_first(ranked, np.array([False, True, True, False, False]), travel, nodes, subregions,
                       graph) == ranked
+
+
+def test_a_remembered_route_keeps_its_order_and_inserts_new_stops_where_they_cost_least():
+    import networkx as nx
+
+    memory = RouteMemory(radius=1.5)
+    assert memory.follow(np.zeros((2, 2)), np.ones(2), np.ones((2, 2))) is None  # nothing remembered
+    # the corridor of the test above, agent at x = 0: the shortest route goes west (A at x = -3) first
+    xs = [-3.0, -2.0, -1.0, 0.0, 1.0, 2.0, 3.0, 4.0]
+    graph = nx.Graph()
+    for n, x in enumerate(xs):
+        graph.add_node(n, pos=(x, 0.0))
+        if n:
+            graph.add_edge(n - 1, n, weight=1.0)
+    nodes = [0, 4, 5, 6, 7]
+    subregions = {0: "A", 1: "A", 2: "A", 3: "A", 4: "B", 5: "B", 6: "C", 7: "C"}
+    worth = np.array([True, True, True, False, True])
+    ranked = [2, 1, 4, 0, 3]
+    order = tour_first(ranked, worth, np.array([3.0, 1.0, 2.0, 3.0, 4.0]), nodes, subregions, graph, memory)
+    assert order[:3] == [0, 2, 4]
+    np.testing.assert_allclose(memory.stops, [[-3.0, 0.0], [2.0, 0.0], [4.0, 0.0]])
+    # the agent moved to x = 2.5: a new route would go east first (C, B, A); the memory keeps A first
+    travel = np.abs(np.array([-3.0, 1.0, 2.0, 3.0, 4.0]) - 2.5)
+    again = tour_first(ranked, worth, travel, nodes, subregions, graph, memory)
+    assert again[:3] == [0, 2, 4]
+    assert tour_first(ranked, worth, travel, nodes, subregions, graph)[:3] == [4, 2, 0]
+    # the agent back at x = 0, A done (no candidate there), B now stood for by x = 1 (within the radius of
+    # its remembered stop), a new subregion D at x = -1: D goes where it lengthens the route least, before
+    # B (D, B, C: 1 + 2 + 3 m; B, D, C: 1 + 2 + 5 m), and B, C keep their order
+    nodes2 = [2, 4, 5, 7]
+    subregions2 = {0: "A", 1: "A", 2: "D", 3: "A", 4: "B", 5: "B", 6: "C", 7: "C"}
+    order2 = tour_first([1, 2, 0, 3], np.array([True, True, True, True]), np.array([1.0, 1.0, 2.0, 4.0]),
+                        nodes2, subregions2, graph, memory)
+    assert order2[:3] == [0, 1, 3]
+    np.testing.assert_allclose(memory.stops, [[-1.0, 0.0], [1.0, 0.0], [4.0, 0.0]])
 
 
 class HalfSeen:

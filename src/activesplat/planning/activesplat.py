@@ -25,7 +25,7 @@ from activesplat.planning.goals import (
 )
 from activesplat.planning.observed import unsampled_views
 from activesplat.planning.panorama import render_panorama
-from activesplat.planning.replan_memory import Commitment, Promises
+from activesplat.planning.replan_memory import Commitment, Promises, RouteMemory
 from activesplat.planning.viewpoints import RotationTarget, rotation_candidates
 from activesplat.timing import Timers
 from activesplat.workspace.paths import path_length, plan_safe_path
@@ -52,6 +52,9 @@ class ActiveSplatExplorer(Explorer):
         """What the nodes outside the agent's subregion promised at earlier replans (`keep_promise_m`)."""
         self.commitment = None if self.cfg.commit_global_m is None else Commitment(self.cfg.commit_global_m)
         """The goal of the last global choice, followed until reached or seen (`commit_global_m`)."""
+        self.route_memory = (None if self.cfg.route_memory_m is None
+                             else RouteMemory(self.cfg.route_memory_m, self.cfg.route_min_info))
+        """The order of the last global route through the subregions (`route_memory_m`)."""
         self._put_off: np.ndarray | None = None  # the ranked goal the last replan put off (postpone_once_m)
         self._ranked: list = []  # the best candidates of the current replan, for its record
         self.replans: list[dict] = []
@@ -69,7 +72,7 @@ class ActiveSplatExplorer(Explorer):
         goal_order = self.timers.time("position_selection", rank_goals, plan, here, self.world.render,
                                       self.floor_height, self.visited, self.failed, cfg.planning,
                                       cfg.workspace, rules, self.rng, self.observed, self.promises,
-                                      self.commitment)
+                                      self.commitment, self.route_memory)
 
         def find_path(goal: np.ndarray) -> np.ndarray | None:
             return self.timers.time("planner", plan_safe_path, plan.graph, plan.workspace, here, goal,

@@ -17,7 +17,7 @@ from activesplat.planning.config import PlanningConfig
 from activesplat.planning.controller import ControllerConfig, fewest_actions_order
 from activesplat.planning.observed import ObservedSurface, poorly_observed_share
 from activesplat.planning.panorama import RenderFn, render_panorama
-from activesplat.planning.replan_memory import Commitment, Promises
+from activesplat.planning.replan_memory import Commitment, Promises, RouteMemory
 from activesplat.planning.viewpoints import (
     RotationTarget,
     hull_volume,
@@ -207,12 +207,13 @@ def _held_karp(start: np.ndarray, pairwise: np.ndarray) -> list[int]:
 
 
 def tour_first(ranked: list[int], worth: np.ndarray, travel: np.ndarray, nodes: Sequence[int],
-               subregions: dict[int, int], graph: nx.Graph) -> list[int]:
+               subregions: dict[int, int], graph: nx.Graph, memory: RouteMemory | None = None) -> list[int]:
     """The global stage's order with a route (ours, `global_tour`): of the nodes that promise something to
     see (`worth`), the first in `ranked` of each subregion stands for it; the subregions come in the order
     of the shortest open route from the agent through them all (`shortest_tour`), and the rest of `ranked`
     follows in its own order. Score minus distance alone sends the agent to the best node, then to the best
-    from there, and a room left on the way is a long trip back at the end."""
+    from there, and a room left on the way is a long trip back at the end. With `memory` the order of the
+    last route is kept for the subregions still on it (`RouteMemory.follow`), and the route is remembered."""
     reps: list[int] = []
     seen: set = set()
     for i in ranked:
@@ -222,9 +223,17 @@ def tour_first(ranked: list[int], worth: np.ndarray, travel: np.ndarray, nodes: 
         if key not in seen:
             seen.add(key)
             reps.append(i)
+    rep_pos = np.array([graph.nodes[nodes[i]]["pos"] for i in reps], float).reshape(-1, 2)
     if len(reps) <= 1:
+        if memory is not None:
+            memory.stops = rep_pos
         return ranked
-    route = shortest_tour(travel[reps], pairwise_travel(graph, [nodes[i] for i in reps]))
+    pairwise = pairwise_travel(graph, [nodes[i] for i in reps])
+    route = None if memory is None else memory.follow(rep_pos, travel[reps], pairwise)
+    if route is None:
+        route = shortest_tour(travel[reps], pairwise)
+    if memory is not None:
+        memory.stops = rep_pos[route]
     first = [reps[r] for r in route]
     taken = set(first)
     return first + [i for i in ranked if i not in taken]
@@ -268,7 +277,7 @@ def rank_goals(plan: Plan, here: np.ndarray, render: RenderFn, floor_height: flo
                visited: Sequence[np.ndarray], failed: Sequence[np.ndarray], pcfg: PlanningConfig,
                wcfg: WorkspaceConfig, rules: GoalRules, rng: np.random.Generator,
                observed: ObservedSurface | None = None, promises: Promises | None = None,
-               commitment: Commitment | None = None) -> list[int]:
+               commitment: Commitment | None = None, route_memory: RouteMemory | None = None) -> list[int]:
     """Candidate goal nodes of `plan.graph`, best first (eq. 12 scores; local-then-global, sec. III-C).
     Renders a panorama at up to `max_panoramas` open candidates and records every candidate's score and
     information part in `plan.scores` / `plan.info`. `random_goals`: a random order of the open nodes,
@@ -277,7 +286,8 @@ def rank_goals(plan: Plan, here: np.ndarray, render: RenderFn, floor_height: flo
     With `promises` (hierarchical only) a node outside the agent's subregion promises at least what it
     promised at an earlier replan (`Promises`). With `commitment` a global stage goes on toward the
     subregion chosen at an earlier global replan while it holds something to see (`Commitment`); whether
-    it did is `plan.committed`."""
+    it did is `plan.committed`. With `route_memory` the global stage follows a route whose order is kept
+    across replans (`RouteMemory`, implies the route of `global_tour`)."""
     graph, ws = plan.graph, plan.workspace
     nodes = goal_candidates(graph)
     if not nodes:
@@ -341,8 +351,9 @@ def rank_goals(plan: Plan, here: np.ndarray, render: RenderFn, floor_height: flo
     local_promising = worth_a_visit(local_info, open_, rules.local_score_threshold)
     plan.stage = "flat" if not hierarchical else "local" if (local_promising & in_local).any() else "global"
     order = local_then_global(scores, local_info, travel, open_, in_local, rules, global_scores, info)
-    if rules.global_tour and plan.stage == "global":
-        order = tour_first(order, promising, travel, nodes, plan.subregions, graph)
+    if (rules.global_tour or route_memory is not None) and plan.stage == "global":
+        stops = promising if route_memory is None else promising & (info > route_memory.min_info)
+        order = tour_first(order, stops, travel, nodes, plan.subregions, graph, route_memory)
     plan.committed = False
     if commitment is not None and plan.stage == "global":
         order, plan.committed = commitment.first(order, promising, nodes, pos, plan.subregions)

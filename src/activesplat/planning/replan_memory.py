@@ -1,6 +1,7 @@
 """What the goal selection remembers from one replan to the next (ours; both off by default): the
 promises of nodes outside the agent's subregion (`Promises`, `ExplorerConfig.keep_promise_m`) and the
-goal of the last global choice (`Commitment`, `ExplorerConfig.commit_global_m`). The paper's planner
+goal of the last global choice (`Commitment`, `ExplorerConfig.commit_global_m`) and the order of the last
+global route (`RouteMemory`, `ExplorerConfig.route_memory_m`). The paper's planner
 ranks every replan from its own panoramas alone; `planning.goals.rank_goals` applies these on top."""
 
 from __future__ import annotations
@@ -78,4 +79,49 @@ class Commitment:
         return order, False
 
 
-__all__ = ["Commitment", "Promises"]
+@dataclass
+class RouteMemory:
+    """The order of the last global route through the subregions, kept across replans (ours,
+    `ExplorerConfig.route_memory_m`). `goals.tour_first` re-plans the shortest route at every global
+    replan; the map grows in between, and the route's first stop could jump to the other side of the house
+    and back (fresh medium-103: six crossings of 8-13 m). With this memory the stops of the last route that
+    are still there (a subregion's representative within `radius` of a remembered stop) keep their order,
+    new ones are inserted where they lengthen the route least, and finished ones drop out."""
+
+    radius: float
+    """A remembered stop stands for the current representative within this (metres)."""
+    min_info: float = 0.0
+    """Only subregions whose best node promises more than this (information part of eq. 12) are stops of
+    the route; the others follow in the global stage's own order (0: every subregion worth a visit)."""
+    stops: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    """Floor (x, z) of the last route's stops, in route order."""
+
+    def follow(self, pos: np.ndarray, start: np.ndarray, pairwise: np.ndarray) -> list[int] | None:
+        """The order of the current stops (`pos` (K, 2), `start[i]`: travel from the agent, `pairwise`:
+        between stops) that keeps the remembered order of those matched to it, with the others inserted by
+        cheapest insertion; None when no remembered stop matches (then a new route is planned)."""
+        pos = np.asarray(pos, float).reshape(-1, 2)
+        kept: list[int] = []
+        for stop in self.stops:
+            d = np.hypot(*(pos - stop).T)
+            d[kept] = np.inf
+            if len(d) and d.min() <= self.radius:
+                kept.append(int(np.argmin(d)))
+        if not kept:
+            return None
+        for new in sorted(set(range(len(pos))) - set(kept), key=lambda i: (start[i], i)):
+            # cost of putting `new` before position j (j = len: at the end)
+            costs = []
+            for j in range(len(kept) + 1):
+                before = start[new] if j == 0 else pairwise[kept[j - 1], new]
+                after = 0.0 if j == len(kept) else pairwise[new, kept[j]]
+                if j == len(kept):
+                    link = 0.0
+                else:
+                    link = start[kept[0]] if j == 0 else pairwise[kept[j - 1], kept[j]]
+                costs.append(before + after - link)
+            kept.insert(int(np.argmin(costs)), new)
+        return kept
+
+
+__all__ = ["Commitment", "Promises", "RouteMemory"]
