@@ -228,22 +228,24 @@ def test_the_shortest_tour_matches_the_best_order_on_small_random_sets():
         assert sorted(local) == list(range(6)) and _route_length(start, pairwise, local) <= 1.1 * best
 
 
-def test_tour_first_orders_one_node_per_subregion_along_the_route():
+def _corridor():
+    """A corridor graph: nodes every metre at x = -3..4; candidates (indices 0-4) are nodes 0, 4, 5, 6, 7;
+    subregion A holds x = -3 (with a promising node), B holds x = 1, 2 (both promising), C holds x = 4;
+    x = 3 promises nothing. Ranked by score minus distance from x = 0: node 5 (B) first, node 0 late."""
     import networkx as nx
 
-    # a corridor graph: nodes every metre at x = -3..4, the agent at 0; subregion A holds x = -3 (with a
-    # promising node), B holds x = 1, 2 (both promising), C holds x = 4; x = 3 promises nothing
-    xs = [-3.0, -2.0, -1.0, 0.0, 1.0, 2.0, 3.0, 4.0]
     graph = nx.Graph()
-    for n, x in enumerate(xs):
+    for n, x in enumerate([-3.0, -2.0, -1.0, 0.0, 1.0, 2.0, 3.0, 4.0]):
         graph.add_node(n, pos=(x, 0.0))
         if n:
             graph.add_edge(n - 1, n, weight=1.0)
-    nodes = [0, 4, 5, 6, 7]
     subregions = {0: "A", 1: "A", 2: "A", 3: "A", 4: "B", 5: "B", 6: "C", 7: "C"}
-    worth = np.array([True, True, True, False, True])
+    return graph, [0, 4, 5, 6, 7], subregions, np.array([True, True, True, False, True]), [2, 1, 4, 0, 3]
+
+
+def test_tour_first_orders_one_node_per_subregion_along_the_route():
+    graph, nodes, subregions, worth, ranked = _corridor()  # the agent at x = 0
     travel = np.array([3.0, 1.0, 2.0, 3.0, 4.0])
-    ranked = [2, 1, 4, 0, 3]  # score minus distance: node 5 (B) first, the far side (node 0) late
     order = tour_first(ranked, worth, travel, nodes, subregions, graph)
     # A (x = -3) first, then B (represented by its first-ranked node, index 2), then C; the rest after
     assert order == [0, 2, 4, 1, 3]
@@ -253,21 +255,10 @@ def test_tour_first_orders_one_node_per_subregion_along_the_route():
 
 
 def test_a_remembered_route_keeps_its_order_and_inserts_new_stops_where_they_cost_least():
-    import networkx as nx
-
     memory = RouteMemory(radius=1.5)
     assert memory.follow(np.zeros((2, 2)), np.ones(2), np.ones((2, 2))) is None  # nothing remembered
-    # the corridor of the test above, agent at x = 0: the shortest route goes west (A at x = -3) first
-    xs = [-3.0, -2.0, -1.0, 0.0, 1.0, 2.0, 3.0, 4.0]
-    graph = nx.Graph()
-    for n, x in enumerate(xs):
-        graph.add_node(n, pos=(x, 0.0))
-        if n:
-            graph.add_edge(n - 1, n, weight=1.0)
-    nodes = [0, 4, 5, 6, 7]
-    subregions = {0: "A", 1: "A", 2: "A", 3: "A", 4: "B", 5: "B", 6: "C", 7: "C"}
-    worth = np.array([True, True, True, False, True])
-    ranked = [2, 1, 4, 0, 3]
+    # the corridor, agent at x = 0: the shortest route goes west (A at x = -3) first
+    graph, nodes, subregions, worth, ranked = _corridor()
     order = tour_first(ranked, worth, np.array([3.0, 1.0, 2.0, 3.0, 4.0]), nodes, subregions, graph, memory)
     assert order[:3] == [0, 2, 4]
     np.testing.assert_allclose(memory.stops, [[-3.0, 0.0], [2.0, 0.0], [4.0, 0.0]])
