@@ -129,7 +129,8 @@ class ExplorerConfig:
     the old stops is left. Without it the route is re-planned at every replan, and its first stop kept
     changing sides of the house. 2 m on medium-0..3 x 2 seeds: 86.60 -> 84.16 % (medium-2 seed 1 70.09 %:
     the route took every subregion still worth a visit in turn, 17-18 m trips for information 7); with
-    `route_min_info` 20: 86.48 %, at step 1000 62.43 -> 63.47 %, rotations 50.2 -> 48.8 %; so off
+    `route_min_info` 20: 86.48 %, at step 1000 62.43 -> 63.47 %, rotations 50.2 -> 48.8 %, fresh
+    medium-100..109 seed 0 86.37 -> 86.53 % (seven runs unchanged); so off
     (docs/benchmark.md "A route that keeps its order")."""
     route_min_info: float = 0.0
     """With `route_memory_m`: only subregions whose best node promises more than this information part are
