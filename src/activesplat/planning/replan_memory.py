@@ -109,17 +109,15 @@ class RouteMemory:
                 kept.append(int(np.argmin(d)))
         if not kept:
             return None
+
+        def leg(a: int | None, b: int | None) -> float:
+            """Travel from stop a (None: the agent) to stop b (None: the open route's end, free)."""
+            return 0.0 if b is None else float(start[b] if a is None else pairwise[a, b])
+
         for new in sorted(set(range(len(pos))) - set(kept), key=lambda i: (start[i], i)):
-            # cost of putting `new` before position j (j = len: at the end)
-            costs = []
-            for j in range(len(kept) + 1):
-                before = start[new] if j == 0 else pairwise[kept[j - 1], new]
-                after = 0.0 if j == len(kept) else pairwise[new, kept[j]]
-                if j == len(kept):
-                    link = 0.0
-                else:
-                    link = start[kept[0]] if j == 0 else pairwise[kept[j - 1], kept[j]]
-                costs.append(before + after - link)
+            # the extra length of putting `new` between each pair of neighbours on the route
+            pairs = zip([None, *kept], [*kept, None], strict=True)
+            costs = [leg(a, new) + leg(new, b) - leg(a, b) for a, b in pairs]
             kept.insert(int(np.argmin(costs)), new)
         return kept
 
