@@ -210,6 +210,14 @@ def test_benchmark_refuses_a_root_run_with_other_settings(capsys, tmp_path, monk
     assert len(err.strip().splitlines()) == 1
     code, out_text, err = _run(capsys, *argv, "--mapper.pixel-stride", "3")  # the same settings: complete
     assert "1 already complete, 0 to run" in out_text, (out_text, err)
+    recorded = config.to_dict()  # a run older than an option: the option at its default is the same run
+    del recorded["mapper"]["densify_median_depth"]
+    (out / "episode.json").write_text(json.dumps({"config": recorded}))
+    code, out_text, err = _run(capsys, *argv, "--mapper.pixel-stride", "3")
+    assert "1 already complete, 0 to run" in out_text, (out_text, err)
+    code, _, err = _run(capsys, *argv, "--mapper.pixel-stride", "3", "--mapper.densify-median-depth")
+    assert code == 2 and "was run with mapper.densify_median_depth = None but this benchmark asks for True" \
+        in err, err
 
 
 def test_refine_takes_the_recorded_settings_then_the_options(capsys, tmp_path, monkeypatch):

@@ -156,7 +156,11 @@ def plan_runs(scenes: Sequence[str], policies: Sequence[str], seeds: Sequence[in
 
 def check_configs(specs: Sequence[RunSpec], config) -> None:
     """Refuse a ROOT whose finished runs were made with other settings than `config` (a RunConfig whose
-    scene, policy, seed and steps each run replaces): one table would mix configurations."""
+    scene, policy, seed and steps each run replaces): one table would mix configurations.
+
+    A setting the recorded config lacks (an option added after the run) differs only when asked for at
+    another value than its default: options arrive off by default, so the run behaved as the default does."""
+    defaults = _flat(type(config)().to_dict())
     for spec in specs:
         if read_metrics(spec.out) is None:
             continue
@@ -167,7 +171,7 @@ def check_configs(specs: Sequence[RunSpec], config) -> None:
         want = config.replace(scene=spec.scene, policy=spec.policy, seed=spec.seed,
                               steps=recorded.get("steps")).to_dict()
         was, now = _flat(recorded), _flat(want)
-        differ = [k for k in now if was.get(k) != now[k]]
+        differ = [k for k in now if was.get(k, defaults.get(k)) != now[k]]
         if differ:
             key = differ[0]
             raise InvalidInputError(f"{spec.out} was run with {key} = {was.get(key)!r} but this benchmark "
