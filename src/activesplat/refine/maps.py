@@ -28,7 +28,8 @@ def render_eval_from_args(args: argparse.Namespace) -> int:
     _, _, out = locate(args.dir)
     options = {"renderer": None, **render_options(Path(out))}
     result = render_eval(args.dir, n_train=args.n_train, n_test=args.n_test, seed=args.seed,
-                         backend=args.backend, progress=not args.no_progress, **options)
+                         backend=args.backend, progress=not args.no_progress,
+                         lpips=not getattr(args, "no_lpips", False), **options)
     print(format_table(result, out))
     if getattr(args, "budget", False):
         from activesplat.episode import write_json_atomic
