@@ -9,7 +9,7 @@ import pytest
 from activesplat.cli import main
 from activesplat.episode import read_episode
 from activesplat.eval.coverage import CoverageConfig
-from activesplat.eval.evaluate import evaluate_episode
+from activesplat.eval.evaluate import evaluate_episode, replay_episode
 from activesplat.explore import TIMING_KEYS, run_exploration
 from activesplat.sim import SimConfig
 
@@ -100,6 +100,17 @@ def test_evaluate_recomputes_the_same_completion(episode):
     assert m["completion_ratio_pct"] == pytest.approx(metrics["completion_ratio_pct"], abs=1e-9)
     assert m["completion_cm"] == pytest.approx(metrics["completion_cm"], rel=1e-9)
     assert m["path_length_m"] == pytest.approx(metrics["path_length_m"])
+
+
+def test_a_replay_gives_what_each_frame_saw_first(episode):
+    out, metrics = episode
+    m = replay_episode(out, with_gain=True)
+    gain = m["gain_by_frame"]
+    assert len(gain) == metrics["steps"] + 1 and (gain >= 0).all()
+    assert 100.0 * gain.sum() / m["n_gt_points"] == pytest.approx(metrics["completion_ratio_pct"], abs=1e-9)
+    by_cause = metrics["completion_gain"]["by_cause"]  # the live run's split adds up the same frames
+    assert sum(v["completion_pct"] for v in by_cause.values()) == pytest.approx(100.0 * gain.sum()
+                                                                               / m["n_gt_points"])
 
 
 def test_same_seed_same_actions(episode, tmp_path):

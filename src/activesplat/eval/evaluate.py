@@ -41,9 +41,9 @@ def _sim_config(meta: dict, overrides: dict | None = None):
     return SimConfig(**{**kwargs, **(overrides or {})})
 
 
-def evaluate_episode(path: str | Path, write: bool = True) -> dict:
-    """Replay DIR/actions.txt from the recorded start pose, measure completion (docs/protocol.md §6) and
-    update DIR/metrics.json (a partial episode gets one marked `"complete": false`)."""
+def replay_episode(path: str | Path, **options) -> dict:
+    """`replay_coverage` of an episode folder with the scene, coverage and simulator settings it was
+    recorded with; `options` are replay_coverage's (``with_completed``, ``with_gain``)."""
     from activesplat.sim import load_scene
 
     episode = read_episode(path)
@@ -53,8 +53,15 @@ def evaluate_episode(path: str | Path, write: bool = True) -> dict:
     scene = load_scene(meta["scene"], z_up=bool(meta.get("z_up", False)), floor=meta.get("floor"))
     cov = meta.get("config", {}).get("coverage", {})
     cfg = CoverageConfig(**{k: v for k, v in cov.items() if k in CoverageConfig.__dataclass_fields__})
-    result = replay_coverage(scene, episode.start_pose, episode.actions, cfg, expected_poses=episode.poses,
-                             sim_config=_sim_config(meta))
+    return replay_coverage(scene, episode.start_pose, episode.actions, cfg, expected_poses=episode.poses,
+                           sim_config=_sim_config(meta), **options)
+
+
+def evaluate_episode(path: str | Path, write: bool = True) -> dict:
+    """Replay DIR/actions.txt from the recorded start pose, measure completion (docs/protocol.md §6) and
+    update DIR/metrics.json (a partial episode gets one marked `"complete": false`)."""
+    episode = read_episode(path)
+    result = replay_episode(path)
     metrics_path = episode.dir / "metrics.json"
     metrics = json.loads(metrics_path.read_text()) if metrics_path.exists() else {"complete": False}
     metrics.update({k: result[k] for k in COMPLETION_KEYS})

@@ -12,13 +12,15 @@ from activesplat.eval.coverage import CoverageAccumulator, CoverageConfig
 
 def replay_coverage(scene, start_pose: np.ndarray, actions: Iterable[str], cfg: CoverageConfig | None = None,
                     expected_poses: np.ndarray | None = None, sim_config=None,
-                    with_completed: bool = False) -> dict:
+                    with_completed: bool = False, with_gain: bool = False) -> dict:
     """Completion metrics and path length of an episode, from its start pose and actions alone.
 
     After the reset and after every action, the ground-truth depth at `cfg.resolution` (same field of
     view) is back-projected; `expected_poses` (N+1, 4, 4), when given, must match the replayed poses
     (a mismatch means the log does not belong to this scene / start / simulator version).
     `with_completed`: add ``completed``, the per-ground-truth-point mask the completion ratio counts.
+    `with_gain`: add ``gain_by_frame``, the ground-truth points each frame observed first
+    (`CoverageAccumulator.gain_by_frame`).
     """
     from activesplat.geometry import intrinsics
     from activesplat.sim import SimConfig, Simulator
@@ -49,4 +51,6 @@ def replay_coverage(scene, start_pose: np.ndarray, actions: Iterable[str], cfg: 
     metrics["steps"] = len(poses) - 1
     if with_completed:
         metrics["completed"] = acc.completed()
+    if with_gain:
+        metrics["gain_by_frame"] = acc.gain_by_frame()
     return metrics
