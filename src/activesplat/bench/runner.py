@@ -174,8 +174,10 @@ def check_configs(specs: Sequence[RunSpec], config) -> None:
         differ = [k for k in now if was.get(k, defaults.get(k)) != now[k]]
         if differ:
             key = differ[0]
-            raise InvalidInputError(f"{spec.out} was run with {key} = {was.get(key)!r} but this benchmark "
-                                    f"asks for {now[key]!r}: use another --root")
+            then = (f"with {key} = {was[key]!r}" if key in was
+                    else f"before {key} existed (default {defaults.get(key)!r})")
+            raise InvalidInputError(f"{spec.out} was run {then} but this benchmark asks for {now[key]!r}: "
+                                    f"use another --root")
 
 
 def _flat(d: dict, prefix: str = "") -> dict:
