@@ -29,36 +29,32 @@ from activesplat.episode import read_episode
 from activesplat.eval.evaluate import replay_episode
 
 
+def next_forward(actions: list[str], step: int) -> int:
+    """Index of the first forward move at or after `step` (len(actions) if none)."""
+    return next((i for i in range(step, len(actions)) if actions[i] == "move_forward"), len(actions))
+
+
 def stop_spans(actions: list[str], stops: list[dict], replans: list[int]) -> list[tuple[str, int, int]]:
     """(cause, first action, end) of every rotation stop: actions [first, end) belong to it."""
     spans = []
     for stop in stops:
         s = int(stop["step"])
         if stop["cause"] == "arrival":
-            later = [r for r in replans if r >= s]
-            end = later[0] if later else len(actions)
+            end = next((r for r in replans if r >= s), len(actions))
         else:
-            end = s
-            while end < len(actions) and actions[end] != "move_forward":
-                end += 1
+            end = next_forward(actions, s)
         spans.append((stop["cause"], s, end))
     return spans
 
 
 def alignment_spans(actions: list[str], replans: list[int]) -> list[tuple[int, int]]:
     """(replan step, first forward move after it) for every replan."""
-    spans = []
-    for r in replans:
-        end = r
-        while end < len(actions) and actions[end] != "move_forward":
-            end += 1
-        spans.append((r, end))
-    return spans
+    return [(r, next_forward(actions, r)) for r in replans]
 
 
 def analyse(episode_dir: Path, tail: int) -> dict:
     episode = read_episode(episode_dir)
-    replay = replay_episode(episode_dir, with_gain=True)
+    replay = replay_episode(episode, with_gain=True)
     n_points = replay["n_gt_points"]
     gain = np.asarray(replay["gain_by_frame"], np.float64) * 100.0 / n_points  # completion points per frame
     actions = list(episode.actions)

@@ -104,7 +104,7 @@ def test_evaluate_recomputes_the_same_completion(episode):
 
 def test_a_replay_gives_what_each_frame_saw_first(episode):
     out, metrics = episode
-    m = replay_episode(out, with_gain=True)
+    m = replay_episode(read_episode(out), with_gain=True)
     gain = m["gain_by_frame"]
     assert len(gain) == metrics["steps"] + 1 and (gain >= 0).all()
     assert 100.0 * gain.sum() / m["n_gt_points"] == pytest.approx(metrics["completion_ratio_pct"], abs=1e-9)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from activesplat.episode import read_episode, write_json_atomic
+from activesplat.episode import Episode, read_episode, write_json_atomic
 from activesplat.errors import EpisodeError
 from activesplat.eval.coverage import CoverageConfig
 from activesplat.eval.replay import replay_coverage
@@ -41,12 +41,11 @@ def _sim_config(meta: dict, overrides: dict | None = None):
     return SimConfig(**{**kwargs, **(overrides or {})})
 
 
-def replay_episode(path: str | Path, **options) -> dict:
-    """`replay_coverage` of an episode folder with the scene, coverage and simulator settings it was
-    recorded with; `options` are replay_coverage's (``with_completed``, ``with_gain``)."""
+def replay_episode(episode: Episode, **options) -> dict:
+    """`replay_coverage` of an episode (`read_episode`) with the scene, coverage and simulator settings it
+    was recorded with; `options` are replay_coverage's (``with_completed``, ``with_gain``)."""
     from activesplat.sim import load_scene
 
-    episode = read_episode(path)
     meta = episode.meta
     if "scene" not in meta:
         raise EpisodeError(f"{episode.dir}/episode.json names no scene")
@@ -61,7 +60,7 @@ def evaluate_episode(path: str | Path, write: bool = True) -> dict:
     """Replay DIR/actions.txt from the recorded start pose, measure completion (docs/protocol.md §6) and
     update DIR/metrics.json (a partial episode gets one marked `"complete": false`)."""
     episode = read_episode(path)
-    result = replay_episode(path)
+    result = replay_episode(episode)
     metrics_path = episode.dir / "metrics.json"
     metrics = json.loads(metrics_path.read_text()) if metrics_path.exists() else {"complete": False}
     metrics.update({k: result[k] for k in COMPLETION_KEYS})
