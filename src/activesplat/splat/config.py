@@ -104,8 +104,8 @@ class MapperConfig:
     rows of a floor or ceiling seen from afar no longer leave gaps between them. Replays with the area
     texture filter: medium-0 test 26.53 -> 26.74 dB (2) / 26.79 dB (4), medium-2-plain 28.39 -> 28.66 /
     28.63 dB, test depth L1 -0.5 to -0.8 cm, for 21-28 % more Gaussians; train LPIPS of the textured house
-    0.157 -> 0.166 / 0.176 (one colour repeated over the footprint). Off by default (README, "Mapping at
-    house scale"). In the loop (4, tuning houses x 2 seeds): completion 86.60 -> 86.28 %, mapper 38 -> 51
+    0.157 -> 0.166 / 0.176 (one colour repeated over the footprint). Off by default (docs/mapping.md). In the
+    loop (4, tuning houses x 2 seeds): completion 86.60 -> 86.28 %, mapper 38 -> 51
     ms/step, 23 % more Gaussians; the live seed-0 maps test 28.22 -> 28.26 dB, LPIPS 0.250 -> 0.263, depth
     L1 4.65 -> 4.25 cm, train LPIPS 0.170 -> 0.194 (docs/benchmark.md "Slant fill in the loop").
 
@@ -117,7 +117,7 @@ class MapperConfig:
     the plane and made this fraction of its radius thick along the normal: seen head-on it covers the
     same pixels as before, seen edge-on it is a thin line. Default 0.1 (0.05 gives the same map).
     Replays as above: medium-2-plain train / test 31.31 / 28.12 -> 31.99 / 28.35 dB at k = 5, depth L1
-    4.76 / 8.10 -> 4.15 / 7.45 cm; the textured medium-0..3 in the README ("Mapping at house scale").
+    4.76 / 8.10 -> 4.15 / 7.45 cm; the textured medium-0..3 in docs/mapping.md.
     Flat and elongated together (``init_max_elongation`` 4) is worse than either: train 30.48 dB, depth L1
     11.9 cm, because a stretched Gaussian renders its centre's depth over its whole length.
 
@@ -151,7 +151,7 @@ class MapperConfig:
     mapper CPU. Both sides of the jump at pixel resolution, with any 5 % step between neighbours counted
     as a jump, scored higher on the train views and lower on the test views for twice the extra Gaussians.
     Off by default: the tuning explorations run with it (medium-0..3 x seeds 0, 1) reached 79.47 % instead
-    of 85.94 % completion, one run losing half the house (README, "Mapping at house scale"), and a second
+    of 85.94 % completion, one run losing half the house (docs/mapping.md), and a second
     pass over the same trajectory adds 9.8 % Gaussians instead of 8.0 %. Re-measured with the defaults of
     2026-11-27 (no collapse): tuning houses 86.21 vs 86.60 %, fresh medium-100..109 85.37 vs 86.37 %, for
     live test depth L1 4.23 vs 4.65 cm at the same PSNR; still off.
@@ -163,7 +163,7 @@ class MapperConfig:
     edges above do at depth jumps. One Gaussian per pixel everywhere (``pixel_stride=1``) measures what
     the stride costs: on the medium-0 / medium-1 replays train PSNR 29.32 / 29.23 -> 30.46 / 30.20 dB,
     LPIPS 0.251 / 0.271 -> 0.134 / 0.154, test PSNR 25.06 / 27.25 -> 24.90 / 27.17 dB, for 4x the
-    Gaussians and 3.2x the mapper CPU (README, "Mapping at house scale"). With 0.1 (the default), mean of
+    Gaussians and 3.2x the mapper CPU (docs/mapping.md). With 0.1 (the default), mean of
     the medium-0..3 replays: train PSNR / LPIPS / depth L1 29.29 / 0.267 / 3.05 -> 29.85 / 0.224 /
     2.69 cm, test 26.91 / 0.338 / 5.26 -> 27.11 / 0.301 / 5.08 cm, every house better on both splits, for
     19 % more Gaussians; small-100..103 test 29.99 -> 30.19 dB. The tuning explorations are not worse for
@@ -206,7 +206,7 @@ class MapperConfig:
     (``benchmarks/mapper_ceiling.py``): test depth L1 2.50 -> 2.14 cm, train 2.20 -> 1.87 cm, test PSNR
     30.99 -> 31.03 dB, train 31.52 -> 31.45, LPIPS 0.185 either way. Explorations on fresh houses
     (medium-100..109, seed 0): completion 86.13 -> 85.69 %, within the spread of one seed per house
-    (README, "Mapping at house scale").
+    (docs/mapping.md).
 
     Scale learning rate (``lr.scales``; release and SplaTAM 1e-3, 3DGS 5e-3; an option, the release's
     rate stays the default). At 1e-3 per Adam step on the log-scale a Gaussian's size changes by at most
@@ -217,8 +217,8 @@ class MapperConfig:
     34.09 / 1.21, 5e-3 34.11 / 1.16, 1e-2 34.10 / 1.10, 2e-2 33.95 / 1.08. Tours of medium-0..3 at 1e-2:
     test depth L1 2.14 -> 1.88 cm, test PSNR 31.03 -> 31.17 dB, LPIPS 0.185 -> 0.183, train depth L1
     1.87 -> 1.68 cm (train LPIPS 0.186 -> 0.191), the plain house test 32.68 -> 32.95 dB, 3-5 % fewer
-    Gaussians. Not the default because of what it does to exploration (README, "Mapping at house
-    scale"): medium-0..3 x 2 seeds 86.20 -> 85.73 %; fresh medium-100..109 seed 0 85.69 -> 84.34 %, one
+    Gaussians. Not the default because of what it does to exploration (docs/mapping.md): medium-0..3 x 2 seeds
+    86.20 -> 85.73 %; fresh medium-100..109 seed 0 85.69 -> 84.34 %, one
     house collapsing (medium-105, 84.07 -> 70.54 %: room 1's goals had no path from the corridor at step
     957 and stayed closed; with ``--explorer.retry-unreachable`` the same run gives 83.64 %, but the ten
     houses with both options 85.00 %), the other nine 85.87 % either way; small-100..109 88.52 -> 88.31 %,
