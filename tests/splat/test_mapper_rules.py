@@ -65,6 +65,46 @@ def test_depth_test_with_the_median_rule_skips_blended_edges_but_not_missing_obj
         densification_mask(alpha, depth, obs, cfg)
 
 
+def test_represented_pixels_hold_an_opaque_centre_on_the_observed_surface():
+    from activesplat.splat.densify import represented_mask
+
+    K = np.array([[8.0, 0, 8], [0, 8.0, 8], [0, 0, 1]])  # 16 x 16 image
+    depth = torch.full((16, 16), 2.0)
+    depth[:, :6] = 1.0  # a box face on the left
+    depth[12:, 12:] = 0.0  # unknown
+
+    def at(v, u, z):
+        return [(u + 0.5 - 8) / 8 * z, (v + 0.5 - 8) / 8 * z, z]
+
+    means = torch.tensor([at(4, 10, 2.0),  # on the wall -> marks (4, 10) and its 3 x 3 neighbours
+                          at(8, 3, 1.01),  # on the box within 2 % -> marks (8, 3)
+                          at(8, 10, 1.0),  # 1 m in front of the wall -> no
+                          at(2, 2, 2.0),  # on the wall behind the box, not what this pixel observes -> no
+                          at(10, 10, 2.0),  # on the wall but nearly transparent -> no
+                          at(13, 13, 2.0)])  # over unknown depth -> no
+    opacities = torch.tensor([0.9, 0.9, 0.9, 0.9, 0.1, 0.9])
+    got = represented_mask(means, opacities, np.eye(4), K, depth, tol=0.02, window_px=1)
+    expected = torch.zeros(16, 16, dtype=torch.bool)
+    expected[3:6, 9:12] = True
+    expected[7:10, 2:5] = True
+    assert torch.equal(got, expected)
+    assert int(represented_mask(means, opacities, np.eye(4), K, depth, 0.02, 0).sum()) == 2
+    assert not represented_mask(means[:0], opacities[:0], np.eye(4), K, depth, 0.02, 1).any()
+
+
+def test_the_depth_test_skips_represented_pixels_but_the_opacity_test_does_not():
+    alpha, depth, obs = _planar_render()
+    obs = obs + 0.001 * torch.arange(16.0).reshape(4, 4)
+    obs[1, 1] = obs[2, 2] = 1.5  # in front: both fail the depth test
+    alpha[3, 0] = 0.5  # a hole
+    represented = torch.zeros(4, 4, dtype=torch.bool)
+    represented[1, 1] = represented[3, 0] = True  # (1, 1): its surface is already in the map
+    mask = densification_mask(alpha, depth, obs, MapperConfig(densify_k=5.0), represented=represented)
+    expected = torch.zeros(4, 4, dtype=torch.bool)
+    expected[2, 2] = expected[3, 0] = True
+    assert torch.equal(mask, expected)
+
+
 def test_high_loss_mask_eq10():
     cfg = MapperConfig()
     alpha, median, obs = _planar_render()

@@ -182,6 +182,15 @@ class MapperConfig:
     the edges it leaves alone are also where new Gaussians sharpened the map: medium-0 train / test PSNR
     -0.04 / -0.06 dB, medium-1 -0.24 / -0.24 dB, so it is off by default.
 
+    Surfaces already represented (``densify_represented_tol``; paper and release: none). The same
+    growth, attacked where it is added: a pixel fails eq. 8's depth test only because the blended depth
+    mixes two surfaces if the surface it observes is already in the map. Before the masks, the centres of
+    the view's front-facing Gaussians with opacity >= 0.5 are projected into the observed depth map; a
+    centre within ``densify_represented_tol`` x depth (at least 1 cm) of the depth observed at its pixel
+    marks that pixel and those within ``densify_represented_px`` of it as represented, and the depth test
+    does not add Gaussians there. A surface missing from the map has no centre on it and is added as
+    before; the opacity test (holes, translucent gaps) is unchanged.
+
     Coarse refresh (``refresh_coarse_factor``; paper, release and SplaTAM: none). Eq. 8 adds Gaussians
     only where the map is transparent, so a wall first seen from 4 m keeps the 4-5 cm Gaussians it got
     there when the robot walks up to it, and every close view of it renders blurred. A mapped frame first
@@ -289,6 +298,10 @@ class MapperConfig:
     densify_max_depth_m: float | None = None  # release applies the depth test only below 5 m; None = off
     # project: the depth test also needs the median depth behind the observation (see "Depth test at edges")
     densify_median_depth: bool = False
+    # project: the depth test skips pixels whose observed surface already holds an opaque Gaussian centre,
+    # within this fraction of the depth (see "Surfaces already represented"); None = off (paper, release)
+    densify_represented_tol: float | None = None
+    densify_represented_px: int = 1  # project: a centre marks the pixels within this many pixels of its own
     # project: the eq. 8 / eq. 10 render leaves out the flat Gaussians seen from behind (the far face of a
     # wall or an object); False = every Gaussian, as paper and release (see class docstring "Back faces")
     densify_front_faces_only: bool = True

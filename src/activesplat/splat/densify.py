@@ -15,11 +15,13 @@ from activesplat.splat.gaussians import GaussianMap
 
 
 def densification_mask(alpha: torch.Tensor, depth: torch.Tensor, obs_depth: torch.Tensor,
-                       cfg: MapperConfig, median_depth: torch.Tensor | None = None) -> torch.Tensor:
+                       cfg: MapperConfig, median_depth: torch.Tensor | None = None,
+                       represented: torch.Tensor | None = None) -> torch.Tensor:
     """Eq. 8: M_k = (O < tau_o1) or (D_obs < D_render and |D_obs - D_render| > k * median error),
     only where the observed depth is valid. ``depth`` is the alpha-blended render (as SplaTAM).
     With ``cfg.densify_median_depth`` the depth test also needs the render's ``median_depth`` behind the
-    observation by the same margin (MapperConfig "Depth test at edges")."""
+    observation by the same margin (MapperConfig "Depth test at edges"); the depth test never fires on the
+    ``represented`` pixels (:func:`represented_mask`, MapperConfig "Surfaces already represented")."""
     valid = obs_depth > 0
     error = (obs_depth - depth).abs()
     median_error = error[valid].median() if bool(valid.any()) else error.new_zeros(())
@@ -31,6 +33,8 @@ def densification_mask(alpha: torch.Tensor, depth: torch.Tensor, obs_depth: torc
         in_front &= (median_depth - obs_depth) > margin
     if cfg.densify_max_depth_m is not None:
         in_front &= obs_depth < cfg.densify_max_depth_m
+    if represented is not None:
+        in_front &= ~represented
     return valid & ((alpha < cfg.densify_opacity) | in_front)
 
 
@@ -236,6 +240,20 @@ def gaussians_from_pixels(mask: torch.Tensor, rgb: torch.Tensor, depth: torch.Te
     return {k: t.to(rgb.device) for k, t in raw.items()}
 
 
+def _project(means: torch.Tensor, pose: np.ndarray, K: np.ndarray, h: int, w: int
+             ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Camera depth, integer pixel column and row of each centre, and whether it lies in the image."""
+    rot = torch.from_numpy(pose[:3, :3].astype(np.float32)).to(means.device)
+    t = torch.from_numpy(pose[:3, 3].astype(np.float32)).to(means.device)
+    cam = (means.detach() - t) @ rot  # world -> camera: R^T (p - t)
+    z = cam[:, 2]
+    safe_z = torch.where(z > 1e-6, z, torch.ones_like(z))
+    u = torch.floor(float(K[0, 0]) * cam[:, 0] / safe_z + float(K[0, 2])).long()
+    v = torch.floor(float(K[1, 1]) * cam[:, 1] / safe_z + float(K[1, 2])).long()
+    inside = (z > 1e-6) & (u >= 0) & (u < w) & (v >= 0) & (v < h)
+    return z, u, v, inside
+
+
 def free_space_mask(means: torch.Tensor, pose: np.ndarray, K: np.ndarray, obs_depth: torch.Tensor,
                     margin_m: float, window_px: int) -> torch.Tensor:
     """Floaters: Gaussians whose centre projects into the current view *in front of* the observed
@@ -246,14 +264,7 @@ def free_space_mask(means: torch.Tensor, pose: np.ndarray, K: np.ndarray, obs_de
     neighbourhood with an invalid pixel (unknown space) never prunes. Returns (N,) bool, True = floater.
     """
     h, w = obs_depth.shape
-    rot = torch.from_numpy(pose[:3, :3].astype(np.float32)).to(means.device)
-    t = torch.from_numpy(pose[:3, 3].astype(np.float32)).to(means.device)
-    cam = (means.detach() - t) @ rot  # world -> camera: R^T (p - t)
-    z = cam[:, 2]
-    safe_z = torch.where(z > 1e-6, z, torch.ones_like(z))
-    u = torch.floor(float(K[0, 0]) * cam[:, 0] / safe_z + float(K[0, 2])).long()
-    v = torch.floor(float(K[1, 1]) * cam[:, 1] / safe_z + float(K[1, 2])).long()
-    inside = (z > 1e-6) & (u >= 0) & (u < w) & (v >= 0) & (v < h)
+    z, u, v, inside = _project(means, pose, K, h, w)
     observed = torch.where(obs_depth > 0, obs_depth, torch.zeros_like(obs_depth))
     k = 2 * window_px + 1
     # min-pool of the depth; any invalid (0) pixel makes the neighbourhood minimum 0 -> never a floater
@@ -265,6 +276,28 @@ def free_space_mask(means: torch.Tensor, pose: np.ndarray, K: np.ndarray, obs_de
     idx = torch.nonzero(inside, as_tuple=True)[0]
     floater[idx] = z[idx] < nearest[v[idx], u[idx]] - margin_m
     return floater
+
+
+def represented_mask(means: torch.Tensor, opacities: torch.Tensor, pose: np.ndarray, K: np.ndarray,
+                     obs_depth: torch.Tensor, tol: float, window_px: int) -> torch.Tensor:
+    """(H, W) bool: pixels whose observed surface already holds a Gaussian centre (MapperConfig "Surfaces
+    already represented"): a centre with opacity >= 0.5 that projects into the image within max(1 cm,
+    ``tol`` x depth) of the depth observed at its pixel marks that pixel and its neighbours within
+    ``window_px``."""
+    h, w = obs_depth.shape
+    mark = torch.zeros((h, w), dtype=torch.bool, device=obs_depth.device)
+    if means.shape[0] == 0:
+        return mark
+    z, u, v, inside = _project(means, pose, K, h, w)
+    idx = torch.nonzero(inside & (opacities.detach().reshape(-1) >= 0.5), as_tuple=True)[0]
+    observed = obs_depth[v[idx], u[idx]]
+    on = (observed > 0) & ((z[idx] - observed).abs() <= torch.clamp(tol * observed, min=0.01))
+    mark[v[idx[on]], u[idx[on]]] = True
+    if window_px > 0:
+        k = 2 * window_px + 1
+        mark = torch.nn.functional.max_pool2d(mark[None, None].float(), k, stride=1, padding=window_px)
+        mark = mark[0, 0] > 0
+    return mark
 
 
 def coarse_mask(means: torch.Tensor, log_scales: torch.Tensor, pose: np.ndarray, K: np.ndarray,

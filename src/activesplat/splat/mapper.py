@@ -39,6 +39,7 @@ from activesplat.splat.densify import (
     gaussians_from_pixels,
     high_loss_mask,
     prune_mask,
+    represented_mask,
 )
 from activesplat.splat.gaussians import GaussianMap, activate, back_facing, frustum_rows, rgb_to_f_dc
 from activesplat.splat.keyframes import Keyframe, mapping_window
@@ -255,7 +256,9 @@ class Mapper:
             out = self._render_or_blank(pose, front)
             hl = high_loss_mask(out["alpha"], out["median_depth"], obs_depth, cfg)
             self.high_loss_mask = hl.cpu().numpy()
-            new_mask = densification_mask(out["alpha"], out["depth"], obs_depth, cfg, out["median_depth"])
+            represented = self._represented(pose, obs_depth, front)
+            new_mask = densification_mask(out["alpha"], out["depth"], obs_depth, cfg, out["median_depth"],
+                                          represented)
             if footprint is not None:  # the retired Gaussians' footprint is covered anew, whatever is behind
                 new_mask |= footprint & (obs_depth > 0)
         clock.lap("render_masks")
@@ -282,6 +285,20 @@ class Mapper:
             touched[rows] = True
         stats.pruned = self._prune(torch.nonzero(touched, as_tuple=True)[0], pose, obs_depth, coarse)
         clock.lap("prune")
+
+    def _represented(self, pose: np.ndarray, obs_depth: torch.Tensor, rows: torch.Tensor | None
+                     ) -> torch.Tensor | None:
+        """The pixels whose observed surface the map already holds (:func:`represented_mask`), from the
+        Gaussians of ``rows`` (default: the view's frustum); None when the rule is off."""
+        cfg = self.config
+        if cfg.densify_represented_tol is None:
+            return None
+        if rows is None:
+            rows = self._view_rows(pose, self.K, self.width, self.height)
+        p = self.gaussians.params
+        opacities = torch.sigmoid(p["opacity_logits"].detach().index_select(0, rows))
+        return represented_mask(p["means"].index_select(0, rows), opacities, pose, self.K, obs_depth,
+                                cfg.densify_represented_tol, cfg.densify_represented_px)
 
     def _front_rows(self, pose: np.ndarray) -> torch.Tensor:
         """The Gaussians of this view's frustum less the flat ones it sees from behind

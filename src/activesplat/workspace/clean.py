@@ -77,6 +77,14 @@ def agent_region(free: np.ndarray, agent_rc: np.ndarray) -> np.ndarray:
     return labels == label
 
 
+def grow_into_unknown(free: np.ndarray, unknown: np.ndarray, margin_px: int) -> np.ndarray:
+    """The free grid grown by `margin_px` pixels (a disc) into unknown pixels only: obstacles stay out."""
+    if margin_px <= 0:
+        return free
+    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * margin_px + 1,) * 2)
+    return free | (cv2.dilate(free.astype(np.uint8), kernel).astype(bool) & unknown)
+
+
 def morphology(region: np.ndarray, cfg: WorkspaceConfig) -> np.ndarray:
     """Open (removes specks and thin slivers) then dilate (closes cracks between sparse Gaussians),
     kernel sizes as the release (docs/protocol.md §3)."""
@@ -151,7 +159,8 @@ def extract_workspace(grids: TopDownGrids, agent_xz: np.ndarray, cfg: WorkspaceC
     cfg = cfg or WorkspaceConfig()
     geometry = grids.geometry
     agent_rc = geometry.pixel_index(np.asarray(agent_xz, dtype=np.float64))
-    region = morphology(agent_region(grids.free, agent_rc), cfg)
+    free = grow_into_unknown(grids.free, grids.unknown, int(round(cfg.unknown_margin / cfg.resolution)))
+    region = morphology(agent_region(free, agent_rc), cfg)
     outer, holes = outer_and_holes(region, agent_rc, cfg) if region.any() else (None, [])
     if outer is None or len(outer) < 3:
         return empty_workspace(geometry)
