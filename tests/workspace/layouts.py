@@ -25,14 +25,29 @@ def box(shape: tuple[int, int], x0: float, x1: float, z0: float, z1: float) -> n
     return (x >= x0) & (x <= x1) & (z >= z0) & (z <= z1)
 
 
+TWO_ROOMS_SHAPE = (80, 144)
+
+
+def _two_rooms_walls() -> np.ndarray:
+    walls = box(TWO_ROOMS_SHAPE, 0.3, 6.9, 0.3, 3.7) & ~box(TWO_ROOMS_SHAPE, 0.5, 6.7, 0.5, 3.5)
+    return walls | (box(TWO_ROOMS_SHAPE, 3.5, 3.7, 0.5, 3.5) & ~box(TWO_ROOMS_SHAPE, 3.5, 3.7, 1.55, 2.45))
+
+
 def two_rooms() -> TopDownGrids:
     """Two 3 x 3 m rooms side by side (x in [0.5, 3.5] and [3.7, 6.7], z in [0.5, 3.5]), separated by a
     0.2 m wall at x in [3.5, 3.7] with a 0.9 m door at z in [1.55, 2.45]."""
-    shape = (80, 144)
-    walls = box(shape, 0.3, 6.9, 0.3, 3.7) & ~box(shape, 0.5, 6.7, 0.5, 3.5)
-    walls |= box(shape, 3.5, 3.7, 0.5, 3.5) & ~box(shape, 3.5, 3.7, 1.55, 2.45)
-    free = box(shape, 0.5, 6.7, 0.5, 3.5) & ~walls
+    walls = _two_rooms_walls()
+    free = box(TWO_ROOMS_SHAPE, 0.5, 6.7, 0.5, 3.5) & ~walls
     return grids_from_layout(free, walls)
+
+
+def two_rooms_seen_at_a_slant() -> TopDownGrids:
+    """`two_rooms` as the left room sees it through the door at a grazing angle: all of the left room's
+    floor, and of the door and the right room only a strip along the door's upper jamb (z >= 2.3); the
+    rest of the right room is unknown (neither free nor obstacle)."""
+    walls = _two_rooms_walls()
+    free = box(TWO_ROOMS_SHAPE, 0.5, 3.5, 0.5, 3.5) | box(TWO_ROOMS_SHAPE, 3.5, 6.7, 2.3, 3.5)
+    return grids_from_layout(free & ~walls, walls)
 
 
 def corridor() -> TopDownGrids:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import networkx as nx
 import numpy as np
 import pytest
-from layouts import RES, box, corridor, grids_from_layout, two_rooms
+from layouts import RES, box, corridor, grids_from_layout, two_rooms, two_rooms_seen_at_a_slant
 
 from activesplat.workspace.clean import extract_workspace
 from activesplat.workspace.config import WorkspaceConfig
@@ -194,29 +194,21 @@ def test_far_away_and_infinite_voronoi_vertices_are_dropped_without_warnings():
     assert [merged[e].tolist() for e in edges] == [[[1.0, 1.5], [2.0, 1.5]]]
 
 
-def door_seen_at_a_slant() -> tuple:
-    """`two_rooms` as the corridor side sees it through the door at a grazing angle: all of the left room's
-    floor, and of the door and the right room only a strip along the door's upper jamb (z >= 2.3); the rest
-    of the right room is unknown (neither free nor obstacle)."""
-    shape = (80, 144)
-    walls = box(shape, 0.3, 6.9, 0.3, 3.7) & ~box(shape, 0.5, 6.7, 0.5, 3.5)
-    walls |= box(shape, 3.5, 3.7, 0.5, 3.5) & ~box(shape, 3.5, 3.7, 1.55, 2.45)
-    free = box(shape, 0.5, 3.5, 0.5, 3.5) | box(shape, 3.5, 6.7, 2.3, 3.5)
-    return grids_from_layout(free & ~walls, walls)
-
-
 def test_a_door_seen_at_a_slant_gets_an_edge_when_the_free_floor_grows_into_unknown():
     start, goal = np.array([1.0, 1.0]), np.array([6.0, 3.0])
-    grids = door_seen_at_a_slant()
-    workspace, graph = topology(grids, start)
-    assert plan_safe_path(graph, workspace, start, goal, CFG) is None  # the neck is thinner than the agent
+    grids = two_rooms_seen_at_a_slant()
+    door = box(grids.free.shape, 3.5, 3.7, 1.55, 2.45)
+    observed, graph = topology(grids, start)
+    assert plan_safe_path(graph, observed, start, goal, CFG) is None  # the neck is thinner than the agent
+    assert observed.clearance[door].max() < CFG.agent_radius
     grown = WorkspaceConfig(resolution=RES, unknown_margin=0.1)
     workspace = extract_workspace(grids, start, grown)
     graph = build_voronoi_graph(workspace, grown)
     path = plan_safe_path(graph, workspace, start, goal, grown)
     assert path is not None and len(door_crossings(path)) == 1
+    assert workspace.clearance[door].max() > CFG.agent_radius
     assert not (workspace.mask & grids.obstacle).any()  # obstacles are never grown over
-    assert workspace.mask[grids.unknown].sum() > 0  # only unknown pixels were added
+    assert not (observed.mask & ~workspace.mask).any()  # growing only adds to the observed workspace
 
 
 def test_growing_into_unknown_never_covers_obstacles_and_zero_changes_nothing():
