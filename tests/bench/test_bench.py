@@ -269,6 +269,18 @@ def test_local_executor_two_workers_two_tiny_runs(tmp_path):
     assert (tmp_path / "curves_small-0.png").is_file() and (tmp_path / "results.md").is_file()
 
 
+def test_workers_split_the_cores_this_process_may_use(monkeypatch):
+    """`taskset -c 0-7 activesplat benchmark --workers 8` on a 16-core machine: one thread per worker, not
+    two (the cores of the affinity mask, not of the machine)."""
+    from activesplat.bench import runner
+
+    monkeypatch.setattr(runner.os, "sched_getaffinity", lambda pid: set(range(8)), raising=False)
+    monkeypatch.setattr(runner.os, "cpu_count", lambda: 16)
+    assert runner._usable_cpus() == 8
+    monkeypatch.delattr(runner.os, "sched_getaffinity")
+    assert runner._usable_cpus() == 16
+
+
 def test_mean_curve_interpolates_and_cuts_at_the_shortest_run():
     a = [{"step": 0, "v": 0.0}, {"step": 10, "v": 10.0}, {"step": 20, "v": 20.0}]
     b = [{"step": 0, "v": 2.0}, {"step": 5, "v": 2.0}, {"step": 15, "v": 12.0}]

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "workspace"))
-from layouts import RES, corridor  # noqa: E402
+from layouts import RES, corridor, two_rooms_seen_at_a_slant  # noqa: E402
 
 import activesplat.planning.activesplat as explorer_module  # noqa: E402
 from activesplat.errors import InvalidInputError  # noqa: E402
@@ -247,6 +247,34 @@ def test_a_goal_with_no_path_is_skipped_for_the_replan_or_marked_failed_and_logg
     ex.act(obs)
     assert np.allclose(ex.plan.goal, pos[mid]) and ex.failed == []
     assert [f["why"] for f in ex.failures] == ["no path, skipped"]
+
+
+def test_a_goal_behind_a_neck_of_observed_floor_gets_a_path_on_grown_floor(monkeypatch):
+    """`neck_margin_m`: a room seen through its door at a slant has no path on the observed floor; the
+    fallback finds one on the same grids grown into unknown, follows it, checks it ahead on the grown floor
+    and says so in the replan's record. Off (the default), the goal is skipped."""
+    start = np.array([1.0, 1.0])
+    grids = two_rooms_seen_at_a_slant()
+    ws = extract_workspace(grids, start, WCFG)
+    graph = build_voronoi_graph(ws, WCFG)
+    room = max(graph.nodes) + 1  # a node of the right room, in a graph component of its own
+    graph.add_node(room, pos=(6.0, 3.0))
+    pos = {room: np.array([6.0, 3.0])}
+    monkeypatch.setattr(explorer_module, "build_plan",
+                        lambda *a, **k: Plan(grids=grids, workspace=ws, graph=graph))
+    monkeypatch.setattr(explorer_module, "rank_goals", lambda *a, **k: [room])
+    obs = _obs(start)
+    ex = ActiveSplatExplorer(WORLD, 0.0, ExplorerConfig(workspace=WCFG))
+    _after_bootstrap(ex, obs)
+    ex.act(obs)
+    assert ex.plan.goal is None and [f["why"] for f in ex.failures] == ["no path, skipped"]
+    ex = ActiveSplatExplorer(WORLD, 0.0, ExplorerConfig(workspace=WCFG, neck_margin_m=0.1))
+    _after_bootstrap(ex, obs)
+    assert ex.act(obs) in ("turn_left", "turn_right", "move_forward")
+    assert np.allclose(ex.plan.goal, pos[room]) and ex.failures == []
+    assert ex.replans[-1]["grown"] and ex.plan.workspace is not ws
+    assert ex.plan.workspace.mask.sum() > ws.mask.sum()
+    assert path_ahead_clear(ex.plan.workspace, start, ex.follower.waypoints[0], 10.0, 0.0, WCFG)
 
 
 def test_an_agent_with_no_path_to_any_goal_escapes_instead_of_turning_on_the_spot(monkeypatch):

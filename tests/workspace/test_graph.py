@@ -211,6 +211,28 @@ def test_a_door_seen_at_a_slant_gets_an_edge_when_the_free_floor_grows_into_unkn
     assert not (observed.mask & ~workspace.mask).any()  # growing only adds to the observed workspace
 
 
+def test_grown_plan_gives_the_neck_a_path_from_the_same_grids_and_leaves_the_plan_alone():
+    """`ExplorerConfig.neck_margin_m`'s fallback: the observed plan has no path through the slanted door,
+    the grown plan built from the same grids (no new render) has one; the observed plan is unchanged."""
+    from activesplat.planning.explorer_config import ExplorerConfig
+    from activesplat.workspace.plan import Plan, grown_plan
+
+    start, goal = np.array([1.0, 1.0]), np.array([6.0, 3.0])
+    grids = two_rooms_seen_at_a_slant()
+    observed, graph = topology(grids, start)
+    plan = Plan(grids=grids, workspace=observed, graph=graph)
+    grown = grown_plan(plan, start, CFG, 0.1)
+    assert grown.grids is grids and plan.workspace is observed and CFG.unknown_margin == 0
+    assert plan_safe_path(plan.graph, plan.workspace, start, goal, CFG) is None
+    path = plan_safe_path(grown.graph, grown.workspace, start, goal, CFG)
+    assert path is not None and len(door_crossings(path)) == 1
+    assert grown.workspace.clearance_at(path).min() >= CFG.agent_radius - RES  # safe on the grown floor
+    with pytest.raises(ValueError, match="grids"):
+        grown_plan(Plan(), start, CFG, 0.1)
+    with pytest.raises(Exception, match="neck_margin_m"):
+        ExplorerConfig(neck_margin_m=0.0)
+
+
 def test_growing_into_unknown_never_covers_obstacles_and_zero_changes_nothing():
     from activesplat.workspace.clean import grow_into_unknown
 

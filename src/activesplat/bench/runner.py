@@ -257,13 +257,21 @@ def _init_worker(threads: int) -> None:
         os.environ[var] = str(threads)
 
 
+def _usable_cpus() -> int:
+    """The cores this process may run on (``taskset`` / cgroup affinity), not all the machine has."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
 def run_local(specs: Sequence[RunSpec], options: dict, on_result: OnResult, workers: int) -> None:
     """A process pool (spawn), each run in a fresh process; Ctrl-C cancels what has not started and
     terminates the running workers (their folders stay partial and are re-run on resume)."""
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
-    threads = max(1, (os.cpu_count() or 1) // workers)
+    threads = max(1, _usable_cpus() // workers)
     pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
                                initializer=_init_worker, initargs=(threads,), max_tasks_per_child=1)
     try:

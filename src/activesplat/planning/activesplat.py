@@ -29,7 +29,7 @@ from activesplat.planning.replan_memory import Commitment, Promises, RouteMemory
 from activesplat.planning.viewpoints import RotationTarget, rotation_candidates
 from activesplat.timing import Timers
 from activesplat.workspace.paths import path_length, plan_safe_path
-from activesplat.workspace.plan import Plan, build_plan
+from activesplat.workspace.plan import Plan, build_plan, grown_plan
 
 
 class ActiveSplatExplorer(Explorer):
@@ -80,6 +80,7 @@ class ActiveSplatExplorer(Explorer):
 
         self._ranked = goal_order[:self.cfg.replan_log_top]
         skipped = False  # a goal with no path skipped for this replan (`retry_unreachable`)
+        grown: list[Plan] = []  # the floor grown into unknown, built at the first goal with no path
         for node in goal_order:
             goal = np.asarray(plan.graph.nodes[node]["pos"], float)
             if np.hypot(*(goal - here)) <= cfg.controller.arrive_radius:
@@ -87,6 +88,17 @@ class ActiveSplatExplorer(Explorer):
                 # agent spun on the spot for 200 steps that way, replanning four times per step)
                 continue
             path = find_path(goal)
+            if path is None and cfg.neck_margin_m is not None:
+                if not grown:
+                    grown.append(grown_plan(plan, here, cfg.workspace, cfg.neck_margin_m, self.timers))
+                path = self.timers.time("planner", plan_safe_path, grown[0].graph, grown[0].workspace, here,
+                                        goal, cfg.workspace)
+                if path is not None:  # followed and checked ahead on the grown floor
+                    self.go_to(goal, path)
+                    self._commit(node)
+                    self._record_replan(here, node, path, False, grown=True)
+                    plan.workspace = grown[0].workspace
+                    return
             if path is None:
                 bridge = self._bridge(plan, here, node, goal, find_path)
                 if bridge is None:
@@ -155,7 +167,8 @@ class ActiveSplatExplorer(Explorer):
                              cfg.bridge_gain_m, find_path)
 
     def _record_replan(self, here: np.ndarray, node: int | None, path: np.ndarray | None,
-                       on_the_way: bool, bridge: bool = False, straight: bool = False) -> None:
+                       on_the_way: bool, bridge: bool = False, straight: bool = False, grown: bool = False
+                       ) -> None:
         plan, thr = self.plan, self.cfg.local_score_threshold
         rec = {"step": len(self.visited) - 1, "xz": [round(float(v), 3) for v in here], "stage": plan.stage,
                "candidates": len(plan.scores), "promising": sum(v > thr for v in plan.info.values()),
@@ -169,6 +182,8 @@ class ActiveSplatExplorer(Explorer):
                 rec["bridge_to"] = [round(float(v), 3) for v in plan.graph.nodes[node]["pos"]]
             if straight:  # put off once for a stop on the way already (`postpone_once_m`): no stop now
                 rec["put_off_before"] = True
+            if grown:  # no path on the observed floor, one on the floor grown into unknown (`neck_margin_m`)
+                rec["grown"] = True
         rec["ranked"] = [ranked_entry(plan, n) for n in self._ranked]
         self.replans.append(rec)
 

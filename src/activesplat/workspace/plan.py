@@ -4,6 +4,7 @@ with node scores, a goal and a path."""
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -60,4 +61,19 @@ def build_plan(gaussians: Any, floor_height: float, agent_xz: np.ndarray, wcfg: 
     return plan
 
 
-__all__ = ["Plan", "build_plan"]
+def grown_plan(plan: Plan, agent_xz: np.ndarray, wcfg: WorkspaceConfig, margin_m: float,
+               timers: Timers | None = None) -> Plan:
+    """The workspace and Voronoi graph of `plan`'s own grids with the free floor grown `margin_m` into
+    unknown pixels (`WorkspaceConfig.unknown_margin`): a door seen at a grazing angle leaves a neck of
+    observed floor thinner than the agent, which no graph edge crosses; grown, it has one. No new render."""
+    if plan.grids is None:
+        raise ValueError("grown_plan needs a plan with its top-down grids")
+    timers = timers or Timers()
+    cfg = dataclasses.replace(wcfg, unknown_margin=margin_m)
+    grown = Plan(grids=plan.grids)
+    grown.workspace = timers.time("workspace", extract_workspace, plan.grids, agent_xz, cfg)
+    grown.graph = timers.time("voronoi", build_voronoi_graph, grown.workspace, cfg)
+    return grown
+
+
+__all__ = ["Plan", "build_plan", "grown_plan"]
