@@ -191,8 +191,9 @@ class MapperConfig:
     does not add Gaussians there. A surface missing from the map has no centre on it and is added as
     before; the opacity test (holes, translucent gaps) is unchanged. At 0.02, three passes over the first
     1000 steps of a medium-0 run: +5.7 / +4.8 % Gaussians in passes 2 / 3 instead of +10.1 / +8.7 %, keyframe
-    PSNR 32.53 -> 32.72 dB; tuning explorations 85.79 -> 86.49 %, mostly one run whose route changed. Off
-    until confirmed on the fresh houses (docs/mapping.md, "Surfaces already represented").
+    PSNR 32.53 -> 32.72 dB; tuning explorations 85.79 -> 86.49 %, mostly one run whose route changed, but
+    fresh medium-102..109 86.69 -> 86.09 % (seven of eight lower), so off (docs/mapping.md, "Surfaces
+    already represented").
 
     Coarse refresh (``refresh_coarse_factor``; paper, release and SplaTAM: none). Eq. 8 adds Gaussians
     only where the map is transparent, so a wall first seen from 4 m keeps the 4-5 cm Gaussians it got
