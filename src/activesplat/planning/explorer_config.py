@@ -112,10 +112,10 @@ class ExplorerConfig:
     (medium-0 seed 1: a room of 9.6 % of the house left at 3 %). Growing every replan's floor the same way
     rescued that run and lost elsewhere (docs/benchmark.md "A door seen at a slant"); this grows only where
     no path was found. 0.1 on fresh medium-100..109 seed 0: a grown path in two runs (-0.63, -0.25), the
-    other eight identical; most gaps there need more growth, some are squeezes between obstacles. 0.2 on
-    four of the six fresh houses it can change: +0.33 (two still to run). In medium-0 seed 1, 0.1 finds
-    room 4 a path at step 1736, too late (79.67 -> 79.39 %). Off (docs/benchmark.md "A goal with no path,
-    on floor grown only then")."""
+    other eight identical; most gaps there need more growth, some are squeezes between obstacles. 0.2:
+    +0.12 over the ten (goals skipped for "no path" 22 -> 7), within one batch's resolution. In medium-0
+    seed 1, 0.1 finds room 4 a path at step 1736, too late (79.67 -> 79.39 %). Off (docs/benchmark.md "A
+    goal with no path, on floor grown only then")."""
     retry_unreachable: bool = True
     """A goal with no safe path on this replan's graph is skipped for this replan only instead of marked
     failed (ours; False = marked failed, i.e. closed until no goal is left, as in the release). A goal cut
