@@ -257,9 +257,8 @@ def test_a_goal_behind_a_neck_of_observed_floor_gets_a_path_on_grown_floor(monke
     grids = two_rooms_seen_at_a_slant()
     ws = extract_workspace(grids, start, WCFG)
     graph = build_voronoi_graph(ws, WCFG)
-    room = max(graph.nodes) + 1  # a node of the right room, in a graph component of its own
-    graph.add_node(room, pos=(6.0, 3.0))
-    pos = {room: np.array([6.0, 3.0])}
+    room, goal = max(graph.nodes) + 1, np.array([6.0, 3.0])  # a node of the right room, cut off at the door
+    graph.add_node(room, pos=tuple(goal))
     monkeypatch.setattr(explorer_module, "build_plan",
                         lambda *a, **k: Plan(grids=grids, workspace=ws, graph=graph))
     monkeypatch.setattr(explorer_module, "rank_goals", lambda *a, **k: [room])
@@ -271,7 +270,7 @@ def test_a_goal_behind_a_neck_of_observed_floor_gets_a_path_on_grown_floor(monke
     ex = ActiveSplatExplorer(WORLD, 0.0, ExplorerConfig(workspace=WCFG, neck_margin_m=0.1))
     _after_bootstrap(ex, obs)
     assert ex.act(obs) in ("turn_left", "turn_right", "move_forward")
-    assert np.allclose(ex.plan.goal, pos[room]) and ex.failures == []
+    assert np.allclose(ex.plan.goal, goal) and ex.failures == []
     assert ex.replans[-1]["grown"] and ex.plan.workspace is not ws
     assert ex.plan.workspace.mask.sum() > ws.mask.sum()
     assert path_ahead_clear(ex.plan.workspace, start, ex.follower.waypoints[0], 10.0, 0.0, WCFG)

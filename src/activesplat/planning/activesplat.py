@@ -74,13 +74,13 @@ class ActiveSplatExplorer(Explorer):
                                       cfg.workspace, rules, self.rng, self.observed, self.promises,
                                       self.commitment, self.route_memory)
 
-        def find_path(goal: np.ndarray) -> np.ndarray | None:
-            return self.timers.time("planner", plan_safe_path, plan.graph, plan.workspace, here, goal,
+        def find_path(goal: np.ndarray, on: Plan = plan) -> np.ndarray | None:
+            return self.timers.time("planner", plan_safe_path, on.graph, on.workspace, here, goal,
                                     cfg.workspace)
 
         self._ranked = goal_order[:self.cfg.replan_log_top]
         skipped = False  # a goal with no path skipped for this replan (`retry_unreachable`)
-        grown: list[Plan] = []  # the floor grown into unknown, built at the first goal with no path
+        grown: Plan | None = None  # the floor grown into unknown, built at the first goal with no path
         for node in goal_order:
             goal = np.asarray(plan.graph.nodes[node]["pos"], float)
             if np.hypot(*(goal - here)) <= cfg.controller.arrive_radius:
@@ -89,15 +89,14 @@ class ActiveSplatExplorer(Explorer):
                 continue
             path = find_path(goal)
             if path is None and cfg.neck_margin_m is not None:
-                if not grown:
-                    grown.append(grown_plan(plan, here, cfg.workspace, cfg.neck_margin_m, self.timers))
-                path = self.timers.time("planner", plan_safe_path, grown[0].graph, grown[0].workspace, here,
-                                        goal, cfg.workspace)
+                if grown is None:
+                    grown = grown_plan(plan, here, cfg.workspace, cfg.neck_margin_m, self.timers)
+                path = find_path(goal, grown)
                 if path is not None:  # followed and checked ahead on the grown floor
                     self.go_to(goal, path)
                     self._commit(node)
                     self._record_replan(here, node, path, False, grown=True)
-                    plan.workspace = grown[0].workspace
+                    plan.workspace = grown.workspace
                     return
             if path is None:
                 bridge = self._bridge(plan, here, node, goal, find_path)
