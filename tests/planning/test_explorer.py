@@ -26,6 +26,7 @@ from activesplat.workspace.voronoi import build_voronoi_graph  # noqa: E402
 
 WCFG = WorkspaceConfig(resolution=RES)
 HERE = np.array([1.0, 1.5])
+OBSERVED_ONLY = {"neck_margin_m": None, "neck_travel": False}  # paths on observed floor only (the release)
 WORLD = SimpleNamespace(gaussians=None, high_loss_mask=None, render=None)
 
 
@@ -233,7 +234,8 @@ def test_a_goal_with_no_path_is_skipped_for_the_replan_or_marked_failed_and_logg
     real = explorer_module.plan_safe_path
     monkeypatch.setattr(explorer_module, "plan_safe_path",
                         lambda g, w, a, b, c: None if np.allclose(b, pos[far]) else real(g, w, a, b, c))
-    ex = ActiveSplatExplorer(WORLD, 0.0, ExplorerConfig(workspace=WCFG, retry_unreachable=False))
+    cfg = ExplorerConfig(workspace=WCFG, retry_unreachable=False, **OBSERVED_ONLY)
+    ex = ActiveSplatExplorer(WORLD, 0.0, cfg)
     obs = _obs(HERE)
     _after_bootstrap(ex, obs)
     ex.act(obs)
@@ -242,7 +244,7 @@ def test_a_goal_with_no_path_is_skipped_for_the_replan_or_marked_failed_and_logg
     assert ex.failures == [{"step": len(ex.visited) - 1, "goal": [round(float(v), 3) for v in pos[far]],
                             "why": "no path", "failed_now": 1}]
     # with retry_unreachable (the default) the goal is only skipped: not closed, logged as such
-    ex = ActiveSplatExplorer(WORLD, 0.0, ExplorerConfig(workspace=WCFG))
+    ex = ActiveSplatExplorer(WORLD, 0.0, ExplorerConfig(workspace=WCFG, **OBSERVED_ONLY))
     _after_bootstrap(ex, obs)
     ex.act(obs)
     assert np.allclose(ex.plan.goal, pos[mid]) and ex.failed == []
@@ -252,7 +254,7 @@ def test_a_goal_with_no_path_is_skipped_for_the_replan_or_marked_failed_and_logg
 def test_a_goal_behind_a_neck_of_observed_floor_gets_a_path_on_grown_floor(monkeypatch):
     """`neck_margin_m`: a room seen through its door at a slant has no path on the observed floor; the
     fallback finds one on the same grids grown into unknown, follows it, checks it ahead on the grown floor
-    and says so in the replan's record. Off (the default), the goal is skipped."""
+    and says so in the replan's record (the default). Off (the release), the goal is skipped."""
     start = np.array([1.0, 1.0])
     grids = two_rooms_seen_at_a_slant()
     ws = extract_workspace(grids, start, WCFG)
@@ -263,7 +265,7 @@ def test_a_goal_behind_a_neck_of_observed_floor_gets_a_path_on_grown_floor(monke
                         lambda *a, **k: Plan(grids=grids, workspace=ws, graph=graph))
     monkeypatch.setattr(explorer_module, "rank_goals", lambda *a, **k: [room])
     obs = _obs(start)
-    ex = ActiveSplatExplorer(WORLD, 0.0, ExplorerConfig(workspace=WCFG))
+    ex = ActiveSplatExplorer(WORLD, 0.0, ExplorerConfig(workspace=WCFG, **OBSERVED_ONLY))
     _after_bootstrap(ex, obs)
     ex.act(obs)
     assert ex.plan.goal is None and [f["why"] for f in ex.failures] == ["no path, skipped"]
@@ -274,6 +276,40 @@ def test_a_goal_behind_a_neck_of_observed_floor_gets_a_path_on_grown_floor(monke
     assert ex.replans[-1]["grown"] and ex.plan.workspace is not ws
     assert ex.plan.workspace.mask.sum() > ws.mask.sum()
     assert path_ahead_clear(ex.plan.workspace, start, ex.follower.waypoints[0], 10.0, 0.0, WCFG)
+
+
+def test_neck_travel_ranks_with_the_grown_floor_and_builds_it_once_per_replan(monkeypatch):
+    """`neck_travel`: the ranking gets the travel on the grown floor for nodes with no path, and the path
+    to the chosen goal is then found on that same grown plan (one build per replan)."""
+    start = np.array([1.0, 1.0])
+    grids = two_rooms_seen_at_a_slant()
+    ws = extract_workspace(grids, start, WCFG)
+    graph = build_voronoi_graph(ws, WCFG)
+    room, goal = max(graph.nodes) + 1, np.array([6.0, 3.0])
+    graph.add_node(room, pos=tuple(goal))
+    monkeypatch.setattr(explorer_module, "build_plan",
+                        lambda *a, **k: Plan(grids=grids, workspace=ws, graph=graph))
+    estimates = []
+
+    def rank(*args):
+        no_path_travel = args[-1]
+        estimates.append(None if no_path_travel is None else no_path_travel(goal[None])[0])
+        return [room]
+
+    monkeypatch.setattr(explorer_module, "rank_goals", rank)
+    builds = []
+    grow = explorer_module.grown_plan
+    monkeypatch.setattr(explorer_module, "grown_plan", lambda *a, **k: builds.append(1) or grow(*a, **k))
+    obs = _obs(start)
+    for neck_travel in (False, True):
+        ex = ActiveSplatExplorer(WORLD, 0.0, ExplorerConfig(workspace=WCFG, neck_margin_m=0.1,
+                                                            neck_travel=neck_travel))
+        _after_bootstrap(ex, obs)
+        builds.clear()
+        ex.act(obs)
+        assert np.allclose(ex.plan.goal, goal) and ex.replans[-1]["grown"] and len(builds) == 1
+    straight = float(np.hypot(*(goal - start)))
+    assert estimates[0] is None and straight <= estimates[1] < 1.5 * straight
 
 
 def test_an_agent_with_no_path_to_any_goal_escapes_instead_of_turning_on_the_spot(monkeypatch):
@@ -288,7 +324,8 @@ def test_an_agent_with_no_path_to_any_goal_escapes_instead_of_turning_on_the_spo
     monkeypatch.setattr(explorer_module, "rank_goals", lambda *a, **k: [far])
     monkeypatch.setattr(explorer_module, "plan_safe_path", lambda *a: None)
     for retry in (True, False):
-        ex = ActiveSplatExplorer(WORLD, 0.0, ExplorerConfig(workspace=WCFG, retry_unreachable=retry))
+        ex = ActiveSplatExplorer(WORLD, 0.0, ExplorerConfig(workspace=WCFG, retry_unreachable=retry,
+                                                            **OBSERVED_ONLY))
         obs = _obs(HERE)
         _after_bootstrap(ex, obs)
         ex.act(obs)

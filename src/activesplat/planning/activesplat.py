@@ -18,6 +18,7 @@ from activesplat.planning.goals import (
     GoalRules,
     bridge_toward,
     closer_on_the_way,
+    graph_travel,
     rank_goals,
     select_rotation_targets,
     worth_a_detour,
@@ -69,10 +70,22 @@ class ActiveSplatExplorer(Explorer):
         plan = self.plan = build_plan(self.world.gaussians, self.floor_height, here, cfg.workspace,
                                       self.timers)
         rules = goal_rules(cfg)
+        grown: Plan | None = None  # the floor grown into unknown, built when a node first has no path
+
+        def grown_floor(timers: Timers = self.timers) -> Plan:
+            nonlocal grown
+            if grown is None:
+                grown = grown_plan(plan, here, cfg.workspace, cfg.neck_margin_m, timers)
+            return grown
+
+        def no_path_travel(pos: np.ndarray) -> np.ndarray:  # `neck_travel`; timed as position selection
+            return graph_travel(grown_floor(Timers()).graph, here, pos)
+
         goal_order = self.timers.time("position_selection", rank_goals, plan, here, self.world.render,
                                       self.floor_height, self.visited, self.failed, cfg.planning,
                                       cfg.workspace, rules, self.rng, self.observed, self.promises,
-                                      self.commitment, self.route_memory)
+                                      self.commitment, self.route_memory,
+                                      no_path_travel if cfg.neck_travel else None)
 
         def find_path(goal: np.ndarray, on: Plan = plan) -> np.ndarray | None:
             return self.timers.time("planner", plan_safe_path, on.graph, on.workspace, here, goal,
@@ -80,7 +93,6 @@ class ActiveSplatExplorer(Explorer):
 
         self._ranked = goal_order[:self.cfg.replan_log_top]
         skipped = False  # a goal with no path skipped for this replan (`retry_unreachable`)
-        grown: Plan | None = None  # the floor grown into unknown, built at the first goal with no path
         for node in goal_order:
             goal = np.asarray(plan.graph.nodes[node]["pos"], float)
             if np.hypot(*(goal - here)) <= cfg.controller.arrive_radius:
@@ -89,14 +101,12 @@ class ActiveSplatExplorer(Explorer):
                 continue
             path = find_path(goal)
             if path is None and cfg.neck_margin_m is not None:
-                if grown is None:
-                    grown = grown_plan(plan, here, cfg.workspace, cfg.neck_margin_m, self.timers)
-                path = find_path(goal, grown)
+                path = find_path(goal, grown_floor())
                 if path is not None:  # followed and checked ahead on the grown floor
                     self.go_to(goal, path)
                     self._commit(node)
                     self._record_replan(here, node, path, False, grown=True)
-                    plan.workspace = grown.workspace
+                    plan.workspace = grown_floor().workspace
                     return
             if path is None:
                 bridge = self._bridge(plan, here, node, goal, find_path)

@@ -103,9 +103,30 @@ def panorama_candidates(nodes: list[int], dist: np.ndarray, open_: np.ndarray, s
     return chosen
 
 
-def travel_lengths(graph: nx.Graph, here: np.ndarray, nodes: list[int], pos: np.ndarray) -> np.ndarray:
+def graph_travel(graph: nx.Graph, here: np.ndarray, pos: np.ndarray) -> np.ndarray:
+    """Travel length from `here` to each floor position of `pos` (M, 2) along `graph`: the straight hop to
+    the graph node nearest the agent, the graph path from it to the node nearest the position, and the
+    hop from there; inf where the graph gives no path (or has no node)."""
+    pos = np.asarray(pos, float).reshape(-1, 2)
+    if graph.number_of_nodes() == 0:
+        return np.full(len(pos), np.inf)
+    keys = list(graph.nodes)
+    all_pos = np.stack([np.asarray(graph.nodes[n]["pos"], float) for n in keys])
+    start = int(np.argmin(np.hypot(*(all_pos - here).T)))
+    lengths = nx.single_source_dijkstra_path_length(graph, keys[start], weight="weight")
+    to_node = np.array([lengths.get(n, np.inf) for n in keys])
+    hop_from = np.hypot(*(all_pos[None] - pos[:, None]).transpose(2, 0, 1))  # (M, nodes)
+    nearest = np.argmin(hop_from, axis=1)
+    rows = np.arange(len(pos))
+    return np.hypot(*(all_pos[start] - here)) + to_node[nearest] + hop_from[rows, nearest]
+
+
+def travel_lengths(graph: nx.Graph, here: np.ndarray, nodes: list[int], pos: np.ndarray,
+                   no_path_travel: Callable[[np.ndarray], np.ndarray] | None = None) -> np.ndarray:
     """Approximate travel length to each node: from the graph node nearest the agent along the graph (plus
-    the straight hop to it); three times the Euclidean distance where the graph gives no path."""
+    the straight hop to it). Where the graph gives no path: `no_path_travel` of those nodes' positions
+    (e.g. `graph_travel` on the floor grown into unknown), and where that is missing or infinite too,
+    three times the Euclidean distance."""
     if graph.number_of_nodes() == 0:
         return np.hypot(*(pos - here).T)
     all_pos = np.stack([np.asarray(graph.nodes[n]["pos"], float) for n in graph.nodes])
@@ -114,6 +135,9 @@ def travel_lengths(graph: nx.Graph, here: np.ndarray, nodes: list[int], pos: np.
     hop = float(np.hypot(*(np.asarray(graph.nodes[start]["pos"]) - here)))
     lengths = nx.single_source_dijkstra_path_length(graph, start, weight="weight")
     out = np.array([hop + lengths.get(n, np.inf) for n in nodes])
+    missing = ~np.isfinite(out)
+    if no_path_travel is not None and missing.any():
+        out[missing] = no_path_travel(pos[missing])
     eu = np.hypot(*(pos - here).T)
     return np.where(np.isfinite(out), out, eu * NO_PATH_FACTOR)
 
@@ -277,7 +301,8 @@ def rank_goals(plan: Plan, here: np.ndarray, render: RenderFn, floor_height: flo
                visited: Sequence[np.ndarray], failed: Sequence[np.ndarray], pcfg: PlanningConfig,
                wcfg: WorkspaceConfig, rules: GoalRules, rng: np.random.Generator,
                observed: ObservedSurface | None = None, promises: Promises | None = None,
-               commitment: Commitment | None = None, route_memory: RouteMemory | None = None) -> list[int]:
+               commitment: Commitment | None = None, route_memory: RouteMemory | None = None,
+               no_path_travel: Callable[[np.ndarray], np.ndarray] | None = None) -> list[int]:
     """Candidate goal nodes of `plan.graph`, best first (eq. 12 scores; local-then-global, sec. III-C).
     Renders a panorama at up to `max_panoramas` open candidates and records every candidate's score and
     information part in `plan.scores` / `plan.info`. `random_goals`: a random order of the open nodes,
@@ -287,7 +312,8 @@ def rank_goals(plan: Plan, here: np.ndarray, render: RenderFn, floor_height: flo
     promised at an earlier replan (`Promises`). With `commitment` a global stage goes on toward the
     subregion chosen at an earlier global replan while it holds something to see (`Commitment`); whether
     it did is `plan.committed`. With `route_memory` the global stage follows a route whose order is kept
-    across replans (`RouteMemory`, implies the route of `global_tour`)."""
+    across replans (`RouteMemory`, implies the route of `global_tour`). `no_path_travel` estimates the
+    travel to nodes the graph gives no path to (`travel_lengths`)."""
     graph, ws = plan.graph, plan.workspace
     nodes = goal_candidates(graph)
     if not nodes:
@@ -338,7 +364,7 @@ def rank_goals(plan: Plan, here: np.ndarray, render: RenderFn, floor_height: flo
     global_scores = None if rules.global_in_horizon else node_scores(
         inv, vol, unvisited, np.zeros_like(in_horizon), is_failed, score_cfg) + extra + kept
     plan.scores = {n: float(s) for n, s in zip(nodes, scores, strict=True)}
-    travel = travel_lengths(graph, here, nodes, pos)
+    travel = travel_lengths(graph, here, nodes, pos, no_path_travel)
     plan.travel = {n: float(t) for n, t in zip(nodes, travel, strict=True)}
     if hierarchical and rules.local_near_m is not None:  # nodes this near count as local (ours)
         in_local = in_local | (travel <= rules.local_near_m)
@@ -490,7 +516,7 @@ def select_rotation_targets(targets: Sequence[RotationTarget], yaw: float, pcfg:
     return [chosen[i] for i in order]
 
 
-__all__ = ["GoalRules", "closer_on_the_way", "distance_to_polyline",
-           "goal_candidates", "local_then_global", "node_state", "pairwise_travel", "panorama_candidates",
+__all__ = ["GoalRules", "closer_on_the_way", "distance_to_polyline", "goal_candidates", "graph_travel",
+           "local_then_global", "node_state", "pairwise_travel", "panorama_candidates",
            "rank_goals", "select_rotation_targets", "shortest_tour", "tour_first", "travel_lengths",
            "worth_a_detour", "worth_a_visit"]
