@@ -254,7 +254,7 @@ def test_a_goal_with_no_path_is_skipped_for_the_replan_or_marked_failed_and_logg
 def test_a_goal_behind_a_neck_of_observed_floor_gets_a_path_on_grown_floor(monkeypatch):
     """`neck_margin_m`: a room seen through its door at a slant has no path on the observed floor; the
     fallback finds one on the same grids grown into unknown, follows it, checks it ahead on the grown floor
-    and says so in the replan's record (the default). Off (the release), the goal is skipped."""
+    and says so in the replan's record. Off (the default, the release), the goal is skipped."""
     start = np.array([1.0, 1.0])
     grids = two_rooms_seen_at_a_slant()
     ws = extract_workspace(grids, start, WCFG)

@@ -257,9 +257,8 @@ def test_nodes_with_no_path_rank_by_their_travel_on_the_grown_floor_when_asked()
     own_pos = np.array([graph.nodes[n]["pos"] for n in own])
     np.testing.assert_allclose(travel_lengths(graph, start, own, own_pos, lambda p: p[:, 0] * np.nan),
                                travel_lengths(graph, start, own, own_pos))
-    with pytest.raises(Exception, match="neck_margin_m"):  # the default travel needs the default margin
-        ExplorerConfig(neck_margin_m=None)
-    assert ExplorerConfig(neck_margin_m=None, neck_travel=False).neck_margin_m is None
+    with pytest.raises(Exception, match="neck_margin_m"):
+        ExplorerConfig(neck_travel=True)
 
 
 def test_growing_into_unknown_never_covers_obstacles_and_zero_changes_nothing():

@@ -103,7 +103,7 @@ class ExplorerConfig:
     marked failed and the agent turns to what it can reach. Fresh medium-100 seed 1: 76.22 -> 81.97 %;
     medium-0..3 x 2 seeds 86.02 -> 86.00 %, fresh medium-100..109 seed 0 86.03 -> 85.43 %, so off
     (docs/benchmark.md "Score per way, and a bridge")."""
-    neck_margin_m: float | None = 0.2
+    neck_margin_m: float | None = None
     """When a ranked goal has no safe path on this replan's graph, look for one before skipping it: on the
     same map with the free floor grown this much into unknown pixels (`WorkspaceConfig.unknown_margin`,
     `workspace.plan.grown_plan`, built once per replan), and follow that path, checked ahead on the grown
@@ -111,22 +111,20 @@ class ExplorerConfig:
     neck of observed floor thinner than the agent: no graph edge crosses it and the room's nodes are
     skipped for "no path" (medium-0 seed 1: a room of 9.6 % of the house left at 3 %). Growing every
     replan's floor the same way rescued that run and lost elsewhere (docs/benchmark.md "A door seen at a
-    slant"); this grows only where no path was found. Alone (without `neck_travel`), 0.1 acted in two
-    fresh runs of ten (-0.63, -0.25); 0.2 gave +0.12 over fresh medium-100..109 seed 0 and -0.12 over
-    medium-0..3 x 2 seeds: the room it was written for was found a path too late (docs/benchmark.md "A
-    goal with no path, on floor grown only then"). The default since 2026-11-28, with `neck_travel`
-    (docs/benchmark.md "Nodes with no path ranked by their travel on grown floor")."""
-    neck_travel: bool = True
+    slant"); this grows only where no path was found. Alone, 0.1 acted in two fresh runs of ten (-0.63,
+    -0.25); 0.2 gave +0.12 over fresh medium-100..109 seed 0 and -0.12 over medium-0..3 x 2 seeds
+    (docs/benchmark.md "A goal with no path, on floor grown only then"). Off; with `neck_travel` see there."""
+    neck_travel: bool = False
     """Rank the nodes this replan's graph gives no path to by their travel on the floor grown
     `neck_margin_m` into unknown (`planning.goals.graph_travel` on `workspace.plan.grown_plan`, built at
     the replan's ranking then), instead of three times their straight distance (ours; needs
-    `neck_margin_m`; False = the stand-in). A room behind a neck of observed floor thinner than the agent
-    otherwise ranks as if it were three times as far as it is: in medium-0 seed 1 the old defaults left
-    room 4 (9.6 % of the house) at step 781 for nodes the graph could reach and never came back (79.67 %;
-    with this and `neck_margin_m` 0.2: 86.82 %, room 4 at 73.9 %). Both together, against both off:
-    medium-0..3 x 2 seeds 85.79 -> 86.41 % (3 of 8 lower, worst room 62.7 -> 71.6 %), fresh
-    medium-100..109 seed 0 86.40 -> 86.73 % (1 of 10 lower) (docs/benchmark.md "Nodes with no path
-    ranked by their travel on grown floor")."""
+    `neck_margin_m`). A room behind a neck of observed floor thinner than the agent otherwise ranks as if
+    it were three times as far as it is: in medium-0 seed 1 the defaults leave room 4 (9.6 % of the house)
+    at step 781 and never come back (79.67 %; with this and `neck_margin_m` 0.2: 86.82 %, room 4 at 73.9
+    %). Both together, against both off: medium-0..3 x 2 seeds 85.79 -> 86.41 %, fresh medium-100..109
+    seed 0 86.40 -> 86.73 %, held-out medium-110..112 seed 0 87.32 -> 82.09 %: medium-112 84.69 -> 69.01 %,
+    a far node made near by the grown floor drew the agent across the house from two rooms it then left at
+    0 and 21 %. Off (docs/benchmark.md "Nodes with no path ranked by their travel on grown floor")."""
     retry_unreachable: bool = True
     """A goal with no safe path on this replan's graph is skipped for this replan only instead of marked
     failed (ours; False = marked failed, i.e. closed until no goal is left, as in the release). A goal cut
@@ -281,8 +279,7 @@ class ExplorerConfig:
                                     f"{self.travel_pitch_deg}")
         if self.neck_travel and self.neck_margin_m is None:
             raise InvalidInputError("ExplorerConfig.neck_travel ranks nodes by their travel on the floor "
-                                    "grown neck_margin_m into unknown: set neck_margin_m (e.g. 0.2), or turn "
-                                    "neck_travel off too (neck_travel False) to go back to the release")
+                                    "grown neck_margin_m into unknown: set neck_margin_m too (e.g. 0.2)")
         if self.global_halving_m is not None and self.global_halving_m <= 0:
             raise InvalidInputError(f"ExplorerConfig.global_halving_m must be > 0 (or None = the distance "
                                     f"weight's difference), got {self.global_halving_m}")
