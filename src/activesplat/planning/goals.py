@@ -103,6 +103,16 @@ def panorama_candidates(nodes: list[int], dist: np.ndarray, open_: np.ndarray, s
     return chosen
 
 
+def _from_the_agent(graph: nx.Graph, here: np.ndarray) -> tuple[list[int], np.ndarray, float, dict]:
+    """The graph's nodes, their positions (N, 2), the straight hop from `here` to the node nearest it, and
+    the graph path lengths from that node (a non-empty graph)."""
+    keys = list(graph.nodes)
+    all_pos = np.stack([np.asarray(graph.nodes[n]["pos"], float) for n in keys])
+    start = int(np.argmin(np.hypot(*(all_pos - here).T)))
+    hop = float(np.hypot(*(all_pos[start] - here)))
+    return keys, all_pos, hop, nx.single_source_dijkstra_path_length(graph, keys[start], weight="weight")
+
+
 def graph_travel(graph: nx.Graph, here: np.ndarray, pos: np.ndarray) -> np.ndarray:
     """Travel length from `here` to each floor position of `pos` (M, 2) along `graph`: the straight hop to
     the graph node nearest the agent, the graph path from it to the node nearest the position, and the
@@ -110,15 +120,11 @@ def graph_travel(graph: nx.Graph, here: np.ndarray, pos: np.ndarray) -> np.ndarr
     pos = np.asarray(pos, float).reshape(-1, 2)
     if graph.number_of_nodes() == 0:
         return np.full(len(pos), np.inf)
-    keys = list(graph.nodes)
-    all_pos = np.stack([np.asarray(graph.nodes[n]["pos"], float) for n in keys])
-    start = int(np.argmin(np.hypot(*(all_pos - here).T)))
-    lengths = nx.single_source_dijkstra_path_length(graph, keys[start], weight="weight")
+    keys, all_pos, hop, lengths = _from_the_agent(graph, here)
     to_node = np.array([lengths.get(n, np.inf) for n in keys])
     hop_from = np.hypot(*(all_pos[None] - pos[:, None]).transpose(2, 0, 1))  # (M, nodes)
     nearest = np.argmin(hop_from, axis=1)
-    rows = np.arange(len(pos))
-    return np.hypot(*(all_pos[start] - here)) + to_node[nearest] + hop_from[rows, nearest]
+    return hop + to_node[nearest] + hop_from[np.arange(len(pos)), nearest]
 
 
 def travel_lengths(graph: nx.Graph, here: np.ndarray, nodes: list[int], pos: np.ndarray,
@@ -129,11 +135,7 @@ def travel_lengths(graph: nx.Graph, here: np.ndarray, nodes: list[int], pos: np.
     three times the Euclidean distance."""
     if graph.number_of_nodes() == 0:
         return np.hypot(*(pos - here).T)
-    all_pos = np.stack([np.asarray(graph.nodes[n]["pos"], float) for n in graph.nodes])
-    keys = list(graph.nodes)
-    start = keys[int(np.argmin(np.hypot(*(all_pos - here).T)))]
-    hop = float(np.hypot(*(np.asarray(graph.nodes[start]["pos"]) - here)))
-    lengths = nx.single_source_dijkstra_path_length(graph, start, weight="weight")
+    _, _, hop, lengths = _from_the_agent(graph, here)
     out = np.array([hop + lengths.get(n, np.inf) for n in nodes])
     missing = ~np.isfinite(out)
     if no_path_travel is not None and missing.any():
