@@ -192,8 +192,12 @@ class MapperConfig:
     before; the opacity test (holes, translucent gaps) is unchanged. At 0.02, three passes over the first
     1000 steps of a medium-0 run: +5.7 / +4.8 % Gaussians in passes 2 / 3 instead of +10.1 / +8.7 %, keyframe
     PSNR 32.53 -> 32.72 dB; tuning explorations 85.79 -> 86.49 %, mostly one run whose route changed, but
-    fresh medium-102..109 86.69 -> 86.09 % (seven of eight lower), so off (docs/mapping.md, "Surfaces
-    already represented").
+    fresh medium-102..109 86.69 -> 86.09 % (seven of eight lower), and medium-120..123 -1.17 points (four
+    of four lower), so off (docs/mapping.md, "Surfaces already represented"). Those runs part at the first
+    replan. With ``densify_represented_age`` > 0 only centres mapped at least that many frames earlier
+    mark pixels: a first pass over a place maps exactly as without the rule (the rows of the map are in
+    the order they were added), and the rule acts on revisits. At 300 frames, the two-pass replay above:
+    +5.6 % Gaussians in pass 2 (defaults +10.1 %), keyframe PSNR 32.39 dB (defaults 32.24).
 
     Coarse refresh (``refresh_coarse_factor``; paper, release and SplaTAM: none). Eq. 8 adds Gaussians
     only where the map is transparent, so a wall first seen from 4 m keeps the 4-5 cm Gaussians it got
@@ -306,6 +310,9 @@ class MapperConfig:
     # within this fraction of the depth (see "Surfaces already represented"); None = off (paper, release)
     densify_represented_tol: float | None = None
     densify_represented_px: int = 1  # project: a centre marks the pixels within this many pixels of its own
+    # project: only centres mapped at least this many frames earlier mark pixels (0 = every centre): the
+    # rule then acts on revisits and leaves the first pass over a place as without it
+    densify_represented_age: int = 0
     # project: the eq. 8 / eq. 10 render leaves out the flat Gaussians seen from behind (the far face of a
     # wall or an object); False = every Gaussian, as paper and release (see class docstring "Back faces")
     densify_front_faces_only: bool = True

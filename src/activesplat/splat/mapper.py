@@ -23,6 +23,7 @@ from __future__ import annotations
 import json
 import time
 import warnings
+from collections import deque
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -125,6 +126,9 @@ class Mapper:
         self.received = 0  # add_frame calls that passed the input checks (the frame index in messages)
         self.broken_depth_frames = 0  # frames with NaN / inf / negative depth pixels (made invalid)
         self.peak_gaussians = 0
+        # the map's size after each of the last frames (MapperConfig "Surfaces already represented": rows
+        # are in the order they were added, so the first _sizes[0] rows are that many frames old or more)
+        self._sizes: deque[int] = deque(maxlen=max(1, self.config.densify_represented_age))
         self._rng = np.random.default_rng(self.config.seed)
 
     # ------------------------------------------------------------------ rendering
@@ -239,6 +243,7 @@ class Mapper:
         if stats.keyframe:
             self.keyframes.append(Keyframe(rgb, depth, pose, step))
         stats.n_gaussians = len(self.gaussians)
+        self._sizes.append(len(self.gaussians))
         stats.ms = 1000.0 * (time.perf_counter() - t0)
         return stats
 
@@ -295,6 +300,9 @@ class Mapper:
             return None
         if rows is None:
             rows = self._view_rows(pose, self.K, self.width, self.height)
+        if cfg.densify_represented_age > 0:  # only centres mapped that many frames ago or earlier
+            old = self._sizes[0] if len(self._sizes) == self._sizes.maxlen else 0
+            rows = rows[rows < old]
         p = self.gaussians.params
         opacities = torch.sigmoid(p["opacity_logits"].detach().index_select(0, rows))
         return represented_mask(p["means"].index_select(0, rows), opacities, pose, self.K, obs_depth,
