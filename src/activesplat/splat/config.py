@@ -197,8 +197,8 @@ class MapperConfig:
     replan. With ``densify_represented_age`` > 0 only centres mapped at least that many frames earlier
     mark pixels: a first pass over a place maps exactly as without the rule (the rows of the map are in
     the order they were added), and the rule acts on revisits. At 300 frames, the two-pass replay above:
-    +5.6 % Gaussians in pass 2 (defaults +10.1 %), keyframe PSNR 32.39 dB (defaults 32.24); medium-120..123
-    explorations +0.20 points (three of four higher), too few runs to decide: off.
+    +5.6 % Gaussians in pass 2 (defaults +10.1 %), keyframe PSNR 32.39 dB (defaults 32.24); medium-120..125
+    explorations +0.12 points (four of six higher), level: off until the benchmark batches are run.
 
     Coarse refresh (``refresh_coarse_factor``; paper, release and SplaTAM: none). Eq. 8 adds Gaussians
     only where the map is transparent, so a wall first seen from 4 m keeps the 4-5 cm Gaussians it got
