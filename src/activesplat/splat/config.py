@@ -196,7 +196,8 @@ class MapperConfig:
     of four lower), so off (docs/mapping.md, "Surfaces already represented"). Those runs part at the first
     replan. With ``densify_represented_age`` > 0 only centres mapped at least that many frames earlier
     mark pixels: a first pass over a place maps exactly as without the rule (the rows of the map are in
-    the order they were added), and the rule acts on revisits. At 300 frames, the two-pass replay above:
+    the order they were added; ``Mapper.save`` keeps the map's size over the last frames for ``load``), and
+    the rule acts on revisits. At 300 frames, the two-pass replay above:
     +5.6 % Gaussians in pass 2 (defaults +10.1 %), keyframe PSNR 32.39 dB (defaults 32.24); medium-120..125
     explorations +0.12 points (four of six higher), level: off until the benchmark batches are run.
 

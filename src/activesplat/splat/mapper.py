@@ -457,7 +457,7 @@ class Mapper:
             step=np.array([k.step for k in kfs], dtype=np.int64),
         )
         meta = {"K": self.K.tolist(), "width": w, "height": h, "frames": self.frames,
-                "backend": self.backend, "config": asdict(self.config)}
+                "backend": self.backend, "config": asdict(self.config), "recent_sizes": list(self._sizes)}
         (directory / "mapper.json").write_text(json.dumps(meta, indent=1))
         return directory
 
@@ -479,6 +479,8 @@ class Mapper:
             rgb, depth, pose, step = data["rgb"], data["depth"], data["pose"], data["step"]
         mapper.keyframes = [Keyframe(rgb[i], depth[i], pose[i], int(step[i])) for i in range(len(step))]
         mapper.frames = int(meta["frames"])
+        # the map's size over the last frames (the age rule); a folder without it: every row counts as old
+        mapper._sizes.extend(meta.get("recent_sizes", [len(mapper.gaussians)] * mapper._sizes.maxlen))
         return mapper
 
 
