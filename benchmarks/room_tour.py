@@ -38,7 +38,7 @@ from scipy.sparse.csgraph import dijkstra
 from activesplat.eval.behaviour import BehaviourConfig
 from activesplat.eval.coverage import CoverageAccumulator, CoverageConfig
 from activesplat.geometry import camera_pose, intrinsics
-from activesplat.planning.goals import shortest_tour
+from activesplat.planning.travel import shortest_tour
 from activesplat.sim import SimConfig, Simulator, load_scene
 
 
@@ -72,7 +72,7 @@ def grid_graph(mask: np.ndarray, resolution: float) -> tuple[sparse.csr_matrix, 
 
 def shortest_open_walk(dist: np.ndarray) -> tuple[float, list[int]]:
     """Shortest walk from node 0 through every other node of the (symmetric) distance matrix, ending
-    anywhere: its length and the node order (`planning.goals.shortest_tour`, exact up to 10 stops)."""
+    anywhere: its length and the node order (`planning.travel.shortest_tour`, exact up to 10 stops)."""
     order = [0, *(1 + i for i in shortest_tour(dist[0, 1:], dist[1:, 1:]))]
     return float(sum(dist[a, b] for a, b in zip(order[:-1], order[1:], strict=True))), order
 

@@ -237,7 +237,7 @@ def test_nodes_with_no_path_rank_by_their_travel_on_the_grown_floor_when_asked()
     """`ExplorerConfig.neck_travel`: a node behind the slanted door has no path on the observed graph, so
     its travel was three times the straight distance; on the grown graph it is the way through the door."""
     from activesplat.planning.explorer_config import ExplorerConfig
-    from activesplat.planning.goals import NO_PATH_FACTOR, graph_travel, travel_lengths
+    from activesplat.planning.travel import NO_PATH_FACTOR, graph_travel, travel_lengths
     from activesplat.workspace.plan import Plan, grown_plan
 
     start, goal = np.array([1.0, 1.0]), np.array([6.0, 3.0])

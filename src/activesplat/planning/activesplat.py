@@ -18,7 +18,6 @@ from activesplat.planning.goals import (
     GoalRules,
     bridge_toward,
     closer_on_the_way,
-    graph_travel,
     rank_goals,
     select_rotation_targets,
     worth_a_detour,
@@ -27,6 +26,7 @@ from activesplat.planning.goals import (
 from activesplat.planning.observed import unsampled_views
 from activesplat.planning.panorama import render_panorama
 from activesplat.planning.replan_memory import Commitment, Promises, RouteMemory
+from activesplat.planning.travel import graph_travel
 from activesplat.planning.viewpoints import RotationTarget, rotation_candidates
 from activesplat.timing import Timers
 from activesplat.workspace.paths import path_length, plan_safe_path

@@ -116,7 +116,7 @@ class ExplorerConfig:
     (docs/benchmark.md "A goal with no path, on floor grown only then"). Off; with `neck_travel` see there."""
     neck_travel: bool = False
     """Rank the nodes this replan's graph gives no path to by their travel on the floor grown
-    `neck_margin_m` into unknown (`planning.goals.graph_travel` on `workspace.plan.grown_plan`, built at
+    `neck_margin_m` into unknown (`planning.travel.graph_travel` on `workspace.plan.grown_plan`, built at
     the replan's ranking then), instead of three times their straight distance (ours; needs
     `neck_margin_m`). A room behind a neck of observed floor thinner than the agent otherwise ranks as if
     it were three times as far as it is: in medium-0 seed 1 the defaults leave room 4 (9.6 % of the house)

@@ -18,6 +18,7 @@ from activesplat.planning.controller import ControllerConfig, fewest_actions_ord
 from activesplat.planning.observed import ObservedSurface, poorly_observed_share
 from activesplat.planning.panorama import RenderFn, render_panorama
 from activesplat.planning.replan_memory import Commitment, Promises, RouteMemory
+from activesplat.planning.travel import pairwise_travel, shortest_tour, travel_lengths
 from activesplat.planning.viewpoints import (
     RotationTarget,
     hull_volume,
@@ -29,9 +30,6 @@ from activesplat.workspace.config import WorkspaceConfig
 from activesplat.workspace.paths import line_of_sight, path_length, visible_nodes
 from activesplat.workspace.plan import Plan
 from activesplat.workspace.subregions import agent_subregion
-
-NO_PATH_FACTOR = 3.0
-"""Travel to a node the graph gives no path to: this times the straight distance (a stand-in, ours)."""
 
 VISIT_MEMORY = 2000
 """Positions of the agent's most recent steps that count for the unvisited flag (every step of a 1000- or
@@ -101,135 +99,6 @@ def panorama_candidates(nodes: list[int], dist: np.ndarray, open_: np.ndarray, s
     taken = set(chosen)
     chosen += [i for i in order if i not in taken][: max_panoramas - len(chosen)]
     return chosen
-
-
-def _from_the_agent(graph: nx.Graph, here: np.ndarray) -> tuple[list[int], np.ndarray, float, dict]:
-    """The graph's nodes, their positions (N, 2), the straight hop from `here` to the node nearest it, and
-    the graph path lengths from that node (a non-empty graph)."""
-    keys = list(graph.nodes)
-    all_pos = np.stack([np.asarray(graph.nodes[n]["pos"], float) for n in keys])
-    start = int(np.argmin(np.hypot(*(all_pos - here).T)))
-    hop = float(np.hypot(*(all_pos[start] - here)))
-    return keys, all_pos, hop, nx.single_source_dijkstra_path_length(graph, keys[start], weight="weight")
-
-
-def graph_travel(graph: nx.Graph, here: np.ndarray, pos: np.ndarray) -> np.ndarray:
-    """Travel length from `here` to each floor position of `pos` (M, 2) along `graph`: the straight hop to
-    the graph node nearest the agent, the graph path from it to the node nearest the position, and the
-    hop from there; inf where the graph gives no path (or has no node)."""
-    pos = np.asarray(pos, float).reshape(-1, 2)
-    if graph.number_of_nodes() == 0:
-        return np.full(len(pos), np.inf)
-    keys, all_pos, hop, lengths = _from_the_agent(graph, here)
-    to_node = np.array([lengths.get(n, np.inf) for n in keys])
-    hop_from = np.hypot(*(all_pos[None] - pos[:, None]).transpose(2, 0, 1))  # (M, nodes)
-    nearest = np.argmin(hop_from, axis=1)
-    return hop + to_node[nearest] + hop_from[np.arange(len(pos)), nearest]
-
-
-def travel_lengths(graph: nx.Graph, here: np.ndarray, nodes: list[int], pos: np.ndarray,
-                   no_path_travel: Callable[[np.ndarray], np.ndarray] | None = None) -> np.ndarray:
-    """Approximate travel length to each node: from the graph node nearest the agent along the graph (plus
-    the straight hop to it). Where the graph gives no path: `no_path_travel` of those nodes' positions
-    (e.g. `graph_travel` on the floor grown into unknown), and where that is missing or infinite too,
-    three times the Euclidean distance."""
-    if graph.number_of_nodes() == 0:
-        return np.hypot(*(pos - here).T)
-    _, _, hop, lengths = _from_the_agent(graph, here)
-    out = np.array([hop + lengths.get(n, np.inf) for n in nodes])
-    missing = ~np.isfinite(out)
-    if no_path_travel is not None and missing.any():
-        out[missing] = no_path_travel(pos[missing])
-    eu = np.hypot(*(pos - here).T)
-    return np.where(np.isfinite(out), out, eu * NO_PATH_FACTOR)
-
-
-def pairwise_travel(graph: nx.Graph, nodes: Sequence[int]) -> np.ndarray:
-    """Graph path lengths between `nodes` (K, K), three times the straight distance where the graph gives no
-    path (as `travel_lengths`)."""
-    pos = np.stack([np.asarray(graph.nodes[n]["pos"], float) for n in nodes]) if nodes else np.zeros((0, 2))
-    out = np.zeros((len(nodes), len(nodes)))
-    for i, a in enumerate(nodes):
-        lengths = nx.single_source_dijkstra_path_length(graph, a, weight="weight")
-        for j, b in enumerate(nodes):
-            out[i, j] = lengths.get(b, NO_PATH_FACTOR * float(np.hypot(*(pos[i] - pos[j]))))
-    return out
-
-
-def shortest_tour(start: np.ndarray, pairwise: np.ndarray, exact_up_to: int = 10,
-                  max_rounds: int = 100) -> list[int]:
-    """An open route from the agent through every stop, short first: the order of the K stops (indices)
-    that visits them all, starting where the agent is (`start[i]`: travel from the agent to stop i;
-    `pairwise`: between stops, symmetric) and ending anywhere. Up to `exact_up_to` stops the shortest
-    (Held-Karp dynamic programme over subsets); beyond, nearest neighbour and then local search until no
-    move shortens the route: 2-opt (walk a stretch backwards) and or-opt (move a stretch of up to three
-    stops elsewhere, either way round)."""
-    k = len(start)
-    if k <= 1:
-        return list(range(k))
-    start, pairwise = np.asarray(start, float), np.asarray(pairwise, float)
-    if k <= exact_up_to:
-        return _held_karp(start, pairwise)
-    left, route, at = set(range(k)), [], None
-    while left:
-        row = start if at is None else pairwise[at]
-        at = min(left, key=lambda j: (row[j], j))
-        route.append(at)
-        left.remove(at)
-
-    def length(r: list[int]) -> float:
-        a = np.asarray(r)
-        return float(start[a[0]] + pairwise[a[:-1], a[1:]].sum())
-
-    def moves(r: list[int]):
-        for i in range(k - 1):
-            for j in range(i + 1, k):
-                yield r[:i] + r[i:j + 1][::-1] + r[j + 1:]
-        for size in range(1, min(3, k - 1) + 1):
-            for i in range(k - size + 1):
-                stretch, rest = r[i:i + size], r[:i] + r[i + size:]
-                for at in range(len(rest) + 1):
-                    if at != i:
-                        yield rest[:at] + stretch + rest[at:]
-                    if size > 1:
-                        yield rest[:at] + stretch[::-1] + rest[at:]
-
-    best = length(route)
-    for _ in range(max_rounds):
-        for candidate in moves(route):
-            cost = length(candidate)
-            if cost < best - 1e-9:
-                route, best = candidate, cost
-                break
-        else:
-            break
-    return route
-
-
-def _held_karp(start: np.ndarray, pairwise: np.ndarray) -> list[int]:
-    """The shortest open route from the agent through every stop (see `shortest_tour`): cost[S, j] is the
-    shortest route that visits the set S (a bit mask) and ends at j."""
-    k = len(start)
-    full = 1 << k
-    cost = np.full((full, k), np.inf)
-    back = np.full((full, k), -1, dtype=np.int64)
-    for j in range(k):
-        cost[1 << j, j] = start[j]
-    bits = 1 << np.arange(k)
-    for mask in range(1, full):
-        ends = np.flatnonzero(mask & bits)
-        if len(ends) < 2:
-            continue
-        # arriving at j from i: the route over mask without j, ending at i, then the leg i -> j
-        via = cost[mask ^ bits[ends]] + pairwise[:, ends].T
-        best = np.argmin(via, axis=1)
-        cost[mask, ends] = via[np.arange(len(ends)), best]
-        back[mask, ends] = best
-    route, mask, at = [], full - 1, int(np.argmin(cost[full - 1]))
-    while at >= 0:
-        route.append(at)
-        mask, at = mask ^ (1 << at), int(back[mask, at])
-    return route[::-1]
 
 
 def tour_first(ranked: list[int], worth: np.ndarray, travel: np.ndarray, nodes: Sequence[int],
@@ -518,7 +387,6 @@ def select_rotation_targets(targets: Sequence[RotationTarget], yaw: float, pcfg:
     return [chosen[i] for i in order]
 
 
-__all__ = ["GoalRules", "closer_on_the_way", "distance_to_polyline", "goal_candidates", "graph_travel",
-           "local_then_global", "node_state", "pairwise_travel", "panorama_candidates",
-           "rank_goals", "select_rotation_targets", "shortest_tour", "tour_first", "travel_lengths",
+__all__ = ["GoalRules", "closer_on_the_way", "distance_to_polyline", "goal_candidates", "local_then_global",
+           "node_state", "panorama_candidates", "rank_goals", "select_rotation_targets", "tour_first",
            "worth_a_detour", "worth_a_visit"]

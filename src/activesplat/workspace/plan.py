@@ -34,7 +34,7 @@ class Plan:
     """The information part of each node's score (w_o s_o + w_c s_c), see
     `activesplat.planning.viewpoints.information_scores`."""
     travel: dict[int, float] = field(default_factory=dict)
-    """Each candidate's travel length from the agent in metres (`planning.goals.travel_lengths`)."""
+    """Each candidate's travel length from the agent in metres (`planning.travel.travel_lengths`)."""
     stage: str = ""
     """How the goal ranking went: "local" (a node of the agent's subregion promised something to see),
     "global" (score minus distance over every node), "flat" (no hierarchical planning); empty when the
