@@ -135,6 +135,9 @@ def test_live_evaluation_on_a_worker_thread_gives_the_same_numbers(episode, tmp_
                 "completion_gain"):
         assert m[key] == metrics[key], key
     assert len(m["curve"]) == 9  # a point every 10 frames, the last at step 90
+    # each curve point carries the map's size then; the last one is the final map
+    assert m["curve"][-1]["n_gaussians"] == m["n_gaussians"] <= m["peak_gaussians"]
+    assert 0 < m["curve"][0]["n_gaussians"] and m["peak_rss_mb"] > 100
     assert m["evaluation_worker_ms_per_step"] > 0
 
 

@@ -10,6 +10,7 @@ the action log alone.
 from __future__ import annotations
 
 import math
+import resource
 import sys
 import time
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -156,7 +157,9 @@ def explore_environment(env, run, out: str | Path, overwrite: bool = False, prog
             if viewer is not None:
                 viewer.update(step, obs, mapper, explorer, final=step == steps)
             if evaluator is not None and evaluator.curve_due(step, steps):
-                timers.time("evaluation", evaluator.curve_point, step, forward)
+                at_step = {"path_length_m": forward * run.sim.forward_step,
+                           "n_gaussians": len(mapper.gaussians)}
+                timers.time("evaluation", evaluator.curve_point, step, at_step)
             if bar is not None:
                 bar.update(1)
                 elapsed = time.perf_counter() - t_start
@@ -195,6 +198,8 @@ def explore_environment(env, run, out: str | Path, overwrite: bool = False, prog
         "timing_ms": {k: timers.per_step(steps).get(k, 0.0) for k in TIMING_KEYS},
         "mapper_phases_ms": {k: v / steps for k, v in mapper_phases.items()},
         "n_gaussians": len(mapper.gaussians),
+        "peak_gaussians": mapper.peak_gaussians,
+        "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
         "scene": name, "policy": policy, "seed": seed,
         "curve": curve,
     })
@@ -262,9 +267,10 @@ class _Completion:
     def curve_due(self, step: int, steps: int) -> bool:
         return self._observed % self.cfg.batch_frames == 0 or step == steps
 
-    def curve_point(self, step: int, forward: int) -> None:
-        """Fold the poses observed so far in, then add the curve point of `step` (`curve`)."""
-        self._submit(step, forward)
+    def curve_point(self, step: int, at_step: dict) -> None:
+        """Fold the poses observed so far in, then add the curve point of `step` (`curve`): its completion
+        and what the loop knows at that step (`at_step`: path length, the map's size)."""
+        self._submit(step, at_step)
 
     def latest(self) -> dict | None:
         """The newest curve point computed so far (behind by a batch while the worker runs)."""
@@ -272,7 +278,7 @@ class _Completion:
 
     def finish(self) -> list[dict]:
         """Fold the remaining poses in, wait for the worker; the curve."""
-        self._submit(None, 0)
+        self._submit(None, {})
         self._wait()
         return self.curve
 
@@ -281,16 +287,16 @@ class _Completion:
         if self._worker is not None:
             self._worker.shutdown(wait=True, cancel_futures=True)
 
-    def _submit(self, step: int | None, forward: int) -> None:
+    def _submit(self, step: int | None, at_step: dict) -> None:
         poses, self._pending = self._pending, []
         if self._worker is None:
-            self._fold(poses, step, forward)
+            self._fold(poses, step, at_step)
             return
         done = [job.done() for job in self._jobs]  # one look at each: a job may finish meanwhile
         for job in (job for job, d in zip(self._jobs, done, strict=True) if d):
             job.result()  # a worker's error surfaces at the next batch, not at the end of the episode
         self._jobs = [job for job, d in zip(self._jobs, done, strict=True) if not d]
-        self._jobs.append(self._worker.submit(self._fold, poses, step, forward))
+        self._jobs.append(self._worker.submit(self._fold, poses, step, at_step))
 
     def _wait(self) -> None:
         for job in self._jobs:
@@ -299,13 +305,13 @@ class _Completion:
         if self._worker is not None:
             self._worker.shutdown(wait=True)
 
-    def _fold(self, poses: list[np.ndarray], step: int | None, forward: int) -> None:
+    def _fold(self, poses: list[np.ndarray], step: int | None, at_step: dict) -> None:
         t0 = time.perf_counter()
         res = self.cfg.resolution
         for pose in poses:
             self.coverage.add_frame(self.sim.depth(pose, res, res), pose, self.K)
         if step is not None:
-            self.curve.append(_curve_point(step, self.coverage, forward, self.sim_config))
+            self.curve.append(_curve_point(step, self.coverage, at_step))
         self.worker_ms += 1000.0 * (time.perf_counter() - t0)
 
     def metrics(self) -> dict:
@@ -339,10 +345,10 @@ class _Completion:
                         house=scene.house, room_labels=labels, title=title)
 
 
-def _curve_point(step: int, coverage, forward: int, sim_config) -> dict:
+def _curve_point(step: int, coverage, at_step: dict) -> dict:
     m = coverage.metrics(uncapped=False)
     return {"step": step, "completion_ratio_pct": m["completion_ratio_pct"],
-            "completion_cm": m["completion_cm"], "path_length_m": forward * sim_config.forward_step}
+            "completion_cm": m["completion_cm"], **at_step}
 
 
 def _save_map(mapper, explorer, out_dir: Path, floor_height: float) -> None:
