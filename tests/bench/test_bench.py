@@ -32,7 +32,8 @@ def _metrics(ratio, cm=2.0, path=10.0, ms=100.0, steps=1000, mapper=40.0, seed=0
             "path_length_m": path, "steps": steps, "wall_time_s": ms * steps / 1000, "ms_per_step": ms,
             "evaluation_ms_per_step": 5.0,
             "timing_ms": {k: (mapper if k == "mapper" else 1.0) for k in TIMING_KEYS},
-            "n_gaussians": 1234, "scene": "x", "policy": policy, "seed": seed, "curve": curve}
+            "n_gaussians": 1234, "peak_gaussians": 1500 + seed, "peak_rss_mb": 900.0,
+            "scene": "x", "policy": policy, "seed": seed, "curve": curve}
 
 
 def _write(spec, metrics):
@@ -105,6 +106,8 @@ def test_tables_mean_std_and_averages_from_handwritten_metrics(tmp_path):
     # Tab. VI: mean mapper ms over the 4 complete activesplat runs = mean(89, 91, 80, 84) / 2
     tab6 = md.split("## Tab. VI")[1]
     assert "| activesplat | 43.00 | 1.00 |" in tab6 and "| paper (RTX 3090) | 45.14 | 43.87 |" in tab6
+    # the map: means over the complete runs (activesplat: seeds 0, 1, 0, 1 -> peak 1500.5, printed as 1500)
+    assert "| activesplat | 1234 | 1500 | 900 |" in md.split("## The map")[1]
     assert "| small-1 | fbe | 1 | failed | RuntimeError: boom |" in md
 
 

@@ -241,11 +241,23 @@ def timing_table(res: Results) -> list[str]:
     keys = [*(f"timing_ms.{k}" for k in TIMING_KEYS), "evaluation_ms_per_step", "ms_per_step"]
     header = ["policy", *(k.replace("_", " ") for k in TIMING_KEYS), "evaluation", "total"]
     rows = [["paper (RTX 3090)", *(f"{PAPER_TAB6_MS[k]:.2f}" for k in TIMING_KEYS), "–", "–"]]
+    return _table(header, rows + _policy_means(res, keys, d))
+
+
+def _policy_means(res: Results, keys: Sequence[str], decimals: int) -> list[list[str]]:
+    """One row per policy: the mean of each metric over its complete runs."""
+    rows = []
     for p in res.policies:
         ms = res.complete(None, p)
-        rows.append([p, *(_pm(float(np.mean([_get(m, k) for m in ms])) if ms else None, None, d)
+        rows.append([p, *(_pm(float(np.mean([_get(m, k) for m in ms])) if ms else None, None, decimals)
                           for k in keys)])
-    return _table(header, rows)
+    return rows
+
+
+def map_table(res: Results) -> list[str]:
+    """The online map's size and the memory of the run, means over every complete run of a policy."""
+    return _table(["policy", "Gaussians (final)", "Gaussians (peak)", "peak RSS (MB)"],
+                  _policy_means(res, ("n_gaussians", "peak_gaussians", "peak_rss_mb"), 0))
 
 
 PATH_FRACTIONS = (25, 50, 75, 100)
@@ -363,6 +375,10 @@ def markdown_report(records: Sequence[RunRecord], cfg: TableConfig | None = None
             "## Tab. VI: mean processing time per step (ms)", "", *timing_table(res), "",
             "Module times are means over all complete runs of a policy; `evaluation` is the live completion "
             "measurement (not part of the robot's work), `total` the whole step.", ""]
+    if any(r.metrics and "n_gaussians" in r.metrics for r in res.records):
+        out += ["## The map", "", *map_table(res), "",
+                "Gaussians in the online map at the end and at its largest; peak RSS: the peak resident "
+                "memory of the process that ran it (a benchmark worker's peak over all its runs so far).", ""]
     if curves:
         out += ["## Completion curves", "", *(f"![{Path(c).stem}]({Path(c).name})" for c in curves), ""]
     broken = [r for r in res.records if r.status != "complete"]
