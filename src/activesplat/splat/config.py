@@ -199,7 +199,8 @@ class MapperConfig:
     the order they were added; ``Mapper.save`` keeps the map's size over the last frames for ``load``), and
     the rule acts on revisits. At 300 frames, the two-pass replay above:
     +5.6 % Gaussians in pass 2 (defaults +10.1 %), keyframe PSNR 32.39 dB (defaults 32.24); medium-120..125
-    explorations +0.12 points (four of six higher), level: off until the benchmark batches are run.
+    explorations +0.12 points (four of six higher), but tuning medium-0..3 x 2 seeds -0.40 and fresh
+    medium-100..109 -0.28 points, and final maps only 0.4 % smaller after 2000 steps: off.
 
     Coarse refresh (``refresh_coarse_factor``; paper, release and SplaTAM: none). Eq. 8 adds Gaussians
     only where the map is transparent, so a wall first seen from 4 m keeps the 4-5 cm Gaussians it got
