@@ -29,7 +29,6 @@ from __future__ import annotations
 import argparse
 import ast
 import dataclasses
-import resource
 import time
 from collections import defaultdict
 from pathlib import Path
@@ -43,6 +42,7 @@ from activesplat.eval.evaluate import parse_sim_overrides
 from activesplat.geometry import backproject
 from activesplat.sim import SimConfig, Simulator, load_scene
 from activesplat.splat import Mapper, MapperConfig
+from activesplat.timing import peak_rss_mb as peak_rss
 
 TILTS = ("look_down", "look_down", "look_down", "look_up", "look_up", "look_up")
 SURFACE_VOXEL_M = 0.05
@@ -197,7 +197,7 @@ def main() -> None:
             for p in probes.values():
                 p["psnr"][step] = psnr(mapper, p["rgb"], p["pose"])
     wall = time.perf_counter() - t_start
-    peak_rss_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+    peak_rss_mb = peak_rss()
     area = len(voxels) * SURFACE_VOXEL_M ** 2
 
     print(f"## Mapper benchmark: {label}, backend {args.backend}, {args.threads} threads\n")

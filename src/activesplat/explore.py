@@ -10,7 +10,6 @@ the action log alone.
 from __future__ import annotations
 
 import math
-import resource
 import sys
 import time
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -101,7 +100,7 @@ def explore_environment(env, run, out: str | Path, overwrite: bool = False, prog
     from activesplat.planning.policies import make_policy
     from activesplat.splat import Mapper
     from activesplat.splat.raster import prepare_backend
-    from activesplat.timing import Timers
+    from activesplat.timing import Timers, peak_rss_mb
 
     if not isinstance(run.steps, int) or run.steps <= 0:
         raise InvalidInputError(f"an environment needs a step budget > 0 (run.steps), got {run.steps}")
@@ -199,7 +198,7 @@ def explore_environment(env, run, out: str | Path, overwrite: bool = False, prog
         "mapper_phases_ms": {k: v / steps for k, v in mapper_phases.items()},
         "n_gaussians": len(mapper.gaussians),
         "peak_gaussians": mapper.peak_gaussians,
-        "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
+        "peak_rss_mb": peak_rss_mb(),
         "scene": name, "policy": policy, "seed": seed,
         "curve": curve,
     })

@@ -1,7 +1,9 @@
-"""Per-module timing of the closed loop (the paper's Tab. VI): mean milliseconds per step."""
+"""Per-module timing of the closed loop (the paper's Tab. VI): mean milliseconds per step; the process's
+peak memory."""
 
 from __future__ import annotations
 
+import sys
 import time
 from collections import defaultdict
 from collections.abc import Callable
@@ -25,4 +27,14 @@ class Timers:
         return {k: v / max(steps, 1) for k, v in self.total_ms.items()}
 
 
-__all__ = ["Timers"]
+def peak_rss_mb() -> float | None:
+    """Peak resident memory of this process so far, in MB (None where the OS does not report it)."""
+    try:
+        import resource
+    except ImportError:  # Windows
+        return None
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss  # KiB on Linux, bytes on macOS
+    return peak / 1024.0 ** (2 if sys.platform == "darwin" else 1)
+
+
+__all__ = ["Timers", "peak_rss_mb"]
