@@ -247,6 +247,23 @@ def _wall_pose(z: float) -> np.ndarray:
     return p
 
 
+def test_the_voxel_budget_bounds_the_gaussians_of_a_wall_seen_close_and_again():
+    """MapperConfig "Voxel budget": from 0.5 m the 2-px grid (f = 16 px) spaces new centres 6 cm apart on the
+    wall; with one centre per 10 cm voxel the first frame adds one per voxel the view covers, and a second,
+    closer view of the same wall adds none where the map already holds a centre."""
+    near, nearer = _wall_pose(1.5), _wall_pose(1.7)  # wall 0.5 m, then 0.3 m ahead
+    plain = _mapper(detail_colour_range=None)
+    budget = _mapper(detail_colour_range=None, densify_voxel_m=0.1)
+    for m in (plain, budget):
+        m.add_frame(*observe(near, S), near)
+    keys = np.floor(budget.gaussians.means.detach().numpy()[:, :2] / 0.1)
+    assert len(np.unique(keys, axis=0)) == len(budget.gaussians) < 0.5 * len(plain.gaussians)
+    alpha = budget.render(near).alpha[4:-4, 4:-4]
+    assert alpha.min() > 0.98  # fewer, not missing: wider Gaussians still cover the wall (eq. 8's tau_o1)
+    stats = budget.add_frame(*observe(nearer, S), nearer)
+    assert stats.added == 0
+
+
 def test_coarse_refresh_replaces_far_gaussians_with_fine_ones_only_in_full_view():
     size = 64  # f = 32
     far, near = _wall_pose(-0.5), _wall_pose(1.2)  # wall 2.5 m, then 0.8 m ahead

@@ -15,6 +15,7 @@ from activesplat.splat.densify import (
     depth_edge_band,
     gaussians_from_pixels,
     high_loss_mask,
+    one_per_voxel,
     prune_mask,
     surface_elongation,
     surface_frame,
@@ -103,6 +104,46 @@ def test_the_depth_test_skips_represented_pixels_but_the_opacity_test_does_not()
     expected = torch.zeros(4, 4, dtype=torch.bool)
     expected[2, 2] = expected[3, 0] = True
     assert torch.equal(mask, expected)
+
+
+def test_voxel_budget_keeps_one_new_centre_per_empty_voxel_grid_picks_first():
+    from activesplat.geometry import voxel_keys
+
+    points = np.array([[0.001, 0.0, 0.0],  # voxel A, a fine pick
+                       [0.012, 0.0, 0.0],  # voxel A, a grid pick: kept before the fine one
+                       [0.018, 0.0, 0.0],  # voxel A, a later grid pick: dropped
+                       [0.050, 0.0, 0.0],  # voxel B, alone: kept
+                       [0.301, 0.0, 0.0],  # voxel C, which the map already holds: dropped
+                       [-0.001, 0.0, 0.0]])  # the voxel just below A: kept
+    fine = np.array([True, False, False, False, False, False])
+    occupied = np.unique(voxel_keys(np.array([[0.31, 0.001, 0.0]]), 0.02))
+    assert one_per_voxel(points, fine, occupied, 0.02).tolist() == [False, True, False, True, False, True]
+    assert one_per_voxel(points[:0], fine[:0], occupied, 0.02).shape == (0,)
+    assert one_per_voxel(points, fine, occupied[:0], 0.02).sum() == 4
+
+
+def test_voxel_budget_in_new_gaussians_spares_exempt_pixels_and_widens_what_it_keeps():
+    from activesplat.geometry import voxel_keys
+
+    cfg = MapperConfig(densify_voxel_m=0.1, detail_colour_range=None)
+    K = np.array([[32.0, 0, 32], [0, 32.0, 32], [0, 0, 1]])
+    wall = torch.full((64, 64), 2.0)  # the 2-px grid spaces centres 12.5 cm apart on it
+    rgb = torch.full((64, 64, 3), 0.5)
+    mask = torch.ones(64, 64, dtype=torch.bool)
+    free = gaussians_from_pixels(mask, rgb, wall, np.eye(4), K, cfg, occupied=np.zeros(0, np.int64))
+    assert len(free["means"]) == 32 * 32  # one pick per voxel already: the budget drops nothing
+    assert torch.allclose(free["log_scales"].exp().max(dim=1).values, torch.tensor(0.1))  # >= 1 x voxel
+    occupied = np.unique(voxel_keys(free["means"][:512].numpy(), 0.1))  # the top half is in the map
+    budget = gaussians_from_pixels(mask, rgb, wall, np.eye(4), K, cfg, occupied=occupied)
+    assert len(budget["means"]) == 512 and (budget["means"][:, 1] > 0).all()
+    exempt = torch.zeros(64, 64, dtype=torch.bool)
+    exempt[:4] = True  # two rows of grid picks in the occupied half: kept, at the grid's own radius
+    spared = gaussians_from_pixels(mask, rgb, wall, np.eye(4), K, cfg, occupied=occupied, exempt=exempt)
+    assert len(spared["means"]) == 512 + 64
+    radii = spared["log_scales"].exp().max(dim=1).values
+    assert torch.allclose(radii[spared["means"][:, 1] < -0.8], torch.tensor(0.75 * 2 * 2.0 / 32))
+    with pytest.raises(InvalidInputError, match="densify_voxel_m"):
+        MapperConfig(densify_voxel_m=0.0)
 
 
 def test_high_loss_mask_eq10():

@@ -202,6 +202,23 @@ class MapperConfig:
     explorations +0.12 points (four of six higher), but tuning medium-0..3 x 2 seeds -0.40 and fresh
     medium-100..109 -0.28 points, and final maps only 0.4 % smaller after 2000 steps: off.
 
+    Voxel budget (``densify_voxel_m``; paper, release and SplaTAM: none; an option, off). A budget per
+    observed surface area: a new Gaussian's centre (its back-projected pixel) must fall in a voxel of this
+    size that holds no centre of the map's Gaussians in view, and at most one new centre goes into each
+    voxel (a grid pick before a colour-detail one). A plane crossing voxels of size v gets at most one
+    centre per v^2 of its area when it is aligned with the voxel axes (2 cm: 2500 per m^2) and up to
+    sqrt(3) times that at a slant. The centres the budget keeps get a radius of at least
+    ``densify_voxel_radius`` x v, so that the wider spacing leaves no holes for the opacity test (which
+    could not fill them again). With ``densify_voxel_depth_test_only`` the opacity test's holes are exempt
+    and only eq. 8's depth test is budgeted. Replay of a 4000-step medium-0 exploration
+    (``benchmarks/mapper.py --episode E --set densify_voxel_m=...``; docs/mapping.md "A voxel budget"):
+    defaults 807k -> 1045k Gaussians from step 2000 to 4000 (+29 %) for +13 % observed surface, keyframes
+    31.68 dB / 1.61 cm, render-eval test 30.25 dB / LPIPS 0.202 / 2.23 cm, mapper 166-183 ms per step;
+    2 cm: 549k -> 668k (+22 %), 30.05 dB / 2.48 cm, test 29.41 / 0.243 / 2.72 cm, 130 ms; 3 cm: 374k ->
+    441k (+18 %), 28.73 dB / 3.71 cm, test 28.54 / 0.301 / 3.48 cm, 105 ms; 2 cm on the depth test only:
+    677k -> 829k (+22 %), 30.53 dB / 2.43 cm, test 29.63 / 0.226 / 2.73 cm. Memory and time for quality,
+    and the growth beyond the new surface does not stop: off.
+
     Coarse refresh (``refresh_coarse_factor``; paper, release and SplaTAM: none). Eq. 8 adds Gaussians
     only where the map is transparent, so a wall first seen from 4 m keeps the 4-5 cm Gaussians it got
     there when the robot walks up to it, and every close view of it renders blurred. A mapped frame first
@@ -307,6 +324,11 @@ class MapperConfig:
     densify_opacity: float = 0.98  # tau_o1 (paper)
     densify_k: float = 5.0  # project: k x median depth error (paper 50, release 2; see class docstring)
     densify_max_depth_m: float | None = None  # release applies the depth test only below 5 m; None = off
+    # project: at most one new Gaussian centre per voxel of this size (metres), none in a voxel that already
+    # holds a centre of the map (see class docstring "Voxel budget"); None = off (paper, release)
+    densify_voxel_m: float | None = None
+    densify_voxel_radius: float = 1.0  # project: a kept Gaussian's radius is at least this x densify_voxel_m
+    densify_voxel_depth_test_only: bool = False  # project: the budget spares the opacity test's holes
     # project: the depth test also needs the median depth behind the observation (see "Depth test at edges")
     densify_median_depth: bool = False
     # project: the depth test skips pixels whose observed surface already holds an opaque Gaussian centre,
@@ -382,6 +404,9 @@ class MapperConfig:
         if not 0.0 < self.init_normal_scale <= 1.0:
             raise InvalidInputError(f"MapperConfig.init_normal_scale must be in (0, 1], got "
                                     f"{self.init_normal_scale}")
+        if self.densify_voxel_m is not None and self.densify_voxel_m <= 0.0:
+            raise InvalidInputError(f"MapperConfig.densify_voxel_m must be > 0 (or None = off), got "
+                                    f"{self.densify_voxel_m}")
         if not 0.0 < self.init_opacity < 1.0:
             raise InvalidInputError(f"MapperConfig.init_opacity must be in (0, 1), got {self.init_opacity}")
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from activesplat.geometry import backproject
+from activesplat.geometry import backproject, in_sorted, voxel_keys
 from activesplat.splat.config import MapperConfig
 from activesplat.splat.gaussians import GaussianMap
 
@@ -186,8 +186,25 @@ def slant_copies(points: torch.Tensor, colors: torch.Tensor, radii: torch.Tensor
     return points[idx] + shift, colors, radii[idx], new_ok, frames[rows], factors[rows]
 
 
+def one_per_voxel(points: np.ndarray, fine: np.ndarray, occupied: np.ndarray, size: float) -> np.ndarray:
+    """(M,) bool: the candidate centres ``points`` (M, 3) that a voxel budget of one new centre per voxel of
+    ``size`` metres keeps (MapperConfig "Voxel budget"): none in a voxel of ``occupied`` (sorted voxel keys
+    of the map's centres), and one per voxel among the rest, a grid pick (``fine`` False) before a fine
+    one, then the first in raster order."""
+    keys = voxel_keys(points, size)
+    keep = ~in_sorted(occupied, keys)
+    idx = np.nonzero(keep)[0]
+    order = idx[np.lexsort((idx, fine[idx], keys[idx]))]  # by voxel, grid picks first, then raster order
+    first = np.ones(len(order), dtype=bool)
+    first[1:] = keys[order[1:]] != keys[order[:-1]]
+    keep[:] = False
+    keep[order[first]] = True
+    return keep
+
+
 def gaussians_from_pixels(mask: torch.Tensor, rgb: torch.Tensor, depth: torch.Tensor, pose: np.ndarray,
-                          K: np.ndarray, cfg: MapperConfig) -> dict[str, torch.Tensor]:
+                          K: np.ndarray, cfg: MapperConfig, occupied: np.ndarray | None = None,
+                          exempt: torch.Tensor | None = None) -> dict[str, torch.Tensor]:
     """Raw parameters of one Gaussian per masked pixel (``mask`` lies on valid observed depth, as eq. 8's
     mask does) on the ``pixel_stride`` grid: back-projected
     centre, radius = init_radius_scale * stride * depth / focal (projective scale), opacity
@@ -197,7 +214,9 @@ def gaussians_from_pixels(mask: torch.Tensor, rgb: torch.Tensor, depth: torch.Te
     radius along the slant direction is stretched by 1 / cos(viewing angle) (at most
     ``init_max_elongation``) so that a surface seen at a grazing angle is covered between the rows of
     pixels that sample it, and its radius along the normal is ``init_normal_scale`` times the radius
-    (departures, see MapperConfig)."""
+    (departures, see MapperConfig). With ``occupied`` (sorted voxel keys of the map's centres in view) and
+    ``cfg.densify_voxel_m``, the picks are thinned by :func:`one_per_voxel`, except those on ``exempt``
+    pixels ((H, W) bool)."""
     pick = stride_mask(mask, cfg.pixel_stride)
     fine = None
     if cfg.edge_band_px > 0 and cfg.pixel_stride > 1:  # every pixel near a depth jump, at its own radius
@@ -209,13 +228,28 @@ def gaussians_from_pixels(mask: torch.Tensor, rgb: torch.Tensor, depth: torch.Te
         pick = pick | fine
     v, u = (t.cpu().numpy() for t in torch.nonzero(pick, as_tuple=True))
     depth_np = depth.detach().cpu().numpy()
-    points = torch.from_numpy(backproject(depth_np, pose, K, v, u).astype(np.float32))
+    points_np = backproject(depth_np, pose, K, v, u)
+    budget = None
+    if occupied is not None and cfg.densify_voxel_m is not None:
+        is_fine = np.zeros(len(v), dtype=bool) if fine is None else fine.cpu().numpy()[v, u]
+        keep = one_per_voxel(points_np, is_fine, occupied, cfg.densify_voxel_m)
+        if exempt is not None:  # the holes of the opacity test are filled whatever the budget
+            spared = exempt.cpu().numpy()[v, u]
+            keep |= spared
+            budget = ~spared[keep]
+        else:
+            budget = np.ones(int(keep.sum()), dtype=bool)
+        v, u, points_np = v[keep], u[keep], points_np[keep]
+    points = torch.from_numpy(points_np.astype(np.float32))
     z = torch.from_numpy(depth_np[v, u])
     focal = 0.5 * (float(K[0, 0]) + float(K[1, 1]))
     stride = float(cfg.pixel_stride)
     if fine is not None:
         stride = torch.where(fine.cpu()[torch.from_numpy(v), torch.from_numpy(u)], 1.0, stride)
     radii = cfg.init_radius_scale * stride * z / focal
+    if budget is not None:  # the centres the budget kept cover the voxels between them
+        floor = torch.from_numpy(np.where(budget, cfg.densify_voxel_radius * cfg.densify_voxel_m, 0.0))
+        radii = torch.maximum(radii, floor.to(radii.dtype))
     colors = rgb[torch.from_numpy(v), torch.from_numpy(u)]
     frames = factors = None
     if cfg.init_max_elongation > 1.0 or cfg.init_normal_scale < 1.0 or cfg.init_slant_fill > 1:

@@ -31,6 +31,7 @@ import numpy as np
 import torch
 
 from activesplat.errors import InvalidInputError
+from activesplat.geometry import voxel_keys
 from activesplat.splat.config import MapperConfig, Schedule
 from activesplat.splat.densify import (
     cap_mask,
@@ -267,7 +268,11 @@ class Mapper:
             if footprint is not None:  # the retired Gaussians' footprint is covered anew, whatever is behind
                 new_mask |= footprint & (obs_depth > 0)
         clock.lap("render_masks")
-        raw = gaussians_from_pixels(new_mask, obs_rgb, obs_depth, pose, self.K, cfg)
+        occupied = self._occupied(pose, front)
+        exempt = None
+        if occupied is not None and cfg.densify_voxel_depth_test_only:
+            exempt = (obs_depth > 0) & (out["alpha"] < cfg.densify_opacity)
+        raw = gaussians_from_pixels(new_mask, obs_rgb, obs_depth, pose, self.K, cfg, occupied, exempt)
         stats.added = self._append(raw)
         clock.lap("densify")
         window = mapping_window(depth, pose, self.K, self.keyframes, cfg.window_overlap, cfg.overlap_pixels,
@@ -307,6 +312,17 @@ class Mapper:
         opacities = torch.sigmoid(p["opacity_logits"].detach().index_select(0, rows))
         return represented_mask(p["means"].index_select(0, rows), opacities, pose, self.K, obs_depth,
                                 cfg.densify_represented_tol, cfg.densify_represented_px)
+
+    def _occupied(self, pose: np.ndarray, rows: torch.Tensor | None) -> np.ndarray | None:
+        """Sorted voxel keys (``densify_voxel_m``) of the centres of ``rows`` (default: the view's frustum),
+        for the voxel budget; None when it is off."""
+        size = self.config.densify_voxel_m
+        if size is None:
+            return None
+        if rows is None:
+            rows = self._view_rows(pose, self.K, self.width, self.height)
+        means = self.gaussians.params["means"].detach().index_select(0, rows).cpu().numpy()
+        return np.unique(voxel_keys(means, size))
 
     def _front_rows(self, pose: np.ndarray) -> torch.Tensor:
         """The Gaussians of this view's frustum less the flat ones it sees from behind
