@@ -216,7 +216,9 @@ class MapperConfig:
     31.68 dB / 1.61 cm, render-eval test 30.25 dB / LPIPS 0.202 / 2.23 cm, mapper 166-183 ms per step;
     2 cm: 549k -> 668k (+22 %), 30.05 dB / 2.48 cm, test 29.41 / 0.243 / 2.72 cm, 130 ms; 3 cm: 374k ->
     441k (+18 %), 28.73 dB / 3.71 cm, test 28.54 / 0.301 / 3.48 cm, 105 ms; 2 cm on the depth test only:
-    677k -> 829k (+22 %), 30.53 dB / 2.43 cm, test 29.63 / 0.226 / 2.73 cm. Memory and time for quality,
+    677k -> 829k (+22 %), 30.53 dB / 2.43 cm, test 29.63 / 0.226 / 2.73 cm. Explorations with 2 cm
+    (medium-0..3 and medium-100..103, seed 0): completion -0.09 points (SE 0.29), maps -32 %, live
+    render-eval test 28.35 -> 27.68 dB, LPIPS 0.248 -> 0.285 on medium-0..3. Memory and time for quality,
     and the growth beyond the new surface does not stop: off.
 
     Coarse refresh (``refresh_coarse_factor``; paper, release and SplaTAM: none). Eq. 8 adds Gaussians
