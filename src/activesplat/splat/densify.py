@@ -14,6 +14,11 @@ from activesplat.splat.config import MapperConfig
 from activesplat.splat.gaussians import GaussianMap
 
 
+def opacity_test_mask(alpha: torch.Tensor, obs_depth: torch.Tensor, cfg: MapperConfig) -> torch.Tensor:
+    """Eq. 8's opacity test: the holes (O < tau_o1) on valid observed depth."""
+    return (obs_depth > 0) & (alpha < cfg.densify_opacity)
+
+
 def densification_mask(alpha: torch.Tensor, depth: torch.Tensor, obs_depth: torch.Tensor,
                        cfg: MapperConfig, median_depth: torch.Tensor | None = None,
                        represented: torch.Tensor | None = None) -> torch.Tensor:
@@ -35,7 +40,7 @@ def densification_mask(alpha: torch.Tensor, depth: torch.Tensor, obs_depth: torc
         in_front &= obs_depth < cfg.densify_max_depth_m
     if represented is not None:
         in_front &= ~represented
-    return valid & ((alpha < cfg.densify_opacity) | in_front)
+    return opacity_test_mask(alpha, obs_depth, cfg) | (valid & in_front)
 
 
 def high_loss_mask(alpha: torch.Tensor, median_depth: torch.Tensor, obs_depth: torch.Tensor,
@@ -232,13 +237,10 @@ def gaussians_from_pixels(mask: torch.Tensor, rgb: torch.Tensor, depth: torch.Te
     budget = None
     if occupied is not None and cfg.densify_voxel_m is not None:
         is_fine = np.zeros(len(v), dtype=bool) if fine is None else fine.cpu().numpy()[v, u]
-        keep = one_per_voxel(points_np, is_fine, occupied, cfg.densify_voxel_m)
-        if exempt is not None:  # the holes of the opacity test are filled whatever the budget
-            spared = exempt.cpu().numpy()[v, u]
-            keep |= spared
-            budget = ~spared[keep]
-        else:
-            budget = np.ones(int(keep.sum()), dtype=bool)
+        # exempt pixels (the opacity test's holes) are kept whatever the budget, at their own radius
+        spared = np.zeros(len(v), dtype=bool) if exempt is None else exempt.cpu().numpy()[v, u]
+        keep = one_per_voxel(points_np, is_fine, occupied, cfg.densify_voxel_m) | spared
+        budget = ~spared[keep]
         v, u, points_np = v[keep], u[keep], points_np[keep]
     points = torch.from_numpy(points_np.astype(np.float32))
     z = torch.from_numpy(depth_np[v, u])

@@ -40,6 +40,7 @@ from activesplat.splat.densify import (
     free_space_mask,
     gaussians_from_pixels,
     high_loss_mask,
+    opacity_test_mask,
     prune_mask,
     represented_mask,
 )
@@ -271,7 +272,7 @@ class Mapper:
         occupied = self._occupied(pose, front)
         exempt = None
         if occupied is not None and cfg.densify_voxel_depth_test_only:
-            exempt = (obs_depth > 0) & (out["alpha"] < cfg.densify_opacity)
+            exempt = opacity_test_mask(out["alpha"], obs_depth, cfg)
         raw = gaussians_from_pixels(new_mask, obs_rgb, obs_depth, pose, self.K, cfg, occupied, exempt)
         stats.added = self._append(raw)
         clock.lap("densify")
