@@ -235,7 +235,8 @@ def main() -> None:
     print(f"| map + optimiser bytes per m^2 observed | "
           f"{len(mapper.gaussians) * BYTES_PER_GAUSSIAN / max(area, 1e-9) / 1024:.1f} KiB |")
     print(f"| peak RSS of this process | {'n/a' if peak_rss_mb is None else f'{peak_rss_mb:.0f} MB'} |")
-    print(f"| added / pruned | {sum(r.added for r in records)} / {sum(r.pruned for r in records)} |")
+    print(f"| added / pruned / merged | {sum(r.added for r in records)} / {sum(r.pruned for r in records)} / "
+          f"{sum(r.merged for r in records)} |")
     print(f"| mapped frames / keyframes | {sum(r.mapped for r in records)} / {len(mapper.keyframes)} |")
     print(f"| episode wall time | {wall:.1f} s |")
     print("\n| phase | ms per step | share |\n|---|---|---|")

@@ -238,6 +238,12 @@ def frustum_rows(means: torch.Tensor, log_scales: torch.Tensor, pose, K, width: 
                                occlusion_window_px)
 
 
+def is_flat(log_scales: torch.Tensor, flatness: float = 0.5) -> torch.Tensor:
+    """(N,) bool: the third scale is below ``flatness`` times the smaller of the other two (a flat
+    Gaussian, whose third rotation axis is the normal of its surface)."""
+    return log_scales[:, 2] < torch.minimum(log_scales[:, 0], log_scales[:, 1]) + float(np.log(flatness))
+
+
 def back_facing(quats: torch.Tensor, log_scales: torch.Tensor, means: torch.Tensor, camera_center,
                 flatness: float = 0.5, margin_deg: float = 0.0) -> torch.Tensor:
     """(N,) bool: flat Gaussians seen from behind. A Gaussian is flat when its third scale is below
@@ -250,7 +256,7 @@ def back_facing(quats: torch.Tensor, log_scales: torch.Tensor, means: torch.Tens
     with torch.no_grad():
         if quats.shape[0] == 0:
             return torch.zeros(0, dtype=torch.bool, device=quats.device)
-        flat = log_scales[:, 2] < torch.minimum(log_scales[:, 0], log_scales[:, 1]) + float(np.log(flatness))
+        flat = is_flat(log_scales, flatness)
         normal = quat_to_rotmat(quats)[:, :, 2]
         c = torch.as_tensor(np.asarray(camera_center, dtype=np.float32), device=means.device)
         to_camera = c - means

@@ -10,7 +10,8 @@ Per accepted frame (``add_frame``), following the schedule of :class:`MapperConf
 4. densification, eq. 8: new Gaussians on the masked pixels;
 5. a few Adam iterations over the mapping window (best-overlap keyframes + last keyframe + current
    frame), loss eqs. 5-7;
-6. pruning of near-transparent and oversized Gaussians, and the Gaussian cap;
+6. merging of alike Gaussians in the current view (a project rule, off by default), pruning of
+   near-transparent and oversized Gaussians, and the Gaussian cap;
 7. every ``keyframe_every`` frames, the frame joins the keyframe buffer.
 
 Input checks: wrong shapes/dtypes, non-finite poses or colours raise InvalidInputError and leave the
@@ -47,6 +48,7 @@ from activesplat.splat.densify import (
 from activesplat.splat.gaussians import GaussianMap, activate, back_facing, frustum_rows, rgb_to_f_dc
 from activesplat.splat.keyframes import Keyframe, mapping_window
 from activesplat.splat.losses import mapping_loss
+from activesplat.splat.merge import merge_alike
 from activesplat.splat.optim import RowAdam, nonzero_rows
 from activesplat.splat.ply import load_ply, save_ply
 from activesplat.splat.raster import backend_device
@@ -64,6 +66,7 @@ class FrameStats:
     added: int = 0
     pruned: int = 0
     refreshed: int = 0  # coarse Gaussians made transparent for the coarse refresh (MapperConfig)
+    merged: int = 0  # Gaussians merged into an alike one of the current view (MapperConfig "Merging")
     loss: float | None = None
     ms: float = 0.0
     timings: dict[str, float] = field(default_factory=dict)
@@ -294,7 +297,10 @@ class Mapper:
         touched = torch.zeros(len(self.gaussians), dtype=torch.bool, device=self.device)
         for rows in trained:
             touched[rows] = True
-        stats.pruned = self._prune(torch.nonzero(touched, as_tuple=True)[0], pose, obs_depth, coarse)
+        merged = self._merge(current_rows)
+        stats.merged = int(merged.numel())
+        stats.pruned = self._prune(torch.nonzero(touched, as_tuple=True)[0], pose, obs_depth,
+                                   torch.cat([coarse, merged])) - stats.merged
         clock.lap("prune")
 
     def _represented(self, pose: np.ndarray, obs_depth: torch.Tensor, rows: torch.Tensor | None
@@ -358,6 +364,22 @@ class Mapper:
                 footprint = self._render_or_blank(pose, coarse)["alpha"] > self.config.refresh_footprint_alpha
                 p["opacity_logits"][coarse] = -30.0  # sigmoid ~ 1e-13: below prune_opacity, no weight
         return coarse, footprint
+
+    def _merge(self, rows: torch.Tensor) -> torch.Tensor:
+        """Merge the alike Gaussians among ``rows`` (:func:`merge_alike`, MapperConfig "Merging"): each
+        group's leader takes the merged parameters (its Adam moments stay), and the rows absorbed into it
+        are returned for removal. Empty when the rule is off."""
+        cfg = self.config
+        if cfg.merge_voxel_m is None or rows.numel() < 2:
+            return rows[:0]
+        merge = merge_alike(self.gaussians.rows(rows), cfg.merge_voxel_m, cfg.merge_normal_deg,
+                            cfg.merge_colour_tol, cfg.merge_min_opacity, cfg.merge_scale_ratio)
+        if merge.absorbed.numel():
+            leaders = rows[merge.leaders]
+            with torch.no_grad():
+                for name, value in merge.params.items():
+                    self.gaussians.params[name][leaders] = value
+        return rows[merge.absorbed]
 
     def _append(self, raw: dict[str, torch.Tensor]) -> int:
         """Add new Gaussians to the map and their (zero) state to the optimiser."""
