@@ -455,7 +455,7 @@ def test_map_and_config_reject_bad_values():
 
 
 def test_downsample_observation_block_means_and_invalid_blocks():
-    from activesplat.splat.mapper import downsample_observation
+    from activesplat.splat.frames import downsample_observation
 
     rgb = torch.arange(4 * 4 * 3, dtype=torch.float32).reshape(4, 4, 3)
     depth = torch.tensor([[1.0, 2, 3, 4], [1, 2, 0, 4], [5, 5, 6, 6], [5, 5, 6, 6]])

@@ -14,9 +14,9 @@ Per accepted frame (``add_frame``), following the schedule of :class:`MapperConf
    near-transparent and oversized Gaussians, and the Gaussian cap;
 7. every ``keyframe_every`` frames, the frame joins the keyframe buffer.
 
-Input checks: wrong shapes/dtypes, non-finite poses or colours raise InvalidInputError and leave the
-map untouched; NaN/inf/negative depth pixels are treated as invalid (set to 0); a frame without any
-valid depth is skipped with a warning.
+Input checks (:mod:`activesplat.splat.frames`): wrong shapes/dtypes, non-finite poses or colours raise
+InvalidInputError and leave the map untouched; NaN/inf/negative depth pixels are treated as invalid (set
+to 0); a frame without any valid depth is skipped with a warning.
 """
 
 from __future__ import annotations
@@ -45,6 +45,7 @@ from activesplat.splat.densify import (
     prune_mask,
     represented_mask,
 )
+from activesplat.splat.frames import as_intrinsics, as_pose, check_frame, downsample_observation
 from activesplat.splat.gaussians import GaussianMap, activate, back_facing, frustum_rows, rgb_to_f_dc
 from activesplat.splat.keyframes import Keyframe, mapping_window
 from activesplat.splat.losses import mapping_loss
@@ -72,37 +73,6 @@ class FrameStats:
     timings: dict[str, float] = field(default_factory=dict)
 
 
-def _as_intrinsics(K) -> np.ndarray:
-    K = np.asarray(K, dtype=np.float64)
-    if K.shape != (3, 3) or not np.isfinite(K).all() or K[0, 0] <= 0 or K[1, 1] <= 0:
-        raise InvalidInputError(f"intrinsics K must be a finite 3x3 matrix with positive focal lengths, "
-                                f"got {K.tolist()}")
-    return K
-
-
-def _as_pose(pose) -> np.ndarray:
-    pose = np.asarray(pose, dtype=np.float64)
-    if pose.shape != (4, 4) or not np.isfinite(pose).all():
-        raise InvalidInputError(f"pose must be a finite 4x4 camera-to-world matrix, got shape {pose.shape}")
-    rot = pose[:3, :3]
-    if not np.allclose(rot @ rot.T, np.eye(3), atol=1e-4) or not np.allclose(pose[3], [0, 0, 0, 1]):
-        raise InvalidInputError("pose must be rigid: orthonormal rotation and last row [0, 0, 0, 1]")
-    return pose
-
-
-def downsample_observation(rgb: torch.Tensor, depth: torch.Tensor,
-                           d: int) -> tuple[torch.Tensor, torch.Tensor]:
-    """Average d x d blocks (the image of a camera with K[:2] / d): colour is the block mean, depth the
-    block mean where every pixel of the block is valid, else 0 (invalid)."""
-    if d == 1:
-        return rgb, depth
-    h, w = depth.shape[0] // d, depth.shape[1] // d
-    rgb = rgb[: h * d, : w * d].reshape(h, d, w, d, 3).mean(dim=(1, 3))
-    blocks = depth[: h * d, : w * d].reshape(h, d, w, d)
-    all_valid = (blocks > 0).all(dim=3).all(dim=1)
-    return rgb, torch.where(all_valid, blocks.mean(dim=(1, 3)), depth.new_zeros(()))
-
-
 def _blank_render(width: int, height: int):
     """What rendering an empty map gives: all zeros (no colour, depth or opacity)."""
     return {"rgb": torch.zeros(height, width, 3), "depth": torch.zeros(height, width),
@@ -116,7 +86,7 @@ class Mapper:
                  device: str | torch.device | None = None):
         if int(width) <= 0 or int(height) <= 0:
             raise InvalidInputError(f"image size must be positive, got {width}x{height}")
-        self.K = _as_intrinsics(K)
+        self.K = as_intrinsics(K)
         self.width, self.height = int(width), int(height)
         self.config = config if config is not None else MapperConfig()
         self.backend = backend
@@ -149,8 +119,8 @@ class Mapper:
         visibility (``PanoramaConfig.front_faces_targets`` / ``front_faces_scores``).
         ``behind_margin_deg``: how far behind a plane the camera must be for its Gaussian to count as seen
         from behind (:func:`back_facing`)."""
-        K = self.K if K is None else _as_intrinsics(K)
-        pose, width, height = _as_pose(pose), width or self.width, height or self.height
+        K = self.K if K is None else as_intrinsics(K)
+        pose, width, height = as_pose(pose), width or self.width, height or self.height
         with torch.no_grad():
             if not front_alpha:
                 return self._render(pose, K, width, height)
@@ -198,35 +168,17 @@ class Mapper:
         call) on anything the map cannot take. NaN / inf / negative depth pixels are made invalid (0),
         with a warning the first time it happens."""
         try:
-            return self._checked(rgb, depth, pose)
+            rgb, depth, pose, broken = check_frame(rgb, depth, pose, self.height, self.width,
+                                                   self.config.min_depth_m)
         except InvalidInputError as exc:
             raise InvalidInputError(f"mapper: frame {self.received}: {exc}") from None
-
-    def _checked(self, rgb, depth, pose) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        rgb, depth = np.asarray(rgb), np.asarray(depth)
-        hw = (self.height, self.width)
-        if rgb.shape != (*hw, 3):
-            raise InvalidInputError(f"rgb must have shape {(*hw, 3)}, got {rgb.shape}")
-        if depth.shape != hw:
-            raise InvalidInputError(f"depth must have shape {hw}, got {depth.shape}")
-        if rgb.dtype != np.uint8:
-            if not np.issubdtype(rgb.dtype, np.floating) or not np.isfinite(rgb).all():
-                raise InvalidInputError(f"rgb must be uint8 or finite floats in [0,1], got {rgb.dtype}")
-            rgb = (np.clip(rgb, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
-        if not np.issubdtype(depth.dtype, np.number):
-            raise InvalidInputError(f"depth must be numeric metres, got {depth.dtype}")
-        pose = _as_pose(pose)
-        depth = depth.astype(np.float32)
-        broken = ~np.isfinite(depth) | (depth < 0)
-        if broken.any():
+        if broken:
             if self.broken_depth_frames == 0:
-                warnings.warn(f"mapper: frame {self.received}: {int(broken.sum())} depth pixels are NaN, inf "
-                              f"or negative; treated as invalid (later frames are counted in "
-                              f"Mapper.broken_depth_frames, not reported)", stacklevel=4)
+                warnings.warn(f"mapper: frame {self.received}: {broken} depth pixels are NaN, inf or "
+                              f"negative; treated as invalid (later frames are counted in "
+                              f"Mapper.broken_depth_frames, not reported)", stacklevel=3)
             self.broken_depth_frames += 1
-        invalid = broken | (depth < self.config.min_depth_m)
-        depth = np.where(invalid, np.float32(0.0), depth)
-        return np.ascontiguousarray(rgb), depth, pose
+        return rgb, depth, pose
 
     # ------------------------------------------------------------------ the per-frame pipeline
     def add_frame(self, rgb, depth, pose, dense: bool = False) -> FrameStats:

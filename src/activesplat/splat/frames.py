@@ -1,0 +1,71 @@
+"""Checks and conversions of one posed RGB-D frame before it reaches the mapper (``Mapper.add_frame``).
+
+Wrong shapes or dtypes, non-finite colours, and poses that are not finite rigid transforms raise
+:class:`InvalidInputError`; NaN / inf / negative depth pixels and those nearer than the sensor's minimum
+are made invalid (0), as the mapper treats depth 0 everywhere.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+from activesplat.errors import InvalidInputError
+
+
+def as_intrinsics(K) -> np.ndarray:
+    """K as a float64 3x3 matrix; InvalidInputError unless finite with positive focal lengths."""
+    K = np.asarray(K, dtype=np.float64)
+    if K.shape != (3, 3) or not np.isfinite(K).all() or K[0, 0] <= 0 or K[1, 1] <= 0:
+        raise InvalidInputError(f"intrinsics K must be a finite 3x3 matrix with positive focal lengths, "
+                                f"got {K.tolist()}")
+    return K
+
+
+def as_pose(pose) -> np.ndarray:
+    """A camera-to-world pose as a float64 4x4; InvalidInputError unless finite and rigid."""
+    pose = np.asarray(pose, dtype=np.float64)
+    if pose.shape != (4, 4) or not np.isfinite(pose).all():
+        raise InvalidInputError(f"pose must be a finite 4x4 camera-to-world matrix, got shape {pose.shape}")
+    rot = pose[:3, :3]
+    if not np.allclose(rot @ rot.T, np.eye(3), atol=1e-4) or not np.allclose(pose[3], [0, 0, 0, 1]):
+        raise InvalidInputError("pose must be rigid: orthonormal rotation and last row [0, 0, 0, 1]")
+    return pose
+
+
+def check_frame(rgb, depth, pose, height: int, width: int, min_depth_m: float
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+    """Checked copies of one frame: uint8 colours (floats in [0, 1] are converted), float32 depth with the
+    invalid pixels set to 0, the pose as a float64 4x4; and how many depth pixels were NaN, inf or
+    negative. InvalidInputError on anything the map cannot take."""
+    rgb, depth = np.asarray(rgb), np.asarray(depth)
+    hw = (height, width)
+    if rgb.shape != (*hw, 3):
+        raise InvalidInputError(f"rgb must have shape {(*hw, 3)}, got {rgb.shape}")
+    if depth.shape != hw:
+        raise InvalidInputError(f"depth must have shape {hw}, got {depth.shape}")
+    if rgb.dtype != np.uint8:
+        if not np.issubdtype(rgb.dtype, np.floating) or not np.isfinite(rgb).all():
+            raise InvalidInputError(f"rgb must be uint8 or finite floats in [0,1], got {rgb.dtype}")
+        rgb = (np.clip(rgb, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
+    if not np.issubdtype(depth.dtype, np.number):
+        raise InvalidInputError(f"depth must be numeric metres, got {depth.dtype}")
+    pose = as_pose(pose)
+    depth = depth.astype(np.float32)
+    broken = ~np.isfinite(depth) | (depth < 0)
+    invalid = broken | (depth < min_depth_m)
+    depth = np.where(invalid, np.float32(0.0), depth)
+    return np.ascontiguousarray(rgb), depth, pose, int(broken.sum())
+
+
+def downsample_observation(rgb: torch.Tensor, depth: torch.Tensor,
+                           d: int) -> tuple[torch.Tensor, torch.Tensor]:
+    """Average d x d blocks (the image of a camera with K[:2] / d): colour is the block mean, depth the
+    block mean where every pixel of the block is valid, else 0 (invalid)."""
+    if d == 1:
+        return rgb, depth
+    h, w = depth.shape[0] // d, depth.shape[1] // d
+    rgb = rgb[: h * d, : w * d].reshape(h, d, w, d, 3).mean(dim=(1, 3))
+    blocks = depth[: h * d, : w * d].reshape(h, d, w, d)
+    all_valid = (blocks > 0).all(dim=3).all(dim=1)
+    return rgb, torch.where(all_valid, blocks.mean(dim=(1, 3)), depth.new_zeros(()))
