@@ -223,22 +223,22 @@ class MapperConfig:
 
     Merging (``merge_voxel_m``; paper, release and SplaTAM: none; 3DGS prunes but never merges). After the
     Adam iterations of a mapped frame, the Gaussians of the current view (its frustum, not hidden behind the
-    observed depth) are grouped by the voxel of this size holding their centre. A Gaussian is merged into its
-    voxel's first (oldest) row when both are flat, their normals are within ``merge_normal_deg`` and face the
-    same way (the two faces of a thin object never merge), no colour channel differs by more than
-    ``merge_colour_tol``, both are more opaque than ``merge_min_opacity`` and their in-plane radii are within
-    ``merge_scale_ratio`` of each other. The merged Gaussian keeps the first one's plane and matches the
-    group's centres and in-plane covariances (weights: opacity x area), with the mean colour and the largest
-    opacity (splat/merge.py). What the data left different after the iterations (texture, a corrected depth)
-    is not merged. Replay of a 4000-step medium-0 exploration (``benchmarks/mapper.py --episode E --set
-    merge_voxel_m=V``, docs/mapping.md "Merging Gaussians that render alike"): defaults 807k -> 1045k Gaussians from step 2000 to 4000,
-    keyframes 31.68 dB / 1.61 cm, render-eval test 30.25 dB / SSIM 0.878 / LPIPS 0.202 / 2.23 cm, 166 ms per
-    step; 1 cm: 688k -> 854k, 31.65 dB / 1.65 cm, test 30.23 / 0.878 / 0.203 / 2.24 cm, 147 ms; 2 cm: 576k ->
-    723k (-31 %), 31.51 dB / 1.74 cm, test 30.21 / 0.877 / 0.206 / 2.31 cm, 128 ms. The growth from step 2000
-    to 4000 (+24-26 % against +29 %) is still twice the new surface's (+13 %). Explorations with 1 cm (11
-    medium runs): maps -14 %, ten runs +1.04 points, one collapse (fresh medium-105, 84.25 -> 58.04 %: three
-    rooms off the corridor's far end never reached); the live maps' train LPIPS is 0.01-0.02 worse (1 and 2
-    cm, four maps). Off.
+    observed depth) are grouped by the voxel of this size holding their centre. A Gaussian is merged into
+    its voxel's first (oldest) row when both are flat, their normals are within ``merge_normal_deg`` and
+    face the same way (the two faces of a thin object never merge), no colour channel differs by more than
+    ``merge_colour_tol``, both are more opaque than ``merge_min_opacity`` and their in-plane radii are
+    within ``merge_scale_ratio`` of each other. The merged Gaussian keeps the first one's plane and matches
+    the group's centres and in-plane covariances (weights: opacity x area), with the mean colour and the
+    largest opacity (splat/merge.py). What the data left different after the iterations (texture, a
+    corrected depth) is not merged. Replay of a 4000-step medium-0 exploration (``benchmarks/mapper.py
+    --episode E --set merge_voxel_m=V``, docs/mapping.md "Merging Gaussians that render alike"): defaults
+    807k -> 1045k Gaussians from step 2000 to 4000, keyframes 31.68 dB / 1.61 cm, render-eval test 30.25 dB
+    / SSIM 0.878 / LPIPS 0.202 / 2.23 cm, 166 ms per step; 1 cm: 688k -> 854k, 31.65 dB / 1.65 cm, test
+    30.23 / 0.878 / 0.203 / 2.24 cm, 147 ms; 2 cm: 576k -> 723k (-31 %), 31.51 dB / 1.74 cm, test 30.21 /
+    0.877 / 0.206 / 2.31 cm, 128 ms. The growth from step 2000 to 4000 (+24-26 % against +29 %) is still
+    twice the new surface's (+13 %). Explorations with 1 cm (11 medium runs): maps -14 %, ten runs +1.04
+    points, one collapse (fresh medium-105, 84.25 -> 58.04 %: three rooms off the corridor's far end never
+    reached); the live maps' train LPIPS is 0.01-0.02 worse (1 and 2 cm, four maps). Off.
 
     Coarse refresh (``refresh_coarse_factor``; paper, release and SplaTAM: none). Eq. 8 adds Gaussians
     only where the map is transparent, so a wall first seen from 4 m keeps the 4-5 cm Gaussians it got
