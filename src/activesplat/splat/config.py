@@ -236,9 +236,10 @@ class MapperConfig:
     / SSIM 0.878 / LPIPS 0.202 / 2.23 cm, 166 ms per step; 1 cm: 688k -> 854k, 31.65 dB / 1.65 cm, test
     30.23 / 0.878 / 0.203 / 2.24 cm, 147 ms; 2 cm: 576k -> 723k (-31 %), 31.51 dB / 1.74 cm, test 30.21 /
     0.877 / 0.206 / 2.31 cm, 128 ms. The growth from step 2000 to 4000 (+24-26 % against +29 %) is still
-    twice the new surface's (+13 %). Explorations with 1 cm (11 medium runs): maps -14 %, ten runs +1.04
-    points, one collapse (fresh medium-105, 84.25 -> 58.04 %: three rooms off the corridor's far end never
-    reached); the live maps' train LPIPS is 0.01-0.02 worse (1 and 2 cm, four maps). Off.
+    twice the new surface's (+13 %). Explorations with 1 cm (17 medium runs, seeds 0-1 of the tuning houses
+    and fresh medium-101..109): maps -13 %, tuning +1.10 points, fresh -3.10 (-0.21 without one collapse:
+    medium-105, 84.25 -> 58.04 %, three rooms off the corridor's far end never reached); the live maps'
+    train LPIPS is 0.01-0.02 worse (1 and 2 cm, four maps). Off.
 
     Coarse refresh (``refresh_coarse_factor``; paper, release and SplaTAM: none). Eq. 8 adds Gaussians
     only where the map is transparent, so a wall first seen from 4 m keeps the 4-5 cm Gaussians it got
