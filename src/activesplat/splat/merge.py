@@ -88,9 +88,15 @@ def merge_alike(raw: dict[str, torch.Tensor], voxel_m: float, normal_deg: float,
     s = torch.exp(raw["log_scales"].detach()[rows]).to(torch.float64)
     w = torch.sigmoid(raw["opacity_logits"].detach()[rows]).to(torch.float64) * s[:, 0] * s[:, 1]
     total = torch.zeros(m, dtype=torch.float64, device=dev).index_add_(0, slot, w)
+
+    def group_mean(x: torch.Tensor) -> torch.Tensor:
+        """Per group, the mean of the members' ``x`` (leading dimension: ``rows``), weighted by ``w``."""
+        shape = (-1,) + (1,) * (x.dim() - 1)
+        sums = torch.zeros((m, *x.shape[1:]), dtype=torch.float64, device=dev)
+        return sums.index_add_(0, slot, w.view(shape) * x) / total.view(shape)
+
     mu_k = raw["means"].detach()[rows].to(torch.float64)
-    mu = torch.zeros(m, 3, dtype=torch.float64, device=dev).index_add_(0, slot, w[:, None] * mu_k)
-    mu /= total[:, None]
+    mu = group_mean(mu_k)
     rot = quat_to_rotmat(raw["quats"].detach()[rows]).to(torch.float64)
     # in the leader's plane: the members' in-plane covariances plus the spread of their centres
     plane = rot[:m]  # the leaders' axes (columns: the two in-plane axes and the normal)
@@ -98,19 +104,17 @@ def merge_alike(raw: dict[str, torch.Tensor], voxel_m: float, normal_deg: float,
     cov_k = rot @ torch.diag_embed(s * s) @ rot.transpose(1, 2)
     d = basis.transpose(1, 2) @ (mu_k - mu[slot])[:, :, None]  # (k, 2, 1)
     spread = basis.transpose(1, 2) @ cov_k @ basis + d @ d.transpose(1, 2)
-    cov = torch.zeros(m, 2, 2, dtype=torch.float64, device=dev).index_add_(
-        0, slot, w[:, None, None] * spread) / total[:, None, None]
+    cov = group_mean(spread)
     eigval, eigvec = torch.linalg.eigh(cov)  # ascending
     in_plane = plane[:, :, :2] @ eigvec.flip(-1)  # (m, 3, 2): the larger axis first
     normal_m = plane[:, :, 2]
     in_plane[:, :, 1] *= torch.where(torch.linalg.det(torch.cat([in_plane, normal_m[:, :, None]], 2)) < 0,
                                      -1.0, 1.0).to(torch.float64)[:, None]
     axes = torch.cat([in_plane, normal_m[:, :, None]], dim=2)
-    thickness = torch.zeros(m, dtype=torch.float64, device=dev).index_add_(0, slot, w * s[:, 2]) / total
+    thickness = group_mean(s[:, 2])
     scales = torch.cat([eigval.flip(-1).clamp_min(1e-18).sqrt(), thickness[:, None]], dim=1)
 
-    f_dc = torch.zeros(m, 3, dtype=torch.float64, device=dev).index_add_(
-        0, slot, w[:, None] * raw["f_dc"].detach()[rows].to(torch.float64)) / total[:, None]
+    f_dc = group_mean(raw["f_dc"].detach()[rows].to(torch.float64))
     logits = raw["opacity_logits"].detach()
     best = torch.full((m,), -torch.inf, dtype=logits.dtype, device=dev).scatter_reduce(
         0, slot, logits[rows], reduce="amax")
