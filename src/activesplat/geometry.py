@@ -71,6 +71,19 @@ def voxel_keys(pts: np.ndarray, size: float) -> np.ndarray:
     return (v[:, 0] << 42) | (v[:, 1] << 21) | v[:, 2]
 
 
+def voxel_groups(keys: np.ndarray, tiebreak: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Group items by voxel key: (order, first), with `order` the indices of `keys` sorted by key, then by
+    `tiebreak` (optional, ascending), then by index; `first` (bool, per position of `order`) marks the first
+    item of each voxel. So `order[first]` is one item per voxel, the one that sorts first."""
+    keys = np.asarray(keys)
+    index = np.arange(len(keys))
+    order = np.lexsort((index, keys) if tiebreak is None else (index, np.asarray(tiebreak), keys))
+    sorted_keys = keys[order]
+    first = np.ones(len(order), dtype=bool)
+    first[1:] = sorted_keys[1:] != sorted_keys[:-1]
+    return order, first
+
+
 def in_sorted(known: np.ndarray, keys: np.ndarray) -> np.ndarray:
     """(M,) whether each of `keys` is in the sorted array `known`, by binary search."""
     if not len(known):

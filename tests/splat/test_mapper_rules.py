@@ -106,6 +106,18 @@ def test_the_depth_test_skips_represented_pixels_but_the_opacity_test_does_not()
     assert torch.equal(mask, expected)
 
 
+def test_voxel_groups_sort_by_voxel_then_tiebreak_then_index_and_mark_each_first():
+    from activesplat.geometry import voxel_groups
+
+    keys = np.array([5, 3, 5, 3, 7])
+    order, first = voxel_groups(keys)
+    assert order.tolist() == [1, 3, 0, 2, 4] and first.tolist() == [True, False, True, False, True]
+    order, first = voxel_groups(keys, np.array([1, 0, 0, 0, 0]))  # row 0 sorts after row 2 in voxel 5
+    assert order.tolist() == [1, 3, 2, 0, 4] and first.tolist() == [True, False, True, False, True]
+    order, first = voxel_groups(keys[:0])
+    assert order.shape == (0,) and first.shape == (0,)
+
+
 def test_voxel_budget_keeps_one_new_centre_per_empty_voxel_grid_picks_first():
     from activesplat.geometry import voxel_keys
 

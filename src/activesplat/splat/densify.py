@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from activesplat.geometry import backproject, in_sorted, voxel_keys
+from activesplat.geometry import backproject, in_sorted, voxel_groups, voxel_keys
 from activesplat.splat.config import MapperConfig
 from activesplat.splat.gaussians import GaussianMap
 
@@ -197,13 +197,10 @@ def one_per_voxel(points: np.ndarray, fine: np.ndarray, occupied: np.ndarray, si
     of the map's centres), and one per voxel among the rest, a grid pick (``fine`` False) before a fine
     one, then the first in raster order."""
     keys = voxel_keys(points, size)
-    keep = ~in_sorted(occupied, keys)
-    idx = np.nonzero(keep)[0]
-    order = idx[np.lexsort((idx, fine[idx], keys[idx]))]  # by voxel, grid picks first, then raster order
-    first = np.ones(len(order), dtype=bool)
-    first[1:] = keys[order[1:]] != keys[order[:-1]]
-    keep[:] = False
-    keep[order[first]] = True
+    free = np.flatnonzero(~in_sorted(occupied, keys))
+    order, first = voxel_groups(keys[free], fine[free])  # by voxel, grid picks first, then raster order
+    keep = np.zeros(len(keys), dtype=bool)
+    keep[free[order[first]]] = True
     return keep
 
 

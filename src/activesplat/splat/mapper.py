@@ -251,8 +251,7 @@ class Mapper:
             touched[rows] = True
         merged = self._merge(current_rows)
         stats.merged = int(merged.numel())
-        stats.pruned = self._prune(torch.nonzero(touched, as_tuple=True)[0], pose, obs_depth,
-                                   torch.cat([coarse, merged])) - stats.merged
+        stats.pruned = self._prune(torch.nonzero(touched, as_tuple=True)[0], pose, obs_depth, coarse, merged)
         clock.lap("prune")
 
     def _represented(self, pose: np.ndarray, obs_depth: torch.Tensor, rows: torch.Tensor | None
@@ -322,7 +321,7 @@ class Mapper:
         group's leader takes the merged parameters (its Adam moments stay), and the rows absorbed into it
         are returned for removal. Empty when the rule is off."""
         cfg = self.config
-        if cfg.merge_voxel_m is None or rows.numel() < 2:
+        if cfg.merge_voxel_m is None:
             return rows[:0]
         merge = merge_alike(self.gaussians.rows(rows), cfg.merge_voxel_m, cfg.merge_normal_deg,
                             cfg.merge_colour_tol, cfg.merge_min_opacity, cfg.merge_scale_ratio)
@@ -342,15 +341,17 @@ class Mapper:
         return self.gaussians.append(raw, self.optimizer)
 
     def _prune(self, rows: torch.Tensor, pose: np.ndarray, obs_depth: torch.Tensor,
-               retired: torch.Tensor | None = None) -> int:
+               retired: torch.Tensor | None = None, absorbed: torch.Tensor | None = None) -> int:
         """Pruning, only among ``rows`` (the Gaussians of the current view and of the views trained on
         this frame; nothing else changed): transparent / oversized (:func:`prune_mask`) and floaters in
         the free space the current frame observes (:func:`free_space_mask`), and the ``retired`` rows of
-        the coarse refresh; then the optional global cap (:func:`cap_mask`). Returns the number removed."""
+        the coarse refresh; then the optional global cap (:func:`cap_mask`). The ``absorbed`` rows (merged
+        into others, :meth:`_merge`) are removed as well but not counted. Returns the number pruned."""
         cfg = self.config
         keep = torch.ones(len(self.gaussians), dtype=torch.bool, device=self.device)
-        if retired is not None:
-            keep[retired] = False
+        for gone in (retired, absorbed):
+            if gone is not None:
+                keep[gone] = False
         if rows.numel():
             sub = self.gaussians.rows(rows)
             ok = prune_mask(sub, cfg)
@@ -368,7 +369,7 @@ class Mapper:
                 self.optimizer.keep(keep)
             else:
                 self.gaussians.keep(keep, self.optimizer)
-        return removed
+        return removed - (0 if absorbed is None else int(absorbed.numel()))
 
     def _render_or_blank(self, pose: np.ndarray, rows: torch.Tensor | None = None) -> dict[str, torch.Tensor]:
         """Opacity, depth and median depth of the current view for eqs. 8 and 10, rendered at

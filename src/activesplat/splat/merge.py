@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from activesplat.geometry import voxel_keys
+from activesplat.geometry import voxel_groups, voxel_keys
 from activesplat.splat.gaussians import f_dc_to_rgb, is_flat
 from activesplat.splat.kernels import quat_to_rotmat, rotmat_to_quat
 
@@ -34,12 +34,9 @@ class Merge:
 
 def _leaders(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Each row's group leader (the lowest row with the same voxel key) and whether it is a leader."""
-    order = np.argsort(keys)  # by voxel (an unstable sort: the leader is the group's minimum row below)
-    ks = keys[order]
-    start = np.r_[True, ks[1:] != ks[:-1]]
-    lowest = np.minimum.reduceat(order, np.flatnonzero(start))
+    order, first = voxel_groups(keys)  # by voxel, then by row: each group's first is its lowest row
     leader = np.empty(len(keys), np.int64)
-    leader[order] = lowest[np.cumsum(start) - 1]
+    leader[order] = order[first][np.cumsum(first) - 1]
     return leader, leader == np.arange(len(keys))
 
 
