@@ -473,3 +473,56 @@ def test_a_stop_turns_to_a_wall_it_has_only_seen_from_the_other_side_unless_told
         yaws[front] = [abs(np.degrees(wrap_angle(t.yaw))) for t in targets]
     assert yaws[True] and max(yaws[True]) > 150  # it turns round to the wall's near face
     assert yaws[False] == []  # with every Gaussian's opacity the wall looks seen: nothing to turn to
+
+
+def test_passing_a_goal_that_had_no_path_turns_toward_it_once_then_replans(monkeypatch):
+    """`cut_off_look_m`: a goal worth a visit skipped for want of a path is remembered; passing within the
+    radius, the agent turns toward it with the camera one tilt down, then replans (the goal may have a path
+    once its floor is seen from in front). One look per goal; off (the default), no look."""
+    import math
+
+    ws = extract_workspace(corridor(), HERE, WCFG)
+    graph = build_voronoi_graph(ws, WCFG)
+    pos = {n: np.asarray(d["pos"], float) for n, d in graph.nodes(data=True)}
+    far = max(pos, key=lambda n: pos[n][0])
+    mid = sorted(pos, key=lambda n: pos[n][0])[len(pos) // 2]
+    plans = []
+
+    def build(*a, **k):
+        plans.append(Plan(workspace=ws, graph=graph, info={far: 20.0, mid: 10.0}))
+        return plans[-1]
+
+    monkeypatch.setattr(explorer_module, "build_plan", build)
+    monkeypatch.setattr(explorer_module, "rank_goals", lambda *a, **k: [far, mid])
+    real = explorer_module.plan_safe_path
+    monkeypatch.setattr(explorer_module, "plan_safe_path",
+                        lambda g, w, a, b, c: None if np.allclose(b, pos[far]) else real(g, w, a, b, c))
+    for radius in (None, 100.0):
+        plans.clear()
+        ex = ActiveSplatExplorer(WORLD, 0.0, ExplorerConfig(workspace=WCFG, cut_off_look_m=radius,
+                                                            **OBSERVED_ONLY))
+        _after_bootstrap(ex, _obs(HERE))
+        yaw, pitch, causes, looked_yaw = 0.0, 0.0, [], None
+        for _ in range(40):
+            action = ex.act(SimpleNamespace(pose=camera_pose([HERE[0], 1.25, HERE[1]], yaw, pitch),
+                                            collided=False, step=0))
+            causes.append(ex.last_cause)
+            if ex.last_cause == "level" and looked_yaw is None:
+                looked_yaw = yaw  # the look is done: the camera levels again
+            if action == "move_forward":
+                break
+            yaw += math.radians(10.0) * {"turn_left": 1, "turn_right": -1}.get(action, 0)
+            pitch += math.radians(15.0) * {"look_up": 1, "look_down": -1}.get(action, 0)
+        if radius is None:
+            assert "look_cut_off" not in causes and ex.cut_off == [] and len(plans) == 1
+            continue
+        looks = [s for s in ex.stops if s["cause"] == "look_cut_off"]
+        assert len(looks) == 1 and np.allclose(looks[0]["toward"], pos[far], atol=1e-3)
+        assert looks[0]["targets"][0]["pitch_deg"] == -15.0
+        toward = math.atan2(*(pos[far] - HERE))
+        assert causes.index("look_cut_off") < causes.index("level")  # turned and tilted toward it, levelled
+        assert abs(math.degrees(float(wrap_angle(looked_yaw - toward)))) <= 10.0
+        assert len(plans) == 2  # a replan after the look; it skipped the goal again and kept no second look
+        assert ex.cut_off == [] and len(ex.looked) == 1
+    with pytest.raises(InvalidInputError, match="cut_off_look_m"):
+        ExplorerConfig(cut_off_look_m=0.0)

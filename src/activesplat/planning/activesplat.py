@@ -56,6 +56,10 @@ class ActiveSplatExplorer(Explorer):
         self.route_memory = (None if self.cfg.route_memory_m is None
                              else RouteMemory(self.cfg.route_memory_m, self.cfg.route_min_info))
         """The order of the last global route through the subregions (`route_memory_m`)."""
+        self.cut_off: list[np.ndarray] = []
+        """Goals worth a visit that a replan skipped for want of a path, not looked at yet
+        (`cut_off_look_m`)."""
+        self.looked: list[np.ndarray] = []  # the cut-off goals looked at
         self._put_off: np.ndarray | None = None  # the ranked goal the last replan put off (postpone_once_m)
         self._ranked: list = []  # the best candidates of the current replan, for its record
         self.replans: list[dict] = []
@@ -109,6 +113,7 @@ class ActiveSplatExplorer(Explorer):
                     plan.workspace = grown_floor().workspace
                     return
             if path is None:
+                self._remember_cut_off(plan, node, goal)
                 bridge = self._bridge(plan, here, node, goal, find_path)
                 if bridge is None:
                     if cfg.retry_unreachable:
@@ -162,6 +167,44 @@ class ActiveSplatExplorer(Explorer):
         way or a bridge toward it."""
         if self.commitment is not None and self.plan.stage == "global":
             self.commitment.pos = np.asarray(self.plan.graph.nodes[node]["pos"], float).copy()
+
+    def _remember_cut_off(self, plan: Plan, node: int, goal: np.ndarray) -> None:
+        """Keep a goal with no path for a look when the agent passes it (`cut_off_look_m`): one worth a
+        visit, not near a goal looked at already."""
+        radius = self.cfg.cut_off_look_m
+        if radius is None:
+            return
+        if not worth_a_visit(plan.info.get(node, 0.0), True, self.cfg.local_score_threshold):
+            return
+        if any(np.hypot(*(goal - g)) <= radius for g in self.looked):
+            return
+        if not any(np.hypot(*(goal - g)) < 1e-6 for g in self.cut_off):
+            self.cut_off.append(goal.copy())
+
+    def _look_at_cut_off(self, pose: np.ndarray) -> bool:
+        """Passing within `cut_off_look_m` of a goal kept by :meth:`_remember_cut_off`: turn toward it with
+        the camera one tilt down, then replan (the path is dropped). The goals within `cut_off_look_m` of it
+        are dropped from the list, as looked at with it."""
+        radius = self.cfg.cut_off_look_m
+        if radius is None or not self.cut_off:
+            return False
+        here = floor_xz(pose)
+        near = [g for g in self.cut_off if np.hypot(*(g - here)) <= radius]
+        if not near:
+            return False
+        goal = min(near, key=lambda g: float(np.hypot(*(g - here))))
+        self.looked.append(goal)
+        self.cut_off = [g for g in self.cut_off if np.hypot(*(g - goal)) > radius]
+        target = RotationTarget(yaw_toward(here, goal), -math.radians(self.cfg.controller.look_deg), 0.0,
+                                "cut_off")
+        self.rotation_targets = [target]
+        self.rotation_cause = "look_cut_off"
+        self.follower = None  # replan once the look is done: the goal may have a path now
+        self.stops.append({"step": len(self.visited) - 1, "cause": self.rotation_cause,
+                           "xz": [round(float(v), 3) for v in here], "candidates": {},
+                           "toward": [round(float(v), 3) for v in goal],
+                           "targets": [target_record(target)]})
+        return True
 
     def _bridge(self, plan: Plan, here: np.ndarray, node: int, goal: np.ndarray,
                 find_path) -> tuple[np.ndarray, np.ndarray] | None:
@@ -217,7 +260,10 @@ class ActiveSplatExplorer(Explorer):
         self.rotation_targets = self.timers.time("rotation_selection", self._rotation_targets, pose, views)
 
     def stop_on_the_way(self, pose: np.ndarray) -> bool:
-        """Passing a multi-connected node: a short rotation stop there (paper sec. III-D3)."""
+        """Passing a multi-connected node: a short rotation stop there (paper sec. III-D3); passing a goal
+        that had no path: a look toward it (`cut_off_look_m`)."""
+        if self._look_at_cut_off(pose):
+            return True
         if not self.cfg.multi_stops:
             return False
         here = floor_xz(pose)
@@ -257,9 +303,7 @@ class ActiveSplatExplorer(Explorer):
             "step": len(self.visited) - 1, "cause": self.rotation_cause,
             "xz": [round(float(v), 3) for v in floor_xz(pose)],
             "candidates": {src: sum(t.source == src for t in targets) for src in sources},
-            "targets": [{"source": t.source, "yaw_deg": round(math.degrees(t.yaw), 1),
-                         "pitch_deg": round(math.degrees(t.pitch), 1), "weight": round(float(t.weight), 1)}
-                        for t in chosen]})
+            "targets": [target_record(t) for t in chosen]})
         return chosen
 
 
@@ -274,6 +318,12 @@ def goal_rules(cfg: ExplorerConfig) -> GoalRules:
                      panorama_every_subregion=cfg.panorama_every_subregion,
                      global_halving_m=cfg.global_halving_m, global_tour=cfg.global_tour,
                      local_near_m=cfg.local_near_m)
+
+
+def target_record(t: RotationTarget) -> dict:
+    """One rotation target of a stop for stops.json: source, yaw / pitch in degrees, weight."""
+    return {"source": t.source, "yaw_deg": round(math.degrees(t.yaw), 1),
+            "pitch_deg": round(math.degrees(t.pitch), 1), "weight": round(float(t.weight), 1)}
 
 
 def ranked_entry(plan: Plan, node: int) -> dict:

@@ -134,6 +134,12 @@ class ExplorerConfig:
     `local_near_m`). Neutral where no such goal decides the route (docs/benchmark.md "Failed goals that
     stay closed"). Goals refused on the way (a blocked path, a refused forward move) are still marked
     failed."""
+    cut_off_look_m: float | None = None
+    """Passing within this of a goal that a replan skipped for want of a path (information above
+    `local_score_threshold`), turn toward it with the camera one tilt down, then replan (ours; None = off).
+    Most such goals are rooms seen through a door only along the corridor, at a grazing angle: the strip
+    of their floor in the map is thinner than the agent, so the graph has no edge through the door, and a
+    look through it from in front closes the gap. One look per goal (and per goal within this of it)."""
     global_tour: bool = False
     """In the global stage, go first to the subregion that comes first on the shortest open route from the
     agent through every subregion with a node worth a visit (information above `local_score_threshold`;
@@ -267,10 +273,11 @@ class ExplorerConfig:
                                          "detour_min_info", "replan_log_top",
                                          "panorama_height_m", "bridge_gain_m", "route_min_info"),
                      positive=("unsampled_radius_m", "unsampled_voxel_m", "commit_global_m", "route_memory_m",
-                               "keep_promise_m", "postpone_once_m", "local_near_m", "neck_margin_m"),
+                               "keep_promise_m", "postpone_once_m", "local_near_m", "neck_margin_m",
+                               "cut_off_look_m"),
                      at_least_one=("max_panoramas",),
                      optional=("bridge_gain_m", "commit_global_m", "route_memory_m", "keep_promise_m",
-                               "postpone_once_m", "local_near_m", "neck_margin_m"))
+                               "postpone_once_m", "local_near_m", "neck_margin_m", "cut_off_look_m"))
         if self.tilt_within_deg is not None and not 0 <= self.tilt_within_deg <= 90:
             raise InvalidInputError(f"ExplorerConfig.tilt_within_deg must be in [0, 90] (or None = off), got "
                                     f"{self.tilt_within_deg}")
