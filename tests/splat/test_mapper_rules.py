@@ -21,7 +21,7 @@ from activesplat.splat.densify import (
     surface_frame,
 )
 from activesplat.splat.gaussians import SH_C0, GaussianMap, back_facing
-from activesplat.splat.kernels import quat_to_rotmat, rotmat_to_quat
+from activesplat.splat.kernels import quat_normal, quat_to_rotmat, rotmat_to_quat
 
 
 def _planar_render(h=4, w=4):
@@ -533,3 +533,11 @@ def test_coarse_mask_picks_only_what_the_view_sees_whole_and_much_finer():
     assert not coarse_mask(means, log_scales, cam, K, invalid, cfg)[0]
     with pytest.raises(InvalidInputError, match="refresh_coarse_factor"):
         MapperConfig(refresh_coarse_factor=1.0)
+
+
+def test_quat_normal_is_the_rotation_matrix_third_column_bit_for_bit():
+    quats = torch.randn(1000, 4, generator=torch.Generator().manual_seed(3))
+    quats[0] = torch.tensor([0.0, 0.0, 0.0, 2.0])  # unnormalised: a half turn about z keeps the normal +z
+    normal = quat_normal(quats)
+    assert torch.equal(normal, quat_to_rotmat(quats)[:, :, 2])
+    assert torch.allclose(normal[0], torch.tensor([0.0, 0.0, 1.0]))

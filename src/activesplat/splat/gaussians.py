@@ -17,7 +17,7 @@ import torch
 
 from activesplat.errors import InvalidInputError
 from activesplat.splat.config import LearningRates
-from activesplat.splat.kernels import quat_to_rotmat, rotmat_to_quat
+from activesplat.splat.kernels import quat_normal, rotmat_to_quat
 
 SH_C0 = 0.28209479177387814  # degree-0 real spherical harmonic, 1 / (2 sqrt(pi))
 PARAM_NAMES = ("means", "quats", "log_scales", "opacity_logits", "f_dc")
@@ -257,7 +257,7 @@ def back_facing(quats: torch.Tensor, log_scales: torch.Tensor, means: torch.Tens
         if quats.shape[0] == 0:
             return torch.zeros(0, dtype=torch.bool, device=quats.device)
         flat = is_flat(log_scales, flatness)
-        normal = quat_to_rotmat(quats)[:, :, 2]
+        normal = quat_normal(quats)
         c = torch.as_tensor(np.asarray(camera_center, dtype=np.float32), device=means.device)
         to_camera = c - means
         limit = -float(np.sin(np.radians(margin_deg))) * to_camera.norm(dim=1) if margin_deg > 0 else 0.0

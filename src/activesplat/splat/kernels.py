@@ -85,6 +85,13 @@ def quat_to_rotmat(quats: Tensor) -> Tensor:
     return torch.stack(rows, dim=-1).reshape(-1, 3, 3)
 
 
+def quat_normal(quats: Tensor) -> Tensor:
+    """(N,4) wxyz -> (N,3) third rotation axis, ``quat_to_rotmat(quats)[:, :, 2]`` with the same arithmetic
+    (bit-identical) without the other six entries: a flat Gaussian's normal."""
+    w, x, y, z = (quats / quats.norm(dim=-1, keepdim=True)).unbind(-1)
+    return torch.stack([2 * (x * z + w * y), 2 * (y * z - w * x), 1 - 2 * (x * x + y * y)], dim=-1)
+
+
 def rotmat_to_quat(rot: Tensor) -> Tensor:
     """(N,3,3) rotation matrices -> (N,4) unit quaternions wxyz with w >= 0, the inverse of
     :func:`quat_to_rotmat` (Shepperd's method: the largest of the four candidates' diagonals)."""

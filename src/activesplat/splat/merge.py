@@ -19,7 +19,7 @@ import torch
 
 from activesplat.geometry import voxel_groups, voxel_keys
 from activesplat.splat.gaussians import f_dc_to_rgb, is_flat
-from activesplat.splat.kernels import quat_to_rotmat, rotmat_to_quat
+from activesplat.splat.kernels import quat_normal, quat_to_rotmat, rotmat_to_quat
 
 
 @dataclass
@@ -64,7 +64,7 @@ def merge_alike(raw: dict[str, torch.Tensor], voxel_m: float, normal_deg: float,
     pair = torch.cat([cand, lead])  # the tests below on the candidates (first half) and their leaders
     log_s = raw["log_scales"].detach()[pair]
     opac = torch.sigmoid(raw["opacity_logits"].detach()[pair])
-    normal = quat_to_rotmat(raw["quats"].detach()[pair])[:, :, 2]
+    normal = quat_normal(raw["quats"].detach()[pair])
     rgb = f_dc_to_rgb(raw["f_dc"].detach()[pair])
     radius = torch.maximum(log_s[:, 0], log_s[:, 1])
     k = len(cand)
