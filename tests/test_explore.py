@@ -141,6 +141,34 @@ def test_live_evaluation_on_a_worker_thread_gives_the_same_numbers(episode, tmp_
     assert m["evaluation_worker_ms_per_step"] > 0
 
 
+def test_the_evaluation_worker_runs_at_low_priority_and_renders_on_its_own_thread(monkeypatch):
+    import os
+    import sys
+    import threading
+    from concurrent.futures import ThreadPoolExecutor
+
+    from activesplat.explore import _evaluation_thread
+    from activesplat.sim import sensor
+
+    monkeypatch.setattr(sensor.numba, "get_num_threads", lambda: 2)
+    n = 4 * sensor.BLOCK_PIXELS
+
+    def blocks_and_priority():
+        calls = []
+        sensor._in_blocks(lambda lo, hi: calls.append((lo, hi)), n)
+        nice = os.getpriority(os.PRIO_PROCESS, threading.get_native_id()) if sys.platform == "linux" else None
+        return sorted(calls), nice
+
+    here, nice_here = blocks_and_priority()
+    with ThreadPoolExecutor(1, initializer=_evaluation_thread) as worker:
+        there, nice_there = worker.submit(blocks_and_priority).result()
+    assert here == [(0, n // 2), (n // 2, n)]  # the calling thread splits a large render over the pool
+    assert there == [(0, n)]  # the evaluation worker renders on itself
+    if sys.platform == "linux":
+        assert nice_there == 19 and nice_here < 19  # the worker alone was lowered
+    assert blocks_and_priority() == (here, nice_here)  # nothing changed for the calling thread
+
+
 def test_an_error_on_the_evaluation_worker_reaches_the_caller(tmp_path, monkeypatch):
     from activesplat.sim import Simulator
 

@@ -10,7 +10,9 @@ the action log alone.
 from __future__ import annotations
 
 import math
+import os
 import sys
+import threading
 import time
 from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
@@ -226,6 +228,22 @@ def _next_waypoint(explorer) -> np.ndarray | None:
     return np.asarray(follower.waypoints[0], dtype=np.float64)
 
 
+def _evaluation_thread() -> None:
+    """Set-up of the live evaluation's worker thread: the lowest CPU priority (on Linux, where the nice
+    value belongs to the thread; other systems keep the default) and its ground-truth renders on itself,
+    not on the simulator's shared pool. The exploration step's parallel kernels wait for their slowest
+    thread, so a worker at equal priority that takes a core from one of them slows the whole step down;
+    at nice 19 the evaluation runs where the step leaves a core idle."""
+    from activesplat.sim.sensor import render_on_this_thread
+
+    if sys.platform.startswith("linux"):
+        try:
+            os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), 19)
+        except OSError:  # not allowed here: the default priority
+            pass
+    render_on_this_thread()
+
+
 class _Completion:
     """Completion measured on the fly (docs/protocol.md §6): evaluation, not the robot's work; ground-truth
     depth at 128 x 128 rendered by the simulator at every observed pose.
@@ -251,7 +269,8 @@ class _Completion:
             import numba
 
             background = numba.get_num_threads() >= 2
-        self._worker = ThreadPoolExecutor(1, thread_name_prefix="live-evaluation") if background else None
+        self._worker = ThreadPoolExecutor(1, thread_name_prefix="live-evaluation",
+                                          initializer=_evaluation_thread) if background else None
         self._jobs: list[Future] = []
 
     @property

@@ -11,6 +11,7 @@ no 3D map can reproduce (docs/protocol.md §1, "Texture filtering")."""
 
 from __future__ import annotations
 
+import threading
 from concurrent.futures import ThreadPoolExecutor
 from functools import cached_property
 
@@ -32,13 +33,22 @@ FLOAT_TEXELS = 4_000_000
 BLOCK_PIXELS = 8192
 """Fewest pixels per thread of a render (smaller images stay on the calling thread)."""
 _POOL: tuple[int, ThreadPoolExecutor] | None = None
+_THREAD = threading.local()
+
+
+def render_on_this_thread() -> None:
+    """Renders asked from the calling thread from now on run on it alone, not on the shared pool: for a
+    background thread whose work should not take the pool's threads (the live evaluation of
+    `activesplat explore`, which runs at low priority)."""
+    _THREAD.serial = True
 
 
 def _in_blocks(fn, n: int) -> None:
     """``fn(lo, hi)`` over [0, n) split into contiguous blocks, one per thread (at most numba's thread
-    count, at least BLOCK_PIXELS each); on this thread when that is one block."""
+    count, at least BLOCK_PIXELS each); on this thread when that is one block, or when this thread asked
+    for it (:func:`render_on_this_thread`)."""
     global _POOL
-    threads = min(numba.get_num_threads(), n // BLOCK_PIXELS)
+    threads = 1 if getattr(_THREAD, "serial", False) else min(numba.get_num_threads(), n // BLOCK_PIXELS)
     if threads <= 1:
         fn(0, n)
         return
