@@ -99,6 +99,17 @@ def test_far_depth_kernel_and_cpu_culling_match_the_torch_version():
         want = frustum_rows(p["means"], p["log_scales"], cam, K, S, S, depth, 0.1, 8)
         got = _frustum_rows_torch(p["means"], p["log_scales"], cam, K, S, S, depth, 0.1, 8)
         assert len(want) > 100 and torch.equal(got, want)
+        # testing only the rows of the frustum (no depth) and the last 500, as the mapper does after
+        # densifying, keeps the same rows as the whole map; on CPU (numba) and in torch alike
+        frustum = frustum_rows(p["means"][:2500], p["log_scales"][:2500], cam, K, S, S)
+        candidates = torch.cat([frustum, torch.arange(2500, 3000)])
+        some = frustum_rows(p["means"], p["log_scales"], cam, K, S, S, depth, 0.1, 8, candidates)
+        assert torch.equal(some, want)
+        subset = _frustum_rows_torch(p["means"][candidates], p["log_scales"][candidates], cam, K, S, S, depth,
+                                     0.1, 8)  # what other devices do with candidates
+        assert torch.equal(candidates[subset], want)
+        assert len(frustum_rows(p["means"], p["log_scales"], cam, K, S, S, depth, 0.1, 8,
+                                candidates[:40])) < 40  # and nothing outside the candidates
 
 
 def test_row_adam_is_adam_on_trained_rows_and_leaves_the_others_alone():

@@ -24,6 +24,32 @@ def camera_point(means, i, rot, t):
             dx * rot[0, 2] + dy * rot[1, 2] + dz * rot[2, 2])
 
 
+@njit(inline="always", cache=True)
+def _drawn(means, log_scales, i, rot, t, fx, fy, cx, cy, width, height, near, lim_x, lim_y, sigmas, low_pass,
+           far, window, margin, use_depth):
+    """The test of :func:`cull_rows` for row ``i``."""
+    xw, yw, z = camera_point(means, i, rot, t)
+    if z <= near:
+        return False
+    x = xw / z
+    y = yw / z
+    xc = min(max(x, -lim_x), lim_x)
+    yc = min(max(y, -lim_y), lim_y)
+    stretch = 1.0 + xc * xc + yc * yc
+    s = math.exp(max(log_scales[i, 0], max(log_scales[i, 1], log_scales[i, 2]))) * max(fx, fy) / z
+    radius = sigmas * math.sqrt(s * s * stretch + low_pass) + 1.0
+    u = fx * x + cx
+    v = fy * y + cy
+    if u + radius < 0 or u - radius > width or v + radius < 0 or v - radius > height:
+        return False
+    if use_depth and radius <= window:
+        ui = int(math.floor(u))
+        vi = int(math.floor(v))
+        if 0 <= ui < width and 0 <= vi < height and z > far[vi, ui] + margin:
+            return False
+    return True
+
+
 @njit(parallel=True, cache=True)
 def cull_rows(means, log_scales, rot, t, fx, fy, cx, cy, width, height, near, lim_x, lim_y, sigmas,
               low_pass, far, window, margin, use_depth):
@@ -32,26 +58,19 @@ def cull_rows(means, log_scales, rot, t, fx, fy, cx, cy, width, height, near, li
     n = means.shape[0]
     keep = np.zeros(n, dtype=np.bool_)
     for i in prange(n):
-        xw, yw, z = camera_point(means, i, rot, t)
-        if z <= near:
-            continue
-        x = xw / z
-        y = yw / z
-        xc = min(max(x, -lim_x), lim_x)
-        yc = min(max(y, -lim_y), lim_y)
-        stretch = 1.0 + xc * xc + yc * yc
-        s = math.exp(max(log_scales[i, 0], max(log_scales[i, 1], log_scales[i, 2]))) * max(fx, fy) / z
-        radius = sigmas * math.sqrt(s * s * stretch + low_pass) + 1.0
-        u = fx * x + cx
-        v = fy * y + cy
-        if u + radius < 0 or u - radius > width or v + radius < 0 or v - radius > height:
-            continue
-        if use_depth and radius <= window:
-            ui = int(math.floor(u))
-            vi = int(math.floor(v))
-            if 0 <= ui < width and 0 <= vi < height and z > far[vi, ui] + margin:
-                continue
-        keep[i] = True
+        keep[i] = _drawn(means, log_scales, i, rot, t, fx, fy, cx, cy, width, height, near, lim_x, lim_y,
+                         sigmas, low_pass, far, window, margin, use_depth)
+    return keep
+
+
+@njit(parallel=True, cache=True)
+def cull_some_rows(rows, means, log_scales, rot, t, fx, fy, cx, cy, width, height, near, lim_x, lim_y,
+                   sigmas, low_pass, far, window, margin, use_depth):
+    """(len(rows),) bool: the test of :func:`cull_rows` for the rows ``rows`` only."""
+    keep = np.zeros(rows.shape[0], dtype=np.bool_)
+    for k in prange(rows.shape[0]):
+        keep[k] = _drawn(means, log_scales, rows[k], rot, t, fx, fy, cx, cy, width, height, near, lim_x,
+                         lim_y, sigmas, low_pass, far, window, margin, use_depth)
     return keep
 
 

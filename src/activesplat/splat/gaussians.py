@@ -205,7 +205,7 @@ def activate(raw: dict[str, torch.Tensor]) -> tuple[torch.Tensor, ...]:
 
 def frustum_rows(means: torch.Tensor, log_scales: torch.Tensor, pose, K, width: int, height: int,
                  depth: torch.Tensor | None = None, occlusion_margin_m: float = 0.1,
-                 occlusion_window_px: int = 8) -> torch.Tensor:
+                 occlusion_window_px: int = 8, candidates: torch.Tensor | None = None) -> torch.Tensor:
     """Indices (long) of the Gaussians the rasterizer can draw into the (width x height) image of the
     camera-to-world ``pose``: in front of its near plane, with a conservative screen radius (largest
     scale, the projection Jacobian at the rasterizer's clamped image coordinates, the low-pass) that
@@ -217,11 +217,20 @@ def frustum_rows(means: torch.Tensor, log_scales: torch.Tensor, pose, K, width: 
     where every observed depth within the window around the centre is nearer than the centre's depth
     by more than ``occlusion_margin_m`` (invalid depth never hides anything). Where the map reproduces
     the observed surface, they are composited behind it with no visible weight; this is what keeps a
-    view of a corridor from paying for every room behind its walls."""
+    view of a corridor from paying for every room behind its walls.
+
+    ``candidates`` (ascending long indices): test only these rows, e.g. those an earlier call for the same
+    camera kept, plus rows added since; the result is the same as a call over the whole map whenever every
+    row left out would fail the test."""
     from activesplat.splat.raster.constants import RASTER
 
+    if candidates is not None and means.device.type != "cpu":
+        index = candidates.to(means.device)
+        kept = _frustum_rows_torch(means.index_select(0, index), log_scales.index_select(0, index), pose, K,
+                                   width, height, depth, occlusion_margin_m, occlusion_window_px)
+        return index[kept]
     if means.device.type == "cpu":
-        from activesplat.splat._mapper_numba import cull_rows, far_depth
+        from activesplat.splat._mapper_numba import cull_rows, cull_some_rows, far_depth
 
         pose = np.asarray(pose, dtype=np.float64)
         far = np.zeros((1, 1), np.float32)
@@ -229,11 +238,14 @@ def frustum_rows(means: torch.Tensor, log_scales: torch.Tensor, pose, K, width: 
             observed = np.ascontiguousarray(depth.detach().numpy(), dtype=np.float32)
             far = far_depth(observed, occlusion_window_px)
         fx, fy, cx, cy = float(K[0, 0]), float(K[1, 1]), float(K[0, 2]), float(K[1, 2])
-        keep = cull_rows(means.detach().numpy(), log_scales.detach().numpy(), pose[:3, :3].copy(),
-                         pose[:3, 3].copy(), fx, fy, cx, cy, width, height, RASTER.near,
-                         *_jacobian_limits(K, width, height), RASTER.extent_sigmas,
-                         RASTER.low_pass, far, occlusion_window_px, occlusion_margin_m, depth is not None)
-        return torch.from_numpy(np.flatnonzero(keep))
+        args = (means.detach().numpy(), log_scales.detach().numpy(), pose[:3, :3].copy(), pose[:3, 3].copy(),
+                fx, fy, cx, cy, width, height, RASTER.near, *_jacobian_limits(K, width, height),
+                RASTER.extent_sigmas, RASTER.low_pass, far, occlusion_window_px, occlusion_margin_m,
+                depth is not None)
+        if candidates is not None:
+            index = np.ascontiguousarray(candidates.numpy(), dtype=np.int64)
+            return torch.from_numpy(index[cull_some_rows(index, *args)])
+        return torch.from_numpy(np.flatnonzero(cull_rows(*args)))
     return _frustum_rows_torch(means, log_scales, pose, K, width, height, depth, occlusion_margin_m,
                                occlusion_window_px)
 

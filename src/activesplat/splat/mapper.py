@@ -148,14 +148,15 @@ class Mapper:
                          planar_depth=self.config.planar_depth)
 
     def _view_rows(self, pose: np.ndarray, K: np.ndarray, width: int, height: int,
-                   depth: torch.Tensor | None = None) -> torch.Tensor:
+                   depth: torch.Tensor | None = None, candidates: torch.Tensor | None = None) -> torch.Tensor:
         """The Gaussians a render of this view needs (:func:`frustum_rows`); with the view's observed
-        ``depth`` ((height, width), 0 = invalid), not those it hides (``cull_occluded_margin_m``)."""
+        ``depth`` ((height, width), 0 = invalid), not those it hides (``cull_occluded_margin_m``). With
+        ``candidates``, only those rows are tested (a superset of the answer: see :func:`frustum_rows`)."""
         p, cfg = self.gaussians.params, self.config
         if cfg.cull_occluded_margin_m is None:
             depth = None
         return frustum_rows(p["means"], p["log_scales"], pose, K, width, height, depth,
-                            cfg.cull_occluded_margin_m or 0.0, cfg.cull_window_px)
+                            cfg.cull_occluded_margin_m or 0.0, cfg.cull_window_px, candidates)
 
     def _make_optimizer(self):
         if self.config.sparse_adam:
@@ -213,8 +214,11 @@ class Mapper:
         coarse, footprint = self._retire_coarse(pose, obs_depth)
         stats.refreshed = int(coarse.numel())
         clock.lap("refresh")
+        frustum = front = None
         with torch.no_grad():
-            front = self._front_rows(pose) if cfg.densify_front_faces_only else None
+            if cfg.densify_front_faces_only:
+                frustum, behind = self._facing_rows(pose, self.K, self.width, self.height)
+                front = frustum[~behind]
             out = self._render_or_blank(pose, front)
             hl = high_loss_mask(out["alpha"], out["median_depth"], obs_depth, cfg)
             self.high_loss_mask = hl.cpu().numpy()
@@ -229,6 +233,7 @@ class Mapper:
         if occupied is not None and cfg.densify_voxel_depth_test_only:
             exempt = opacity_test_mask(out["alpha"], obs_depth, cfg)
         raw = gaussians_from_pixels(new_mask, obs_rgb, obs_depth, pose, self.K, cfg, occupied, exempt)
+        before = len(self.gaussians)
         stats.added = self._append(raw)
         clock.lap("densify")
         window = mapping_window(depth, pose, self.K, self.keyframes, cfg.window_overlap, cfg.overlap_pixels,
@@ -236,7 +241,11 @@ class Mapper:
         clock.lap("window")
         current = (obs_rgb, obs_depth, pose)
         views = [self._pick_view(i, window, current) for i in range(schedule.iterations)]
-        current_rows = self._view_rows(pose, self.K, self.width, self.height, obs_depth)
+        candidates = None  # the view's frustum is known: test those rows and the ones added since
+        if frustum is not None:
+            candidates = torch.cat([frustum, torch.arange(before, len(self.gaussians), dtype=frustum.dtype,
+                                                           device=frustum.device)])
+        current_rows = self._view_rows(pose, self.K, self.width, self.height, obs_depth, candidates)
         trained = [current_rows]  # the current view is pruned whether or not an iteration trains it
         losses = []
         for i, view in enumerate(views):  # before the first step, the current view's rows are those above
@@ -281,12 +290,6 @@ class Mapper:
             rows = self._view_rows(pose, self.K, self.width, self.height)
         means = self.gaussians.params["means"].detach().index_select(0, rows).cpu().numpy()
         return np.unique(voxel_keys(means, size))
-
-    def _front_rows(self, pose: np.ndarray) -> torch.Tensor:
-        """The Gaussians of this view's frustum less the flat ones it sees from behind
-        (:func:`back_facing`; MapperConfig "Back faces")."""
-        rows, behind = self._facing_rows(pose, self.K, self.width, self.height)
-        return rows[~behind]
 
     def _facing_rows(self, pose: np.ndarray, K: np.ndarray, width: int, height: int,
                      margin_deg: float = 0.0) -> tuple[torch.Tensor, torch.Tensor]:
