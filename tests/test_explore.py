@@ -156,16 +156,18 @@ def test_the_evaluation_worker_runs_at_low_priority_and_renders_on_its_own_threa
     def blocks_and_priority():
         calls = []
         sensor._in_blocks(lambda lo, hi: calls.append((lo, hi)), n)
-        nice = os.getpriority(os.PRIO_PROCESS, threading.get_native_id()) if sys.platform == "linux" else None
-        return sorted(calls), nice
+        if sys.platform != "linux":
+            return sorted(calls), None
+        tid = threading.get_native_id()
+        return sorted(calls), (os.sched_getscheduler(tid), os.getpriority(os.PRIO_PROCESS, tid))
 
     here, nice_here = blocks_and_priority()
     with ThreadPoolExecutor(1, initializer=_evaluation_thread) as worker:
         there, nice_there = worker.submit(blocks_and_priority).result()
     assert here == [(0, n // 2), (n // 2, n)]  # the calling thread splits a large render over the pool
     assert there == [(0, n)]  # the evaluation worker renders on itself
-    if sys.platform == "linux":
-        assert nice_there == 19 and nice_here < 19  # the worker alone was lowered
+    if sys.platform == "linux":  # the worker alone was lowered: idle scheduling, nice 19
+        assert nice_there == (os.SCHED_IDLE, 19) and nice_here[0] != os.SCHED_IDLE and nice_here[1] < 19
     assert blocks_and_priority() == (here, nice_here)  # nothing changed for the calling thread
 
 

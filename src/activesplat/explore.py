@@ -229,17 +229,23 @@ def _next_waypoint(explorer) -> np.ndarray | None:
 
 
 def _evaluation_thread() -> None:
-    """Set-up of the live evaluation's worker thread: the lowest CPU priority (on Linux, where the nice
-    value belongs to the thread; other systems keep the default) and its ground-truth renders on itself,
-    not on the simulator's shared pool. The exploration step's parallel kernels wait for their slowest
-    thread, so a worker at equal priority that takes a core from one of them slows the whole step down;
-    at nice 19 the evaluation runs where the step leaves a core idle."""
+    """Set-up of the live evaluation's worker thread: the lowest CPU priority (on Linux, where scheduling
+    belongs to the thread: the idle policy, which runs it only on a core nothing else wants, and nice 19;
+    other systems keep the default) and its ground-truth renders on itself, not on the simulator's shared
+    pool. The exploration step's parallel kernels wait for their slowest thread, so a worker at equal
+    priority that takes a core from one of them slows the whole step down; at idle priority the evaluation
+    runs where the step leaves a core idle (`CoverageConfig.background`)."""
     from activesplat.sim.sensor import render_on_this_thread
 
     if sys.platform.startswith("linux"):
+        tid = threading.get_native_id()
         try:
-            os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), 19)
+            os.sched_setscheduler(tid, os.SCHED_IDLE, os.sched_param(0))
         except OSError:  # not allowed here: the default priority
+            pass
+        try:
+            os.setpriority(os.PRIO_PROCESS, tid, 19)
+        except OSError:
             pass
     render_on_this_thread()
 

@@ -44,11 +44,11 @@ class CoverageConfig:
     points) on a worker thread, off the exploration step's critical path (ours: a speed knob; the frames
     are folded in the same order, so every number is the same). None: on where the process may use at
     least two threads (``NUMBA_NUM_THREADS``; a benchmark worker gets one). The worker runs at the lowest
-    CPU priority (Linux): at equal priority it took a core from the step's parallel kernels, which wait
-    for their slowest thread (medium-0, 2000 steps, 2 cores: 167 ms/step with the mapper at 75.5, against
-    144 / 56.7 in the foreground and 152 / 68.5 at low priority; over 1000 steps, in alternation, 130-134
-    ms/step in the foreground and 114-127 at low priority). small-0 on 2 cores: 51-52 -> 48 ms/step; on
-    an H100 machine's 16 cores it takes the evaluation's 12-19 ms off the step."""
+    CPU priority (Linux: the idle scheduling policy): at equal priority it took a core from the step's
+    parallel kernels, which wait for their slowest thread. medium-0, 2000 steps, 2 cores, ms/step (mapper):
+    equal priority 167 (75.5), foreground 144 (56.7), nice 19 152 (67.2), idle policy 139 (61.4); one run
+    each on a host whose speed varies by about 10 %. small-0 on 2 cores: 51-52 -> 48 ms/step; on an H100
+    machine's 16 cores it takes the evaluation's 12-19 ms off the step."""
 
     def __post_init__(self) -> None:
         check_fields(self, positive=("cap_m", "threshold_m", "far_voxel_m"),
