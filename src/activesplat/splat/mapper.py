@@ -219,7 +219,10 @@ class Mapper:
             if cfg.densify_front_faces_only:
                 frustum, behind = self._facing_rows(pose, self.K, self.width, self.height)
                 front = frustum[~behind]
-            out = self._render_or_blank(pose, front)
+            drawn = front
+            if cfg.cull_occluded_masks and cfg.cull_occluded_margin_m is not None:
+                drawn = self._view_rows(pose, self.K, self.width, self.height, obs_depth, front)
+            out = self._render_or_blank(pose, drawn)
             hl = high_loss_mask(out["alpha"], out["median_depth"], obs_depth, cfg)
             self.high_loss_mask = hl.cpu().numpy()
             represented = self._represented(pose, obs_depth, front)
