@@ -10,9 +10,7 @@ the action log alone.
 from __future__ import annotations
 
 import math
-import os
 import sys
-import threading
 import time
 from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
@@ -229,24 +227,10 @@ def _next_waypoint(explorer) -> np.ndarray | None:
 
 
 def _evaluation_thread() -> None:
-    """Set-up of the live evaluation's worker thread: the lowest CPU priority (on Linux, where scheduling
-    belongs to the thread: the idle policy, which runs it only on a core nothing else wants, and nice 19;
-    other systems keep the default) and its ground-truth renders on itself, not on the simulator's shared
-    pool. The exploration step's parallel kernels wait for their slowest thread, so a worker at equal
-    priority that takes a core from one of them slows the whole step down; at idle priority the evaluation
-    runs where the step leaves a core idle (`CoverageConfig.background`)."""
+    """Set-up of the live evaluation's worker thread: its ground-truth renders run on itself, not on the
+    simulator's shared pool, which stays the loop's."""
     from activesplat.sim.sensor import render_on_this_thread
 
-    if sys.platform.startswith("linux"):
-        tid = threading.get_native_id()
-        try:
-            os.sched_setscheduler(tid, os.SCHED_IDLE, os.sched_param(0))
-        except OSError:  # not allowed here: the default priority
-            pass
-        try:
-            os.setpriority(os.PRIO_PROCESS, tid, 19)
-        except OSError:
-            pass
     render_on_this_thread()
 
 
@@ -271,10 +255,12 @@ class _Completion:
         self._pending: list[np.ndarray] = []
         self._observed = 0
         background = self.cfg.background
-        if background is None:  # a process held to one thread (a benchmark worker) keeps it to itself
+        if background is None:  # only where the map is on a GPU: see CoverageConfig.background
             import numba
 
-            background = numba.get_num_threads() >= 2
+            from activesplat.splat.raster import resolve_backend
+
+            background = numba.get_num_threads() >= 2 and resolve_backend(run.backend) == "gsplat"
         self._worker = ThreadPoolExecutor(1, thread_name_prefix="live-evaluation",
                                           initializer=_evaluation_thread) if background else None
         self._jobs: list[Future] = []

@@ -42,12 +42,13 @@ class CoverageConfig:
     background: bool | None = None
     """Run the live evaluation of `activesplat explore` (ground-truth depth renders, KD-tree updates, curve
     points) on a worker thread, off the exploration step's critical path (ours: a speed knob; the frames
-    are folded in the same order, so every number is the same). None: on where the process may use at
-    least two threads (``NUMBA_NUM_THREADS``; a benchmark worker gets one). The worker runs at the lowest
-    CPU priority (Linux: the idle scheduling policy): at equal priority it took a core from the step's
-    parallel kernels, which wait for their slowest thread. medium-0, 2000 steps, 2 cores, ms/step (mapper):
-    equal priority 167 (75.5), foreground 144 (56.7), nice 19 152 (67.2), idle policy 139 (61.4); one run
-    each on a host whose speed varies by about 10 %. small-0 on 2 cores: 51-52 -> 48 ms/step; on an H100
+    are folded in the same order, so every number is the same). None: on where the map is on a GPU (the
+    gsplat backend) and the process may use at least two threads; off on CPU-only runs and in benchmark
+    workers (one thread each). On the CPU the worker takes a core from the step's parallel kernels, which
+    wait for their slowest thread: medium-0, 2000 steps, 2 cores, 167 ms/step with the mapper at 75.5 on a
+    worker thread against 144 / 56.7 in the loop (small-0: 48 against 51-52). At a lower CPU priority it
+    was faster (nice 19: 152 / 67.2; the idle scheduling policy: 139 / 61.4), but a worker at low priority
+    is starved while other jobs keep the cores busy, and the run then waits for it at its end. On an H100
     machine's 16 cores it takes the evaluation's 12-19 ms off the step."""
 
     def __post_init__(self) -> None:
