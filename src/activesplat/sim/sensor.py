@@ -38,8 +38,8 @@ _THREAD = threading.local()
 
 def render_on_this_thread() -> None:
     """Renders asked from the calling thread from now on run on it alone, not on the shared pool: for a
-    background thread whose work should not take the pool's threads (the live evaluation of
-    `activesplat explore`, which runs at low priority)."""
+    background thread whose work should not take the pool's threads (the live evaluation's worker of
+    `activesplat explore`)."""
     _THREAD.serial = True
 
 
