@@ -122,3 +122,15 @@ def test_trajectory_figure(tmp_path, house):
     xz = np.array([[1.0, 1.0], [1.0, 1.0], [1.0, 1.0], [2.0, 1.0], [6.0, 2.0]])
     out = draw_trajectory(tmp_path / "t.png", nav, xz, house, {"living": "50 %"}, title="t")
     assert out.is_file() and out.stat().st_size > 5000
+
+
+def test_trajectory_figure_is_seen_from_above_like_the_topdown_map(house):
+    from activesplat.sim.navmap import NavMap
+    from activesplat.viz.trajectory import trajectory_figure
+
+    grid = np.ones((180, 100), bool)
+    nav = NavMap(grid, grid, np.ones(grid.shape), grid, np.zeros(2), 0.05, 0.0)
+    ax = trajectory_figure(nav, np.array([[1.0, 1.0], [6.0, 2.0]]), house).axes[0]
+    top, bottom = ax.get_ylim()[1], ax.get_ylim()[0]
+    assert (top, bottom) == (0.0, 5.0)  # z grows downwards (topdown.png: world z down, as the grid rows)
+    assert ax.get_xlim() == (0.0, 9.0)

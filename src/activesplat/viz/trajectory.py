@@ -1,5 +1,8 @@
 """The trajectory over the floor plan, coloured by step: dwelling shows as a knot of one colour.
 
+Drawn as seen from above (world y up): x runs right and z down, the same orientation as the episode's
+topdown.png, so the two figures of a run can be laid side by side.
+
 Background: the ground-truth navigable floor (light) and the rest of the plan (dark); built-in houses add
 their room outlines with each room's name and completion. Agg only; no display needed.
 """
@@ -19,6 +22,14 @@ def draw_trajectory(out_png: str | Path, navmap, positions_xz: np.ndarray, house
 
     `house`: a built-in house plan (outlines per room); `room_labels`: text under each room's name (e.g.
     its completion)."""
+    out_png = Path(out_png)
+    trajectory_figure(navmap, positions_xz, house, room_labels, title).savefig(out_png)
+    return out_png
+
+
+def trajectory_figure(navmap, positions_xz: np.ndarray, house=None, room_labels: dict[str, str] | None = None,
+                      title: str = "") -> Figure:
+    """The figure :func:`draw_trajectory` saves (a bare Agg Figure)."""
     xz = np.asarray(positions_xz, np.float64).reshape(-1, 2)
     res = navmap.resolution
     extent = (navmap.origin[0], navmap.origin[0] + navmap.grid.shape[0] * res,
@@ -48,16 +59,14 @@ def draw_trajectory(out_png: str | Path, navmap, positions_xz: np.ndarray, house
         ax.plot(*xz[-1], marker="x", ms=9, color="red", mew=2, zorder=4, label="end")
         ax.legend(loc="upper right", fontsize=8)
     ax.set_xlim(extent[0], extent[1])
-    ax.set_ylim(extent[2], extent[3])
+    ax.set_ylim(extent[3], extent[2])  # z down: the plan seen from above (y up), as topdown.png draws it
     ax.set_aspect("equal")
-    ax.set_xlabel("x (m)")
-    ax.set_ylabel("z (m)")
+    ax.set_xlabel("world x (m)")
+    ax.set_ylabel("world z (m)")
     if title:
         ax.set_title(title, fontsize=10)
     fig.tight_layout()
-    out_png = Path(out_png)
-    fig.savefig(out_png)
-    return out_png
+    return fig
 
 
 def room_labels(house, rooms: dict, values: dict[str, float | None], unit: str = "%") -> dict[str, str]:
@@ -99,4 +108,4 @@ def _rect(room, **kw):
     return Rectangle((room.x0, room.z0), room.x1 - room.x0, room.z1 - room.z0, **kw)
 
 
-__all__ = ["draw_trajectory", "room_labels"]
+__all__ = ["draw_trajectory", "room_labels", "trajectory_figure"]
