@@ -1,0 +1,40 @@
+"""benchmarks/plan_snapshots.py: settings by field path, and the snapshots of a tiny real exploration."""
+
+import importlib.util
+from pathlib import Path
+
+import pytest
+
+from activesplat.config import RunConfig
+
+
+@pytest.fixture(scope="module")
+def snapshots():
+    path = Path(__file__).parents[2] / "benchmarks" / "plan_snapshots.py"
+    spec = importlib.util.spec_from_file_location("plan_snapshots", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_settings_by_field_path(snapshots):
+    run = snapshots.with_fields(RunConfig(), ["explorer.neck_margin_m=0.2", "sim.width=64", "seed=3",
+                                              "explorer.neck_margin_m=None"])
+    assert run.explorer.neck_margin_m is None and run.sim.width == 64 and run.seed == 3
+    with pytest.raises(SystemExit, match="no field 'explorer.nope'"):
+        snapshots.with_fields(RunConfig(), ["explorer.nope=1"])
+    with pytest.raises(SystemExit, match="field=value"):
+        snapshots.with_fields(RunConfig(), ["seed"])
+
+
+def test_snapshots_of_a_tiny_exploration(snapshots, tmp_path):
+    from activesplat.explore import explore_episode
+    from activesplat.sim import load_scene
+
+    tiny = ["sim.width=64", "sim.height=64", "coverage.n_gt_points=4000", "backend=numba"]
+    run = snapshots.with_fields(RunConfig(scene="small-0", steps=50), tiny)
+    scene = load_scene("small-0")
+    snaps = snapshots.Snapshots(scene.navmap_for(run.sim), {3, 50}, tmp_path, (1.0, 6.0, 0.5, 5.0), "t")
+    explore_episode(run, out=tmp_path / "episode", progress=False, viewer=snaps, scene=scene)
+    assert [p.name for p in snaps.written] == ["step3.png", "step50.png"]
+    assert all(p.stat().st_size > 10_000 for p in snaps.written)
