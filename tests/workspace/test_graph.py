@@ -258,7 +258,7 @@ def test_nodes_with_no_path_rank_by_their_travel_on_the_grown_floor_when_asked()
     np.testing.assert_allclose(travel_lengths(graph, start, own, own_pos, lambda p: p[:, 0] * np.nan),
                                travel_lengths(graph, start, own, own_pos))
     with pytest.raises(Exception, match="neck_margin_m"):
-        ExplorerConfig(neck_travel=True)
+        ExplorerConfig(neck_travel=True, neck_margin_m=None)
 
 
 def test_growing_into_unknown_never_covers_obstacles_and_zero_changes_nothing():
