@@ -116,7 +116,7 @@ class ExplorerConfig:
     seen at a slant"); this grows only where no path was found, and a run in which every ranked goal has a
     path is the same as without it. Alone, 0.2 against None, seed 0, one thread
     per run: medium-0..3 x 2 seeds -0.12 points, fresh medium-100..109 +0.12, held-out medium-130..139
-    +0.72 (two higher, one lower, seven never acting), fresh medium-140..149 +0.0 (acting in three of ten);
+    +0.72 (two higher, one lower, seven never acting), fresh medium-140..149 -0.01 (acting in three of ten);
     no run lower by more than 0.6 points. The default since 2026-11-28 (docs/benchmark.md "A room lost
     behind its door"); with `neck_travel` see there."""
     neck_travel: bool = False
