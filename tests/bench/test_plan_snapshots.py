@@ -1,11 +1,10 @@
-"""benchmarks/plan_snapshots.py: settings by field path, and the snapshots of a tiny real exploration."""
+"""benchmarks/plan_snapshots.py: the options of `activesplat explore`, and the snapshots of a tiny real
+exploration."""
 
 import importlib.util
 from pathlib import Path
 
 import pytest
-
-from activesplat.config import RunConfig
 
 
 @pytest.fixture(scope="module")
@@ -17,22 +16,26 @@ def snapshots():
     return module
 
 
-def test_settings_by_field_path(snapshots):
-    run = snapshots.with_fields(RunConfig(), ["explorer.neck_margin_m=0.2", "sim.width=64", "seed=3",
-                                              "explorer.neck_margin_m=None"])
+def test_options_are_those_of_activesplat_explore(snapshots, tmp_path):
+    from activesplat.cli import CommandLineError
+
+    args, run = snapshots.parse(["--at", "5", "9", "--out", str(tmp_path), "--explorer.neck-margin-m", "0.2",
+                                 "--sim.width", "64", "--seed", "3", "--explorer.neck-margin-m", "None"])
+    assert args.at == [5, 9] and args.out == str(tmp_path)
     assert run.explorer.neck_margin_m is None and run.sim.width == 64 and run.seed == 3
-    with pytest.raises(SystemExit, match="no field 'explorer.nope'"):
-        snapshots.with_fields(RunConfig(), ["explorer.nope=1"])
-    with pytest.raises(SystemExit, match="field=value"):
-        snapshots.with_fields(RunConfig(), ["seed"])
+    with pytest.raises(CommandLineError, match="explorer.nope"):
+        snapshots.parse(["--at", "5", "--out", str(tmp_path), "--explorer.nope", "1"])
+    with pytest.raises(CommandLineError, match="seed"):
+        snapshots.parse(["--at", "5", "--out", str(tmp_path), "--seed"])
 
 
 def test_snapshots_of_a_tiny_exploration(snapshots, tmp_path):
     from activesplat.explore import explore_episode
     from activesplat.sim import load_scene
 
-    tiny = ["sim.width=64", "sim.height=64", "coverage.n_gt_points=4000", "backend=numba"]
-    run = snapshots.with_fields(RunConfig(scene="small-0", steps=50), tiny)
+    _, run = snapshots.parse(["--at", "3", "50", "--out", str(tmp_path), "--scene", "small-0",
+                              "--steps", "50", "--sim.width", "64", "--sim.height", "64",
+                              "--coverage.n-gt-points", "4000", "--backend", "numba"])
     scene = load_scene("small-0")
     snaps = snapshots.Snapshots(scene.navmap_for(run.sim), {3, 50}, tmp_path, (1.0, 6.0, 0.5, 5.0), "t")
     explore_episode(run, out=tmp_path / "episode", progress=False, viewer=snaps, scene=scene)

@@ -31,14 +31,11 @@ def trajectory_figure(navmap, positions_xz: np.ndarray, house=None, room_labels:
                       title: str = "") -> Figure:
     """The figure :func:`draw_trajectory` saves (a bare Agg Figure)."""
     xz = np.asarray(positions_xz, np.float64).reshape(-1, 2)
-    res = navmap.resolution
-    extent = (navmap.origin[0], navmap.origin[0] + navmap.grid.shape[0] * res,
-              navmap.origin[1], navmap.origin[1] + navmap.grid.shape[1] * res)
+    extent = navmap_extent(navmap)
     width, depth = extent[1] - extent[0], extent[3] - extent[2]
     fig = Figure(figsize=(min(16.0, 2.0 + 0.55 * width), min(14.0, 1.2 + 0.55 * depth)), dpi=110)
     ax = fig.add_subplot(1, 1, 1)
-    img = np.where(navmap.largest, 0.93, np.where(navmap.grid, 0.8, 0.45))
-    ax.imshow(img.T, origin="lower", extent=extent, cmap="gray", vmin=0.0, vmax=1.0, interpolation="nearest")
+    draw_navigable(ax, navmap)
     if house is not None:
         _draw_rooms(ax, house, room_labels or {})
     if len(xz) > 1:
@@ -67,6 +64,21 @@ def trajectory_figure(navmap, positions_xz: np.ndarray, house=None, room_labels:
         ax.set_title(title, fontsize=10)
     fig.tight_layout()
     return fig
+
+
+def navmap_extent(navmap) -> tuple[float, float, float, float]:
+    """(x_min, x_max, z_min, z_max) in world metres of a sim NavMap's grid."""
+    res = navmap.resolution
+    return (navmap.origin[0], navmap.origin[0] + navmap.grid.shape[0] * res,
+            navmap.origin[1], navmap.origin[1] + navmap.grid.shape[1] * res)
+
+
+def draw_navigable(ax, navmap) -> None:
+    """The ground-truth floor plan of a sim NavMap on `ax`: navigable floor light (its largest connected
+    part lightest), the rest dark."""
+    img = np.where(navmap.largest, 0.93, np.where(navmap.grid, 0.8, 0.45))
+    ax.imshow(img.T, origin="lower", extent=navmap_extent(navmap), cmap="gray", vmin=0.0, vmax=1.0,
+              interpolation="nearest")
 
 
 def room_labels(house, rooms: dict, values: dict[str, float | None], unit: str = "%") -> dict[str, str]:
@@ -108,4 +120,4 @@ def _rect(room, **kw):
     return Rectangle((room.x0, room.z0), room.x1 - room.x0, room.z1 - room.z0, **kw)
 
 
-__all__ = ["draw_trajectory", "room_labels", "trajectory_figure"]
+__all__ = ["draw_navigable", "draw_trajectory", "navmap_extent", "room_labels", "trajectory_figure"]

@@ -41,7 +41,9 @@ def _draw_polygons(ax: Axes, workspace: Workspace) -> None:
             ax.plot(closed[:, 0], closed[:, 1], color="#2a9d8f", lw=1.0, zorder=2)
 
 
-def _draw_graph(ax: Axes, graph: nx.Graph) -> None:
+def draw_graph(ax: Axes, graph: nx.Graph) -> None:
+    """The Voronoi graph on `ax`: edges grey, nodes coloured by subregion, view nodes ringed black and
+    multi-connected nodes ringed red."""
     nodes = sorted(graph.nodes)
     positions = node_positions(graph)
     index = {n: i for i, n in enumerate(nodes)}
@@ -87,7 +89,7 @@ def draw_topdown(out_png: str | Path, grids: TopDownGrids, workspace: Workspace 
     if workspace is not None and not workspace.empty:
         _draw_polygons(ax, workspace)
     if graph is not None and graph.number_of_nodes() > 0:
-        _draw_graph(ax, graph)
+        draw_graph(ax, graph)
     if trajectory is not None and len(trajectory) > 0:
         traj = np.asarray(trajectory).reshape(-1, 2)
         ax.plot(traj[:, 0], traj[:, 1], color="#1d4ed8", lw=1.2, zorder=6)
