@@ -1,19 +1,13 @@
 """benchmarks/plan_snapshots.py: the options of `activesplat explore`, and the snapshots of a tiny real
 exploration."""
 
-import importlib.util
-from pathlib import Path
-
 import pytest
+from _bench import load_benchmark
 
 
 @pytest.fixture(scope="module")
 def snapshots():
-    path = Path(__file__).parents[2] / "benchmarks" / "plan_snapshots.py"
-    spec = importlib.util.spec_from_file_location("plan_snapshots", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_benchmark("plan_snapshots")
 
 
 def test_options_are_those_of_activesplat_explore(snapshots, tmp_path):

@@ -6,19 +6,21 @@ import sys
 from pathlib import Path
 from types import SimpleNamespace
 
+import networkx as nx
 import numpy as np
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "workspace"))
-from layouts import RES, corridor, two_rooms_seen_at_a_slant  # noqa: E402
+from layouts import RES, corridor, corridor_with_a_slot, two_rooms_seen_at_a_slant  # noqa: E402
 
 import activesplat.planning.activesplat as explorer_module  # noqa: E402
 from activesplat.errors import InvalidInputError  # noqa: E402
 from activesplat.geometry import camera_pose, pose_yaw_pitch, wrap_angle  # noqa: E402
 from activesplat.planning.activesplat import ActiveSplatExplorer  # noqa: E402
 from activesplat.planning.controller import ControllerConfig, PathFollower  # noqa: E402
+from activesplat.planning.explorer import retrace_actions  # noqa: E402
 from activesplat.planning.explorer_config import ExplorerConfig  # noqa: E402
-from activesplat.workspace.clean import extract_workspace  # noqa: E402
+from activesplat.workspace.clean import empty_workspace, extract_workspace  # noqa: E402
 from activesplat.workspace.config import WorkspaceConfig  # noqa: E402
 from activesplat.workspace.paths import line_of_sight, path_ahead_clear  # noqa: E402
 from activesplat.workspace.plan import Plan  # noqa: E402
@@ -331,6 +333,82 @@ def test_an_agent_with_no_path_to_any_goal_escapes_instead_of_turning_on_the_spo
         ex.act(obs)
         assert ex.plan.goal is None and ex.failed == []
         assert ex.last_cause == "escape" and "move_forward" in ex.queue, retry
+
+
+def _walk(start, moves, ctrl):
+    """Floor positions after each action of `moves` from `start` heading +z (yaw 0), as the simulator
+    moves: turns in whole steps, forward along the heading."""
+    yaw, at, visited = 0.0, np.asarray(start, float), [np.asarray(start, float)]
+    for action in moves:
+        if action == "move_forward":
+            at = at + ctrl.forward_m * np.array([np.sin(yaw), np.cos(yaw)])
+        elif action in ("turn_left", "turn_right"):
+            yaw += np.radians(ctrl.turn_deg) * (1 if action == "turn_left" else -1)
+        visited.append(at.copy())
+    return visited, yaw
+
+
+def test_retracing_walks_the_agents_own_steps_back_to_open_workspace():
+    """`retrace_actions` replays the forward moves the other way round, turning in whole steps, so the
+    walk ends exactly where the agent last stood with the path clearance; nothing when it stands there
+    already or when that lies farther back than `max_m`."""
+    grids = corridor_with_a_slot()
+    ctrl = ControllerConfig()
+    # in the corridor heading +x, along the slot, then up its second leg
+    moves = ["turn_left"] * 9 + ["move_forward"] * 12 + ["move_forward"] * 12 + ["turn_right"] * 9
+    moves += ["turn_left"] * 18 + ["move_forward"] * 12  # heading +z: up the leg
+    visited, yaw = _walk([3.0, 1.5], moves, ctrl)
+    ws = extract_workspace(grids, visited[-1], WCFG)
+    assert ws.clearance_at(visited[-1]) < WCFG.path_clearance
+    actions = retrace_actions(visited, yaw, ws, WCFG.path_clearance, 3.0, ctrl)
+    assert actions and set(actions) <= {"turn_left", "turn_right", "move_forward"}
+    yaw_now, at = yaw, visited[-1].copy()
+    for action in actions:  # replay: every move retraces an earlier one exactly
+        if action == "move_forward":
+            at = at + ctrl.forward_m * np.array([np.sin(yaw_now), np.cos(yaw_now)])
+            assert min(float(np.hypot(*(at - v))) for v in visited) < 1e-9
+        else:
+            yaw_now += np.radians(ctrl.turn_deg) * (1 if action == "turn_left" else -1)
+    assert ws.clearance_at(at) >= WCFG.path_clearance
+    earlier = [v for v in visited if ws.clearance_at(v) >= WCFG.path_clearance]
+    assert np.allclose(at, earlier[-1])  # the latest such spot, not the start
+    assert retrace_actions(visited, yaw, ws, WCFG.path_clearance, 0.5, ctrl) == []
+    assert retrace_actions(visited[:10], 0.0, ws, WCFG.path_clearance, 3.0, ctrl) == []  # open already
+
+
+def test_an_agent_stuck_in_a_dead_end_slot_walks_back_before_it_escapes(monkeypatch):
+    """`way_back_m`: with no path to any goal from a slot thinner than the path clearance, the agent
+    queues its own steps back to open workspace before anything else; off, it escapes as before."""
+    grids = corridor_with_a_slot()
+    ctrl = ControllerConfig()
+    moves = ["turn_left"] * 9 + ["move_forward"] * 24 + ["turn_left"] * 9 + ["move_forward"] * 12
+    visited, yaw = _walk([3.0, 1.5], moves, ctrl)
+    here = visited[-1]
+    ws = extract_workspace(grids, here, WCFG)
+    graph = build_voronoi_graph(ws, WCFG)
+    far = min(graph.nodes, key=lambda n: graph.nodes[n]["pos"][0])
+    monkeypatch.setattr(explorer_module, "build_plan", lambda *a, **k: Plan(grids=grids, workspace=ws,
+                                                                            graph=graph))
+    monkeypatch.setattr(explorer_module, "rank_goals", lambda *a, **k: [far])
+    monkeypatch.setattr(explorer_module, "plan_safe_path", lambda *a: None)
+    for way_back_m, cause in ((3.0, "way_back"), (None, "escape")):
+        ex = ActiveSplatExplorer(WORLD, 0.0, ExplorerConfig(workspace=WCFG, way_back_m=way_back_m,
+                                                            **OBSERVED_ONLY))
+        _after_bootstrap(ex, _obs(here, yaw))
+        ex.visited = list(visited[:-1])  # its walk into the slot (act appends the spot it stands on)
+        ex.act(_obs(here, yaw))
+        assert ex.plan.goal is None and ex.last_cause == cause, way_back_m
+        if cause == "way_back":
+            assert set(ex.queue_causes) <= {"way_back", "idle"} and "move_forward" in ex.queue
+    # No workspace left around the agent (its region polished away): the observed free floor stands in.
+    monkeypatch.setattr(explorer_module, "build_plan", lambda *a, **k: Plan(
+        grids=grids, workspace=empty_workspace(grids.geometry), graph=nx.Graph()))
+    monkeypatch.setattr(explorer_module, "rank_goals", lambda *a, **k: [])
+    ex = ActiveSplatExplorer(WORLD, 0.0, ExplorerConfig(workspace=WCFG, **OBSERVED_ONLY))
+    _after_bootstrap(ex, _obs(here, yaw))
+    ex.visited = list(visited[:-1])
+    ex.act(_obs(here, yaw))
+    assert ex.last_cause == "way_back" and "move_forward" in ex.queue
 
 
 def test_a_global_replan_stops_first_at_a_node_worth_a_detour(monkeypatch):

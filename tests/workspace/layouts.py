@@ -56,3 +56,14 @@ def corridor() -> TopDownGrids:
     free = box(shape, 0.5, 5.5, 1.0, 2.0)
     walls = box(shape, 0.3, 5.7, 0.8, 2.2) & ~free
     return grids_from_layout(free, walls)
+
+
+def corridor_with_a_slot() -> TopDownGrids:
+    """`corridor`'s 1 m wide corridor (x in [0.5, 4.0], z in [1.0, 2.0]) with an L-shaped dead-end slot
+    0.2 m wide, thinner than the path clearance: east from the corridor's end along z in [1.4, 1.6] to
+    x = 4.8, then north along x in [4.6, 4.8] up to z = 2.7. The straight line from the slot's far end
+    back to the corridor crosses the wall between the two legs."""
+    shape = (60, 120)
+    free = box(shape, 0.5, 4.0, 1.0, 2.0) | box(shape, 4.0, 4.8, 1.4, 1.6) | box(shape, 4.6, 4.8, 1.4, 2.7)
+    walls = box(shape, 0.3, 5.0, 0.8, 2.9) & ~free
+    return grids_from_layout(free, walls)

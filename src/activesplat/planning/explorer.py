@@ -34,7 +34,7 @@ from activesplat.planning.observed import ObservedSurface
 from activesplat.planning.panorama import Panorama
 from activesplat.planning.viewpoints import HighLossTracker, RotationTarget
 from activesplat.timing import Timers
-from activesplat.workspace.clean import Workspace
+from activesplat.workspace.clean import Workspace, clearance_map
 from activesplat.workspace.paths import path_ahead_clear
 from activesplat.workspace.plan import Plan
 
@@ -113,6 +113,40 @@ def escape_actions(pose: np.ndarray, workspace: Workspace | None, ctrl: Controll
     return turn + ["move_forward"] * forward_steps
 
 
+def retrace_actions(visited: Sequence[np.ndarray], yaw: float, workspace: Workspace, clearance: float,
+                    max_m: float, ctrl: ControllerConfig) -> list[str]:
+    """Turns and forward moves that walk the agent's own steps backwards (`visited`: its floor positions,
+    the latest last; `yaw`: its heading now) to the latest position where the workspace has at least
+    `clearance`, or none when it stands at such a clearance already or none lies within `max_m` of
+    walking back (ours). Each move is a forward move the simulator accepted, taken the other way: turns
+    come in whole steps, so the heading reversed is the heading it came in on, to within float error; the
+    map's free floor is too coarse for that in a slot a few centimetres wider than the agent."""
+    if not visited or float(workspace.clearance_at(np.asarray(visited[-1], float))) >= clearance:
+        return []
+    headings, walked = [], 0.0
+    for i in range(len(visited) - 1, 0, -1):
+        step = np.asarray(visited[i - 1], float) - np.asarray(visited[i], float)
+        length = float(np.hypot(*step))
+        if length < 1e-9:  # a turn, a tilt or a refused move
+            continue
+        walked += length
+        if walked > max_m:
+            return []
+        headings.append(math.atan2(step[0], step[1]))
+        if float(workspace.clearance_at(np.asarray(visited[i - 1], float))) >= clearance:
+            break
+    else:
+        return []
+    turn = math.radians(ctrl.turn_deg)
+    actions: list[str] = []
+    for heading in headings:
+        turns = int(round(float(wrap_angle(heading - yaw)) / turn))
+        actions += ["turn_left" if turns > 0 else "turn_right"] * abs(turns)
+        yaw += turns * turn
+        actions.append("move_forward")
+    return actions
+
+
 class Explorer:
     """One object per episode. `act(obs)` returns the next action name; `dense_mapping` tells the loop to
     map with the denser schedule (bootstrap, on-the-spot rotations, escapes: whenever it is not travelling).
@@ -155,9 +189,10 @@ class Explorer:
         at the next refusal): the escape does not try a refused heading from the same spot again."""
         self.rotation_cause = "arrival"
         self.last_cause = ""
-        """Why the latest action was taken: bootstrap, idle, escape, level, look_around (queued actions),
-        arrival / multi_stop (turns toward rotation targets), path (following a path) or fallback (nothing
-        to do). The benchmark counts actions by cause (where the rotations go)."""
+        """Why the latest action was taken: bootstrap, idle, escape, way_back (its own steps back to open
+        workspace, `way_back_m`), level, look_around (queued actions), arrival / multi_stop (turns toward
+        rotation targets), path (following a path) or fallback (nothing to do). The benchmark counts
+        actions by cause (where the rotations go)."""
         self.enqueue(bootstrap_actions(self.cfg), "bootstrap")
 
     # ------------------------------------------------------------------ the loop's interface
@@ -221,10 +256,29 @@ class Explorer:
         """No goal to go to: look around on the spot (the map grows, the next replan may find goals). When
         goals exist but every one failed from here (`stuck`), first escape toward the clearest heading: from
         the same spot the same goals would fail again."""
+        back = self._way_back(pose)
+        if back:
+            self.enqueue(back, "way_back")
+            return
         if stuck:
             self.enqueue(escape_actions(pose, self.plan.workspace, self.cfg.controller,
                                         self.cfg.escape_forward_steps), "escape")
         self.enqueue(["turn_left"] * turns_for(self.cfg.idle_yaw_deg, self.cfg.controller), "idle")
+
+    def _way_back(self, pose: np.ndarray) -> list[str]:
+        """The actions that retrace the agent's own steps to open workspace (`way_back_m`), or none. With
+        no workspace left around the agent, the observed free floor stands in for it."""
+        limit, workspace, grids = self.cfg.way_back_m, self.plan.workspace, self.plan.grids
+        if limit is None:
+            return []
+        if (workspace is None or workspace.empty) and grids is not None:
+            free = grids.free & ~grids.obstacle
+            workspace = Workspace(grids.geometry, free, clearance_map(free, grids.geometry.resolution),
+                                  np.zeros((0, 2)))
+        if workspace is None or workspace.empty:
+            return []
+        return retrace_actions(self.visited, pose_yaw_pitch(pose)[0], workspace,
+                               self.cfg.workspace.path_clearance, limit, self.cfg.controller)
 
     # ------------------------------------------------------------------ behaviour
     def _next(self, pose: np.ndarray) -> str:
@@ -325,4 +379,4 @@ class Explorer:
 
 
 __all__ = ["Explorer", "ExplorerConfig", "ExplorerView", "Plan", "Timers", "WorldModel", "bootstrap_actions",
-           "escape_actions", "turns_for"]
+           "escape_actions", "retrace_actions", "turns_for"]
