@@ -361,6 +361,25 @@ def test_nodes_near_the_agent_join_the_local_stage_whatever_their_subregion_only
         ExplorerConfig(local_near_m=0.0)
 
 
+def test_the_in_horizon_flag_counts_in_the_local_stage_unless_asked_and_always_without_hierarchy():
+    """`local_in_horizon` False: eq. 12's in-horizon flag is left out of the scores the local stage ranks
+    by (it is already out of the global stage's); the flat `no-hp` ranking keeps the paper's score. Down a
+    straight corridor every node is in sight and none is visited."""
+    ws = extract_workspace(corridor(), HERE, WCFG)
+    score_cfg = PlanningConfig().score
+    cases = ((True, True, 20.0), (True, False, 10.0), (False, False, 20.0))
+    for hierarchical, local_in_horizon, flags in cases:
+        cfg = ExplorerConfig(workspace=WCFG, hierarchical=hierarchical, local_in_horizon=local_in_horizon)
+        plan = Plan(workspace=ws, graph=build_voronoi_graph(ws, WCFG))
+        plan.subregions = {n: 0 for n in plan.graph.nodes}  # one subregion: the local stage
+        rank_goals(plan, HERE, HalfSeen().render, 0.0, [], [], cfg.planning, WCFG, goal_rules(cfg),
+                   np.random.default_rng(0))
+        assert (plan.stage == "local") == hierarchical
+        assert score_cfg.w_u + score_cfg.w_h == 20.0
+        for n, score in plan.scores.items():
+            assert score == pytest.approx(plan.info[n] + flags), (hierarchical, local_in_horizon, n)
+
+
 def test_rank_goals_applies_kept_promises_outside_the_agents_subregion_only():
     cfg = ExplorerConfig(workspace=WCFG, keep_promise_m=0.3)
     ws = extract_workspace(corridor(), HERE, WCFG)

@@ -314,6 +314,7 @@ def goal_rules(cfg: ExplorerConfig) -> GoalRules:
                      panorama_height_m=cfg.panorama_height_m, hierarchical=cfg.hierarchical,
                      random_goals=cfg.random_goals, long_path_m=cfg.long_path_m,
                      on_the_way_m=cfg.on_the_way_m, global_in_horizon=cfg.global_in_horizon,
+                     local_in_horizon=cfg.local_in_horizon,
                      global_information_first=cfg.global_information_first,
                      panorama_every_subregion=cfg.panorama_every_subregion,
                      global_halving_m=cfg.global_halving_m, global_tour=cfg.global_tour,

@@ -205,6 +205,14 @@ class ExplorerConfig:
     flag marks a node in a straight line of sight, which is a local preference: down a corridor it gave a
     node 11 m away the same 10 points as one in the next room, and the agent crossed the house past rooms
     it had not entered."""
+    local_in_horizon: bool = True
+    """Count eq. 12's in-horizon flag in the local stage (paper). False (ours): the local stage ranks the
+    nodes of the agent's subregion without it, by what they promise to see (with `global_in_horizon`
+    False, the flag then counts nowhere; the flat `no-hp` ranking keeps it). Beside a door the flag's 10
+    points let a corridor node in sight that promised little beat the door node that looked into a room:
+    medium-162 seed 0 at step 185 took a node of information 6.6 over one of 13.5, and the room behind the
+    door ended at 4 % of its points. Tuning medium-0..3 +0.67 points, held-out medium-130..139 and
+    fresh medium-160..163 -0.66, so off (docs/benchmark.md "The in-horizon flag in the local stage")."""
     global_information_first: bool = True
     """In the global stage, rank the open nodes whose information score (as for `local_score_threshold`)
     exceeds the local threshold ahead of every other node, each group by score minus distance cost (ours;
