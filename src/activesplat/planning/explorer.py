@@ -28,6 +28,7 @@ from activesplat.planning.controller import (
     floor_xz,
     level_actions,
     rotation_actions,
+    turn_toward,
 )
 from activesplat.planning.explorer_config import ExplorerConfig
 from activesplat.planning.observed import ObservedSurface
@@ -140,10 +141,9 @@ def retrace_actions(visited: Sequence[np.ndarray], yaw: float, workspace: Worksp
     turn = math.radians(ctrl.turn_deg)
     actions: list[str] = []
     for heading in headings:
-        turns = int(round(float(wrap_angle(heading - yaw)) / turn))
-        actions += ["turn_left" if turns > 0 else "turn_right"] * abs(turns)
-        yaw += turns * turn
-        actions.append("move_forward")
+        turns = turn_toward(yaw, heading, ctrl)
+        yaw += turn * len(turns) * (1 if turns and turns[0] == "turn_left" else -1)
+        actions += turns + ["move_forward"]
     return actions
 
 

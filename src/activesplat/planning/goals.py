@@ -229,9 +229,10 @@ def rank_goals(plan: Plan, here: np.ndarray, render: RenderFn, floor_height: flo
     if promises is not None and hierarchical:
         kept = promises.keep(pos, info, scored, in_local | ~unvisited) - info
         info = info + kept
-    in_horizon = np.array([line_of_sight(ws, here, p, wcfg) for p in pos])
     if hierarchical and not rules.local_in_horizon:  # ranked without the flag in the local stage too (ours)
-        in_horizon = np.zeros_like(in_horizon)
+        in_horizon = np.zeros(len(pos), bool)
+    else:
+        in_horizon = np.array([line_of_sight(ws, here, p, wcfg) for p in pos])
     scores = node_scores(inv, vol, unvisited, in_horizon, is_failed, score_cfg) + extra + kept
     # the global stage weighs what a node promises against the way there; the in-horizon flag (a node in
     # sight of the agent) is a local preference and, counted there too, keeps the agent near (ours)
