@@ -23,6 +23,7 @@ from matplotlib.patches import Patch, Rectangle
 from activesplat.errors import SceneError
 from activesplat.sim import load_scene
 from activesplat.sim.rooms import HouseConfig
+from activesplat.viz.trajectory import largest_part
 
 HOUSES = ("small-105", "small-101", "medium-106", "medium-0", "medium-103", "medium-104")
 """The houses of docs/houses.png: every layout family, small and medium."""
@@ -78,8 +79,7 @@ def draw_house(ax, house, cfg: HouseConfig) -> None:
         xs, zs = ((lo, hi), (door.coord, door.coord)) if door.axis == "x" else ((door.coord,) * 2, (lo, hi))
         ax.plot(xs, zs, linewidth=2.6, solid_capstyle="butt", **DOOR_STYLES[door_kind(door, cfg)])
     for name in house.room_names:
-        rects = [r for r in house.rooms if r.name == name]
-        big = max(rects, key=lambda r: r.area)
+        big = largest_part(house, name)
         label = name if big.kind == name else f"{name}\n{big.kind}"
         ax.text(0.5 * (big.x0 + big.x1), 0.5 * (big.z0 + big.z1), label, ha="center",
                 va="center", fontsize=6.5, zorder=5,

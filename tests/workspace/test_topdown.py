@@ -8,10 +8,10 @@ import networkx as nx
 import numpy as np
 import pytest
 import torch
-from layouts import RES, two_rooms
+from layouts import RES, box, grids_from_layout, two_rooms
 
 from activesplat.errors import InvalidInputError
-from activesplat.workspace.clean import extract_workspace
+from activesplat.workspace.clean import agent_region, extract_workspace
 from activesplat.workspace.config import WorkspaceConfig
 from activesplat.workspace.draw import draw_topdown
 from activesplat.workspace.paths import plan_safe_path
@@ -110,6 +110,26 @@ def test_render_of_an_empty_map_is_all_unknown():
     assert grids.unknown.all()
     workspace = extract_workspace(grids, np.array([1.0, 2.0]), WorkspaceConfig())
     assert workspace.empty and build_voronoi_graph(workspace).number_of_nodes() == 0
+
+
+@pytest.mark.parametrize("agent_xz", [(3.9, 1.0), (4.02, 1.02)], ids=["beside the speck", "on the speck"])
+def test_a_speck_the_opening_removes_does_not_empty_the_workspace(agent_xz):
+    """The agent stands on unobserved floor 0.1 m from a speck of free floor (or on the speck), 1.4 m from
+    a 2 x 2 m room (too far for the ground closing to join them): the nearest region would be the speck,
+    which the workspace's opening removes; the workspace is the room instead."""
+    shape = (60, 100)
+    room = box(shape, 0.5, 2.5, 0.5, 2.5)
+    speck = box(shape, 4.0, 4.05, 1.0, 1.05)  # 1 x 1 px
+    grids = grids_from_layout(room | speck, np.zeros(shape, bool))
+    cfg = WorkspaceConfig(resolution=RES)
+    workspace = extract_workspace(grids, np.array(agent_xz), cfg)
+    assert not workspace.empty
+    assert workspace.mask[room].mean() > 0.9 and not workspace.mask[speck].any()
+    # without the opening's kernel the speck is the nearest region, and nothing survives its opening
+    rc = grids.geometry.pixel_index(np.array(agent_xz))
+    assert (agent_region(grids.free, rc) == speck).all()
+    region = agent_region(grids.free, rc, cfg.open_kernel)
+    assert region[room].mean() > 0.9 and not region[speck].any() and not region[~room].any()
 
 
 def test_grid_geometry_round_trip():

@@ -102,12 +102,16 @@ def _dwell(xz: np.ndarray) -> np.ndarray:
     return np.column_stack([xz[starts[keep]], lengths[keep], starts[keep]]).astype(np.float64)
 
 
+def largest_part(house, name: str):
+    """The largest rectangle of the room `name` (an L-shaped room has two): where its label goes."""
+    return max((r for r in house.rooms if r.name == name), key=lambda r: r.area)
+
+
 def _draw_rooms(ax, house, labels: dict[str, str]) -> None:
     for room in house.rooms:
         ax.add_patch(_rect(room, edgecolor="#1f4e79", facecolor="none", linewidth=0.8, linestyle="--"))
     for name in house.room_names:
-        rects = [r for r in house.rooms if r.name == name]
-        big = max(rects, key=lambda r: r.area)
+        big = largest_part(house, name)
         text = name + (f"\n{labels[name]}" if name in labels else "")
         ax.text(0.5 * (big.x0 + big.x1), 0.5 * (big.z0 + big.z1), text, ha="center", va="center",
                 fontsize=7, color="#1f4e79", zorder=5,
@@ -120,4 +124,5 @@ def _rect(room, **kw):
     return Rectangle((room.x0, room.z0), room.x1 - room.x0, room.z1 - room.z0, **kw)
 
 
-__all__ = ["draw_navigable", "draw_trajectory", "navmap_extent", "room_labels", "trajectory_figure"]
+__all__ = ["draw_navigable", "draw_trajectory", "largest_part", "navmap_extent", "room_labels",
+           "trajectory_figure"]

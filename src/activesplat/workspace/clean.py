@@ -62,16 +62,26 @@ def empty_workspace(geometry: GridGeometry) -> Workspace:
     return Workspace(geometry, zeros, zeros.astype(np.float32), np.zeros((0, 2)), [])
 
 
-def agent_region(free: np.ndarray, agent_rc: np.ndarray) -> np.ndarray:
+def agent_region(free: np.ndarray, agent_rc: np.ndarray, open_kernel: int = 1) -> np.ndarray:
     """The connected free region containing the agent pixel, or the one nearest to it (the floor right
-    under the agent is often unobserved); all False when nothing is free."""
+    under the agent is often unobserved); all False when nothing is free. With `open_kernel` > 1 only
+    regions that survive the workspace's opening (`morphology`) count: a speck the opening removes, under
+    the agent or nearest to it, would leave an empty workspace while a real region lies a little further
+    (ours). A region survives when it holds a pixel of the free grid eroded by the kernel: the kernel's
+    window at such a pixel is free and connected, so it lies inside the region."""
     count, labels = cv2.connectedComponents(free.astype(np.uint8), connectivity=8)
     if count <= 1:
         return np.zeros_like(free)
+    candidates = labels > 0
+    if open_kernel > 1:
+        eroded = cv2.erode(free.astype(np.uint8), np.ones((open_kernel,) * 2, np.uint8)).astype(bool)
+        surviving = np.isin(labels, np.unique(labels[eroded]))
+        if surviving.any():
+            candidates &= surviving
     r, c = np.clip(agent_rc, 0, np.array(free.shape) - 1)
     label = labels[r, c]
-    if label == 0:
-        rows, cols = np.nonzero(labels)
+    if not candidates[r, c]:
+        rows, cols = np.nonzero(candidates)
         nearest = np.argmin((rows - r) ** 2 + (cols - c) ** 2)
         label = labels[rows[nearest], cols[nearest]]
     return labels == label
@@ -160,7 +170,7 @@ def extract_workspace(grids: TopDownGrids, agent_xz: np.ndarray, cfg: WorkspaceC
     geometry = grids.geometry
     agent_rc = geometry.pixel_index(np.asarray(agent_xz, dtype=np.float64))
     free = grow_into_unknown(grids.free, grids.unknown, int(round(cfg.unknown_margin / cfg.resolution)))
-    region = morphology(agent_region(free, agent_rc), cfg)
+    region = morphology(agent_region(free, agent_rc, cfg.open_kernel), cfg)
     outer, holes = outer_and_holes(region, agent_rc, cfg) if region.any() else (None, [])
     if outer is None or len(outer) < 3:
         return empty_workspace(geometry)
