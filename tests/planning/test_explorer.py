@@ -411,6 +411,41 @@ def test_an_agent_stuck_in_a_dead_end_slot_walks_back_before_it_escapes(monkeypa
     assert ex.last_cause == "way_back" and "move_forward" in ex.queue
 
 
+def test_paths_refused_at_their_first_step_from_one_spot_make_the_agent_leave_it(monkeypatch):
+    """`start_blocks`: where the path-ahead check refuses the first forward move of every path, the agent
+    turns toward one goal after another, the failed ones again once the open ones have failed, and never
+    moves (a replan that finds any goal with a path does not escape). After 3 such paths in a row it
+    escapes (here the workspace has the path clearance, so there is no way back to walk); off, it never
+    moves in 150 steps."""
+    import activesplat.planning.explorer as base_module
+
+    ws = extract_workspace(corridor(), HERE, WCFG)
+    graph = build_voronoi_graph(ws, WCFG)
+    nodes = sorted(graph.nodes, key=lambda n: -graph.nodes[n]["pos"][0])  # farthest first
+    monkeypatch.setattr(explorer_module, "build_plan", lambda *a, **k: Plan(workspace=ws, graph=graph))
+    monkeypatch.setattr(explorer_module, "rank_goals", lambda *a, **k: list(nodes))
+    monkeypatch.setattr(base_module, "path_ahead_clear", lambda *a, **k: False)
+    turn = np.radians(ControllerConfig().turn_deg)
+    for start_blocks in (3, None):
+        ex = ActiveSplatExplorer(WORLD, 0.0, ExplorerConfig(workspace=WCFG, start_blocks=start_blocks,
+                                                            **OBSERVED_ONLY))
+        yaw = np.pi  # facing away from every goal: each path begins with turns
+        _after_bootstrap(ex, _obs(HERE, yaw))
+        causes = []
+        for _ in range(150):
+            action = ex.act(_obs(HERE, yaw))
+            causes.append(ex.last_cause)
+            yaw += {"turn_left": turn, "turn_right": -turn}.get(action, 0.0)
+            if action == "move_forward":
+                break
+        if start_blocks is None:
+            assert action != "move_forward" and set(causes) <= {"path", "fallback"}
+            assert len(ex.failures) > len(nodes)  # the failed goals tried again
+        else:
+            assert action == "move_forward" and causes[-1] == "escape"
+            assert [f["why"] for f in ex.failures] == ["blocked"] * 3
+
+
 def test_a_global_replan_stops_first_at_a_node_worth_a_detour(monkeypatch):
     """`detour_m`: the far goal ranked first is reached by way of a nearer node that promises enough (the
     door of a room passed on the way); with the rule off, or in the local stage, straight to the goal."""

@@ -187,6 +187,10 @@ class Explorer:
         self.refused: list[tuple[np.ndarray, float]] = []
         """(floor position, yaw) of the refused forward moves at the agent's spot (older spots are dropped
         at the next refusal): the escape does not try a refused heading from the same spot again."""
+        self._path_start: np.ndarray | None = None  # where the current path began (`go_to`)
+        self._start_blocks: list[np.ndarray] = []
+        """The spots of the latest paths refused ahead before their first forward move, in a row
+        (`start_blocks`)."""
         self.rotation_cause = "arrival"
         self.last_cause = ""
         """Why the latest action was taken: bootstrap, idle, escape, way_back (its own steps back to open
@@ -251,6 +255,7 @@ class Explorer:
         """Follow `path` (M, 2), which starts at the agent, to `goal`."""
         self.plan.goal, self.plan.path = goal, path
         self.follower = PathFollower(path[1:], self.cfg.controller)
+        self._path_start = np.asarray(path[0], float)
 
     def idle(self, pose: np.ndarray, stuck: bool) -> None:
         """No goal to go to: look around on the spot (the map grows, the next replan may find goals). When
@@ -316,7 +321,10 @@ class Explorer:
             return None
         if action == "move_forward" and not self._path_ahead_clear(pose):
             self._fail_goal()
+            self._leave_if_blocked_at_start(pose)
             return None
+        if action == "move_forward":
+            self._start_blocks = []
         if action == "move_forward" and self.cfg.travel_pitch_deg:
             tilt = self._travel_tilt(pose)
             if tilt:
@@ -345,6 +353,27 @@ class Explorer:
         return path_ahead_clear(self.plan.workspace, floor_xz(pose), self.follower.waypoints[0],
                                 self.cfg.lookahead_m, self.cfg.ahead_tolerance_m, self.cfg.workspace,
                                 segment_start=self.follower.passed)
+
+    def _leave_if_blocked_at_start(self, pose: np.ndarray) -> None:
+        """A path refused ahead: when it is the `start_blocks`-th in a row refused before its first forward
+        move from this spot, queue the way back (`way_back_m`) or else the escape. Otherwise the next
+        replan tries the next goal from here, and, once the open goals have failed, the failed ones again."""
+        limit = self.cfg.start_blocks
+        here = floor_xz(pose)
+        near = 0.5 * self.cfg.controller.forward_m
+        if limit is None or self._path_start is None or np.hypot(*(here - self._path_start)) > near:
+            self._start_blocks = []
+            return
+        self._start_blocks = [p for p in self._start_blocks if np.hypot(*(p - here)) <= near] + [here]
+        if len(self._start_blocks) < limit:
+            return
+        self._start_blocks = []
+        back = self._way_back(pose)
+        if back:
+            self.enqueue(back, "way_back")
+        else:
+            self.enqueue(escape_actions(pose, self.plan.workspace, self.cfg.controller,
+                                        self.cfg.escape_forward_steps), "escape")
 
     def _fail_goal(self) -> None:
         if self.plan.goal is not None:

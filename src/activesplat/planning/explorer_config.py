@@ -31,12 +31,14 @@ class ExplorerConfig:
     `max_rotation_views` there too)."""
     rotation_skip_radii: float = 3.0
     """No on-the-spot rotations within this many agent radii of a spot already rotated at (release)."""
-    multi_stop_spacing_m: float = 1.5
+    multi_stop_spacing_m: float = 2.5
     """No rotation stop at a multi-connected node within this of a spot already rotated at (the start's
     look-around included); 0 = the arrival rule above, as in the release (ours: in furnished rooms the
     Voronoi graph branches around every piece of furniture, so junctions lie ~1 m apart and the agent
     stopped at each; 1.5 m: medium-0..3 x 2 seeds, 59.7 -> 71.1 % of the ceiling at step 1000, rotations
-    57.0 -> 46.8 %, final completion 83.92 -> 84.66 %, docs/benchmark.md "Tuning log")."""
+    57.0 -> 46.8 %, final completion 83.92 -> 84.66 %, docs/benchmark.md "Tuning log"; 2.5 m since
+    2026-11-29: tuning medium-0..3 seed 0 +0.51 points, fresh medium houses +0.6, docs/benchmark.md
+    "Multi-connected stops 2.5 m apart")."""
     fewest_action_tour: bool = True
     """Visit the rotation targets of a stop in the order that takes the fewest turns and tilts, levelling
     included (ours: every order of the at most 5 targets is tried; False: counter-clockwise from the
@@ -261,6 +263,15 @@ class ExplorerConfig:
     (small-101 seed 0: about 85 steps on one spot, in a slot that leaves the agent's centre 5 cm, so only
     the heading it came in on gets it out; 89.00 -> 89.57 % with the rule, which acted in no other run of
     33; docs/benchmark.md "A dead-end slot")."""
+    start_blocks: int | None = 3
+    """After this many paths in a row that the path-ahead check (`lookahead_m`) refuses before their first
+    forward move, from one spot, the agent leaves the spot: its own steps back (`way_back_m`), else the
+    escape toward the clearest heading, then it replans (ours; None = off: every ranked goal, failed ones
+    too, is tried again from the same spot). Without it an agent that stood where the check refuses every
+    first step turned toward one goal after another for the rest of the episode: a goal refused ahead is
+    marked failed, but failed goals still come last in the ranking, and a replan that finds any goal with
+    a path never reaches the escape (fresh medium-145 seed 0 with `multi_stop_spacing_m` 2.5: 533 steps
+    with no forward move; docs/benchmark.md "Paths refused at their first step")."""
     lookahead_m: float = 0.65
     """Re-check this much of the path ahead at every step (release: 10 forward steps)."""
     ahead_tolerance_m: float = 0.05
@@ -301,10 +312,10 @@ class ExplorerConfig:
                      positive=("unsampled_radius_m", "unsampled_voxel_m", "commit_global_m", "route_memory_m",
                                "keep_promise_m", "postpone_once_m", "local_near_m", "neck_margin_m",
                                "cut_off_look_m", "way_back_m"),
-                     at_least_one=("max_panoramas",),
+                     at_least_one=("max_panoramas", "start_blocks"),
                      optional=("bridge_gain_m", "commit_global_m", "route_memory_m", "keep_promise_m",
                                "postpone_once_m", "local_near_m", "neck_margin_m", "cut_off_look_m",
-                               "way_back_m"))
+                               "way_back_m", "start_blocks"))
         if self.tilt_within_deg is not None and not 0 <= self.tilt_within_deg <= 90:
             raise InvalidInputError(f"ExplorerConfig.tilt_within_deg must be in [0, 90] (or None = off), got "
                                     f"{self.tilt_within_deg}")
