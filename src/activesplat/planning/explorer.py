@@ -261,14 +261,21 @@ class Explorer:
         """No goal to go to: look around on the spot (the map grows, the next replan may find goals). When
         goals exist but every one failed from here (`stuck`), first escape toward the clearest heading: from
         the same spot the same goals would fail again."""
+        if self._leave_spot(pose, escape=stuck):
+            return
+        self.enqueue(["turn_left"] * turns_for(self.cfg.idle_yaw_deg, self.cfg.controller), "idle")
+
+    def _leave_spot(self, pose: np.ndarray, escape: bool = True) -> bool:
+        """Queue the agent's own steps back to open workspace (`way_back_m`) and return True; where there is
+        none, queue the escape toward the clearest heading if `escape`, and return False."""
         back = self._way_back(pose)
         if back:
             self.enqueue(back, "way_back")
-            return
-        if stuck:
+            return True
+        if escape:
             self.enqueue(escape_actions(pose, self.plan.workspace, self.cfg.controller,
                                         self.cfg.escape_forward_steps), "escape")
-        self.enqueue(["turn_left"] * turns_for(self.cfg.idle_yaw_deg, self.cfg.controller), "idle")
+        return False
 
     def _way_back(self, pose: np.ndarray) -> list[str]:
         """The actions that retrace the agent's own steps to open workspace (`way_back_m`), or none. With
@@ -368,12 +375,7 @@ class Explorer:
         if len(self._start_blocks) < limit:
             return
         self._start_blocks = []
-        back = self._way_back(pose)
-        if back:
-            self.enqueue(back, "way_back")
-        else:
-            self.enqueue(escape_actions(pose, self.plan.workspace, self.cfg.controller,
-                                        self.cfg.escape_forward_steps), "escape")
+        self._leave_spot(pose)
 
     def _fail_goal(self) -> None:
         if self.plan.goal is not None:
