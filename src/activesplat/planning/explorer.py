@@ -326,17 +326,15 @@ class Explorer:
             self.follower = None
             self.arrive(pose)
             return None
-        if action == "move_forward" and not self._path_ahead_clear(pose):
+        if action != "move_forward":
+            return action
+        if not self._path_ahead_clear(pose):
             self._fail_goal()
             self._leave_if_blocked_at_start(pose)
             return None
-        if action == "move_forward":
-            self._start_blocks = []
-        if action == "move_forward" and self.cfg.travel_pitch_deg:
-            tilt = self._travel_tilt(pose)
-            if tilt:
-                return tilt[0]
-        return action
+        self._start_blocks = []
+        tilt = self._travel_tilt(pose) if self.cfg.travel_pitch_deg else []
+        return tilt[0] if tilt else action
 
     def _travel_tilt(self, pose: np.ndarray) -> list[str]:
         """Tilts that bring the camera to the travel pitch (`travel_pitch_deg`)."""
