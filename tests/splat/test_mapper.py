@@ -378,3 +378,35 @@ def test_represented_pixels_count_only_centres_of_the_given_age(tmp_path):
     for _ in range(3):
         young.add_frame(rgb, depth, pose())
     assert young._represented(pose(), obs, None).float().mean() > 0.9
+
+
+@pytest.mark.parametrize("backend", ["torch", "numba"])
+def test_a_snapshot_renders_what_render_renders_and_refuses_a_changed_map(backend):
+    """Mapper.snapshot (the replan's panoramas): every view bit-identical to Mapper.render, plain and front
+    faces (a wall mapped from both sides, cameras on both sides, with and without the margin), also for
+    views the snapshot's first call did not prepare; after add_frame the snapshot refuses to render."""
+    K = intrinsics(S)
+    mapper = Mapper(K, S, S, MapperConfig(schedule=Schedule(1, 1, 2)), backend=backend)
+    behind = np.eye(4)
+    behind[:3, 3] = [0.0, 0.0, 4.0]
+    behind[:3, :3] = np.diag([-1.0, 1.0, -1.0])
+    rgb, depth = observe(pose(), S, box=(-0.4, 0.3, -0.3, 0.5, 1.4))
+    mapper.add_frame(rgb, depth, pose(), dense=True)
+    mapper.add_frame(np.full((S, S, 3), 30, np.uint8), np.full((S, S), 2.0, np.float32), behind, dense=True)
+    snap = mapper.snapshot()
+    grazing = pose(-1.2, 0.0, 80.0)  # just behind the wall's front face, looking along it
+    grazing[2, 3] = 2.1
+    cams = [pose(), pose(0.3, 0.1, 20.0), behind, pose(-0.2, 0.0, -35.0), grazing]
+    for cam in cams:
+        for kw in ({}, {"front_alpha": True}, {"front_alpha": True, "behind_margin_deg": 10.0},
+                   {"K": intrinsics(16), "width": 16, "height": 16, "front_alpha": True}):
+            a, b = mapper.render(cam, **kw), snap(cam, **kw)
+            for name in ("rgb", "alpha", "depth", "median_depth", "radii"):
+                assert torch.equal(a[name], b[name]), (name, kw)
+    assert snap(behind, front_alpha=True).alpha.max() < snap(behind).alpha.max()  # the rule acted
+    margin = snap(grazing, front_alpha=True, behind_margin_deg=10.0).alpha
+    assert not torch.equal(margin, snap(grazing, front_alpha=True).alpha)  # and so did the margin
+    mapper.add_frame(rgb, depth, pose(0.1), dense=True)
+    with pytest.raises(RuntimeError, match="map changed"):
+        snap(pose())
+    assert torch.equal(mapper.snapshot()(pose()).rgb, mapper.render(pose()).rgb)

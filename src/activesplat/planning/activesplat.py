@@ -12,7 +12,7 @@ import numpy as np
 
 from activesplat.geometry import pose_yaw_pitch
 from activesplat.planning.controller import floor_xz, yaw_toward
-from activesplat.planning.explorer import Explorer, WorldModel
+from activesplat.planning.explorer import Explorer, WorldModel, snapshot_render
 from activesplat.planning.explorer_config import ExplorerConfig
 from activesplat.planning.goals import (
     GoalRules,
@@ -85,10 +85,10 @@ class ActiveSplatExplorer(Explorer):
         def no_path_travel(pos: np.ndarray) -> np.ndarray:  # `neck_travel`; timed as position selection
             return graph_travel(grown_floor(Timers()).graph, here, pos)
 
-        goal_order = self.timers.time("position_selection", rank_goals, plan, here, self.world.render,
-                                      self.floor_height, self.visited, self.failed, cfg.planning,
-                                      cfg.workspace, rules, self.rng, self.observed, self.promises,
-                                      self.commitment, self.route_memory,
+        goal_order = self.timers.time("position_selection", rank_goals, plan, here,
+                                      snapshot_render(self.world), self.floor_height, self.visited,
+                                      self.failed, cfg.planning, cfg.workspace, rules, self.rng,
+                                      self.observed, self.promises, self.commitment, self.route_memory,
                                       no_path_travel if cfg.neck_travel else None)
 
         def find_path(goal: np.ndarray, on: Plan = plan) -> np.ndarray | None:

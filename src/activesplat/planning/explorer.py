@@ -53,6 +53,14 @@ class WorldModel(Protocol):
         plain opacity to the panoramas (`planning.panorama.render_panorama`)."""
 
 
+def snapshot_render(world: WorldModel) -> Any:
+    """The world's render for many views of a map that does not change meanwhile (a replan's panoramas):
+    its ``snapshot()`` where it has one (`Mapper.snapshot`: the same images, the per-Gaussian work done
+    once), else its ``render``."""
+    snapshot = getattr(world, "snapshot", None)
+    return snapshot() if callable(snapshot) else world.render
+
+
 @dataclass(frozen=True)
 class ExplorerView:
     """A read-only snapshot of the explorer's state for viewers (`ActiveSplatExplorer.view_state`). The

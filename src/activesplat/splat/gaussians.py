@@ -268,8 +268,15 @@ def back_facing(quats: torch.Tensor, log_scales: torch.Tensor, means: torch.Tens
     with torch.no_grad():
         if quats.shape[0] == 0:
             return torch.zeros(0, dtype=torch.bool, device=quats.device)
-        flat = is_flat(log_scales, flatness)
-        normal = quat_normal(quats)
+        return seen_from_behind(is_flat(log_scales, flatness), quat_normal(quats), means, camera_center,
+                                margin_deg)
+
+
+def seen_from_behind(flat: torch.Tensor, normal: torch.Tensor, means: torch.Tensor, camera_center,
+                     margin_deg: float = 0.0) -> torch.Tensor:
+    """:func:`back_facing` from the Gaussians' flatness (:func:`is_flat`) and normals (``quat_normal``),
+    for callers that test many cameras against the same Gaussians (``splat.mapper.MapSnapshot``)."""
+    with torch.no_grad():
         c = torch.as_tensor(np.asarray(camera_center, dtype=np.float32), device=means.device)
         to_camera = c - means
         limit = -float(np.sin(np.radians(margin_deg))) * to_camera.norm(dim=1) if margin_deg > 0 else 0.0

@@ -46,7 +46,17 @@ from activesplat.splat.densify import (
     represented_mask,
 )
 from activesplat.splat.frames import as_intrinsics, as_pose, check_frame, downsample_observation
-from activesplat.splat.gaussians import GaussianMap, activate, back_facing, frustum_rows, rgb_to_f_dc
+from activesplat.splat.gaussians import (
+    GaussianMap,
+    activate,
+    back_facing,
+    f_dc_to_rgb,
+    frustum_rows,
+    is_flat,
+    rgb_to_f_dc,
+    seen_from_behind,
+)
+from activesplat.splat.kernels import quat_normal
 from activesplat.splat.keyframes import Keyframe, mapping_window
 from activesplat.splat.losses import mapping_loss
 from activesplat.splat.merge import merge_alike
@@ -136,16 +146,26 @@ class Mapper:
         """Render the Gaussians ``rows`` (default: those in the view frustum, :func:`frustum_rows`), from
         their raw parameters ``raw`` when given (a differentiable copy). The per-Gaussian outputs (radii,
         means2d, depths) are those of the rendered rows."""
-        from activesplat.splat.rasterize import rasterize
-
         if rows is None:
             rows = self._view_rows(pose, K, width, height)
         if raw is None:
             raw = self.gaussians.rows(rows)
+        return self._draw(pose, K, width, height, activate(raw))
+
+    def _draw(self, pose: np.ndarray, K: np.ndarray, width: int, height: int,
+              active: tuple[torch.Tensor, ...]):
+        """Rasterize the activated parameters ``active`` (:func:`activate`) from camera-to-world ``pose``."""
+        from activesplat.splat.rasterize import rasterize
+
         viewmat = torch.from_numpy(np.linalg.inv(pose).astype(np.float32)).to(self.device)
         Kt = torch.from_numpy(K.astype(np.float32)).to(self.device)
-        return rasterize(*activate(raw), viewmat, Kt, width, height, backend=self.backend,
+        return rasterize(*active, viewmat, Kt, width, height, backend=self.backend,
                          planar_depth=self.config.planar_depth)
+
+    def snapshot(self) -> MapSnapshot:
+        """A renderer of the map as it is now for many views in a row (a replan's panoramas): the same
+        images as :meth:`render`, with the per-Gaussian work done once (:class:`MapSnapshot`)."""
+        return MapSnapshot(self)
 
     def _view_rows(self, pose: np.ndarray, K: np.ndarray, width: int, height: int,
                    depth: torch.Tensor | None = None, candidates: torch.Tensor | None = None) -> torch.Tensor:
@@ -495,3 +515,45 @@ class _Clock:
         now = time.perf_counter()
         self.timings[name] = self.timings.get(name, 0.0) + 1000.0 * (now - self.t)
         self.t = now
+
+
+class MapSnapshot:
+    """Renders of a :class:`Mapper`'s map as it is at the snapshot, for many views in a row: the replan's
+    panoramas, ~30 positions x 3 cameras of an unchanged map. :meth:`Mapper.render` activates the
+    parameters of a view's rows (and, for front faces, their normals and flatness) anew for every view;
+    here that is done once for every Gaussian, on first use, and each view selects its frustum's rows of
+    the result. The images are bit-identical to :meth:`Mapper.render`'s (the same per-row arithmetic;
+    ``tests/splat/test_mapper.py``). Valid until the map changes: a call after ``add_frame`` (or after
+    the map's size changed) raises RuntimeError."""
+
+    def __init__(self, mapper: Mapper):
+        self._mapper = mapper
+        self._state = (mapper.received, len(mapper.gaussians))
+        self._active: tuple[torch.Tensor, ...] | None = None
+        self._facing: tuple[torch.Tensor, torch.Tensor] | None = None
+
+    def __call__(self, pose, K=None, width: int | None = None, height: int | None = None,
+                 front_alpha: bool = False, behind_margin_deg: float = 0.0):
+        """:meth:`Mapper.render` of the snapshot's map (same arguments, same outputs)."""
+        m = self._mapper
+        if (m.received, len(m.gaussians)) != self._state:
+            raise RuntimeError("MapSnapshot: the map changed since the snapshot was taken; take a new one")
+        K = m.K if K is None else as_intrinsics(K)
+        pose, width, height = as_pose(pose), width or m.width, height or m.height
+        with torch.no_grad():
+            if self._active is None:
+                self._active = activate({name: t.detach() for name, t in m.gaussians.params.items()})
+            rows = m._view_rows(pose, K, width, height)
+            active = [t.index_select(0, rows) for t in self._active]
+            if not front_alpha:
+                return m._draw(pose, K, width, height, tuple(active))
+            if self._facing is None:
+                p = m.gaussians.params
+                self._facing = (is_flat(p["log_scales"].detach()), quat_normal(p["quats"].detach()))
+            flat, normal = (t.index_select(0, rows) for t in self._facing)
+            behind = seen_from_behind(flat, normal, active[0], pose[:3, 3], behind_margin_deg)
+            # the grey of Mapper.render's front-face render, through the same f_dc round trip
+            active[4] = f_dc_to_rgb(rgb_to_f_dc((~behind).to(torch.float32)[:, None].expand(-1, 3)))
+            out = m._draw(pose, K, width, height, tuple(active))
+            out.alpha = out.rgb[..., 0].clamp(0.0, 1.0)
+            return out
