@@ -223,32 +223,33 @@ def test_multi_connected_stops_keep_their_spacing_from_every_rotation_spot_and_t
         assert got == stops, spacing
 
 
-def test_with_multi_stop_frontier_m_a_junction_stops_the_agent_only_near_unobserved_floor(monkeypatch):
-    """`multi_stop_frontier_m`: a junction within reach of observed floor that borders unobserved floor (a
-    door to a room not seen yet) stops the agent; one whose surroundings are observed, or border only walls,
+def test_with_multi_stop_new_m_a_junction_stops_the_agent_only_near_a_subregion_not_yet_in(monkeypatch):
+    """`multi_stop_new_m`: a multi-connected node whose graph neighbourhood (within the distance) reaches a
+    subregion none of whose nodes the agent has passed near stops it; one among subregions walked through
     does not; without the option every junction stops it."""
-    from layouts import box, grids_from_layout
+    import networkx as nx
 
     from activesplat.planning.viewpoints import RotationTarget
 
-    shape = (60, 120)  # 6 x 3 m: a corridor z in [1, 2], walls above and below, unknown beyond x = 5
-    walls = box(shape, 0.0, 6.0, 0.8, 0.99) | box(shape, 0.0, 6.0, 2.01, 2.2)
-    free = box(shape, 0.0, 5.0, 1.0, 2.0)
-    grids = grids_from_layout(free, walls)
     graph = nx.Graph()
-    graph.add_node(0, pos=(1.0, 1.5), multi=True)  # 4 m from the unknown end
-    graph.add_node(1, pos=(4.2, 1.5), multi=True)  # 0.8 m from it
+    pos = {0: (2.0, 1.5), 1: (3.0, 1.5), 2: (2.0, 3.0), 3: (2.0, 4.5)}
+    for n, p in pos.items():
+        graph.add_node(n, pos=p, multi=n == 0)
+    graph.add_edge(0, 1, weight=1.0)
+    graph.add_edge(0, 2, weight=1.5)
+    graph.add_edge(2, 3, weight=1.5)
+    subregions = {0: 0, 1: 0, 2: 1, 3: 2}  # node 2 behind a door, node 3 in the room behind it
     target = [RotationTarget(yaw=1.5, pitch=0.0, weight=1.0, source="panorama")]
-    for reach, stops in ((None, [True, True]), (1.5, [False, True]), (0.5, [False, False])):
-        cfg = ExplorerConfig(workspace=WCFG, multi_stop_spacing_m=0.0, multi_stop_frontier_m=reach)
+    cases = [(None, [], True), (2.0, [], True),  # nothing visited: subregion 1 is new
+             (2.0, [(2.0, 3.2)], False),  # subregion 1 walked through, subregion 2 beyond the reach
+             (3.5, [(2.0, 3.2)], True)]  # ... but within 3.5 m
+    for reach, walked, stops in cases:
+        cfg = ExplorerConfig(workspace=WCFG, multi_stop_spacing_m=0.0, multi_stop_new_m=reach)
         ex = ActiveSplatExplorer(WORLD, 0.0, cfg)
-        ex.plan = Plan(grids=grids, graph=graph)
+        ex.plan = Plan(graph=graph, subregions=subregions)
         monkeypatch.setattr(ex, "_rotation_targets", lambda pose, n: list(target))
-        got = []
-        for x in (1.0, 4.2):
-            got.append(ex.stop_on_the_way(_obs([x + 0.1, 1.5]).pose))
-            ex.rotation_targets = []
-        assert got == stops, reach
+        ex.visited.extend(np.array(p, float) for p in [(1.0, 1.5), *walked, (2.1, 1.5)])  # ... to here
+        assert ex.stop_on_the_way(_obs([2.1, 1.5]).pose) == stops, (reach, walked)
 
 
 def test_a_goal_with_no_path_is_skipped_for_the_replan_or_marked_failed_and_logged(monkeypatch):

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 
+import networkx as nx
 import numpy as np
 
 from activesplat.geometry import pose_yaw_pitch
@@ -15,6 +16,7 @@ from activesplat.planning.controller import floor_xz, yaw_toward
 from activesplat.planning.explorer import Explorer, WorldModel, snapshot_render
 from activesplat.planning.explorer_config import ExplorerConfig
 from activesplat.planning.goals import (
+    VISIT_MEMORY,
     GoalRules,
     bridge_toward,
     closer_on_the_way,
@@ -267,7 +269,7 @@ class ActiveSplatExplorer(Explorer):
         if not self.cfg.multi_stops:
             return False
         here = floor_xz(pose)
-        for _, data in self.plan.graph.nodes(data=True):
+        for node, data in self.plan.graph.nodes(data=True):
             if not data.get("multi"):
                 continue
             pos = np.asarray(data["pos"])
@@ -275,33 +277,30 @@ class ActiveSplatExplorer(Explorer):
                 continue
             if any(np.hypot(*(pos - p)) < self.cfg.multi_node_radius_m for p in self.stopped_multi):
                 continue
-            if self.cfg.multi_stop_frontier_m is not None and not self._near_frontier(pos):
+            if self.cfg.multi_stop_new_m is not None and not self._near_new_subregion(node):
                 continue
             self.stopped_multi.append(pos)
             self.arrive(pose, self.cfg.multi_stop_views, cause="multi_stop")
             return bool(self.rotation_targets)
         return False
 
-    def _near_frontier(self, pos: np.ndarray) -> bool:
-        """Whether `multi_stop_frontier_cells` frontier cells (observed free floor beside unobserved floor)
-        lie within `multi_stop_frontier_m` of the floor position `pos` (`multi_stop_frontier_m`)."""
-        grids = self.plan.grids
-        if grids is None:
-            return True
-        geo, radius = grids.geometry, self.cfg.multi_stop_frontier_m
-        r0, c0 = geo.pixel_index(pos)
-        k = int(np.ceil(radius / geo.resolution)) + 1
-        rows = slice(max(r0 - k, 0), max(r0 + k + 1, 0))
-        cols = slice(max(c0 - k, 0), max(c0 + k + 1, 0))
-        unknown = np.pad(grids.unknown, 1, constant_values=False)
-        beside = np.zeros_like(grids.unknown)
-        for dr, dc in ((0, 1), (2, 1), (1, 0), (1, 2)):  # 4-neighbours, through the padded copy
-            beside |= unknown[dr:dr + beside.shape[0], dc:dc + beside.shape[1]]
-        frontier = (grids.free & beside)[rows, cols]
-        rr, cc = np.nonzero(frontier)
-        centres = geo.pixel_to_world(np.stack([rr + rows.start + 0.5, cc + cols.start + 0.5], axis=-1))
-        near = np.hypot(*(centres - pos).T) <= radius if len(centres) else np.zeros(0, bool)
-        return int(near.sum()) >= self.cfg.multi_stop_frontier_cells
+    def _near_new_subregion(self, node: int) -> bool:
+        """Whether a node of a subregion the agent has not been in lies within `multi_stop_new_m` of `node`
+        on the graph (`multi_stop_new_m`)."""
+        graph, labels = self.plan.graph, self.plan.subregions
+        near = nx.single_source_dijkstra_path_length(graph, node, cutoff=self.cfg.multi_stop_new_m,
+                                                     weight="weight")
+        candidates = {labels[n] for n in near if n in labels}
+        if not candidates:
+            return False
+        visited = np.asarray(self.visited[-VISIT_MEMORY:], float).reshape(-1, 2)
+        radius = self.cfg.planning.score.unvisited_radius_m
+        for label in candidates:
+            pos = np.array([graph.nodes[n]["pos"] for n, lab in labels.items() if lab == label], float)
+            gaps = np.hypot(pos[:, None, 0] - visited[None, :, 0], pos[:, None, 1] - visited[None, :, 1])
+            if not (gaps <= radius).any():
+                return True
+        return False
 
     def _rotation_targets(self, pose: np.ndarray, max_views: int) -> list[RotationTarget]:
         pcfg = self.cfg.planning
