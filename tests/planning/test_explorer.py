@@ -223,35 +223,6 @@ def test_multi_connected_stops_keep_their_spacing_from_every_rotation_spot_and_t
         assert got == stops, spacing
 
 
-def test_with_multi_stop_new_m_a_junction_stops_the_agent_only_near_a_subregion_not_yet_in(monkeypatch):
-    """`multi_stop_new_m`: a multi-connected node whose graph neighbourhood (within the distance) reaches a
-    subregion none of whose nodes the agent has passed near stops it; one among subregions walked through
-    does not; without the option every junction stops it."""
-    import networkx as nx
-
-    from activesplat.planning.viewpoints import RotationTarget
-
-    graph = nx.Graph()
-    pos = {0: (2.0, 1.5), 1: (3.0, 1.5), 2: (2.0, 3.0), 3: (2.0, 4.5)}
-    for n, p in pos.items():
-        graph.add_node(n, pos=p, multi=n == 0)
-    graph.add_edge(0, 1, weight=1.0)
-    graph.add_edge(0, 2, weight=1.5)
-    graph.add_edge(2, 3, weight=1.5)
-    subregions = {0: 0, 1: 0, 2: 1, 3: 2}  # node 2 behind a door, node 3 in the room behind it
-    target = [RotationTarget(yaw=1.5, pitch=0.0, weight=1.0, source="panorama")]
-    cases = [(None, [], True), (2.0, [], True),  # nothing visited: subregion 1 is new
-             (2.0, [(2.0, 3.2)], False),  # subregion 1 walked through, subregion 2 beyond the reach
-             (3.5, [(2.0, 3.2)], True)]  # ... but within 3.5 m
-    for reach, walked, stops in cases:
-        cfg = ExplorerConfig(workspace=WCFG, multi_stop_spacing_m=0.0, multi_stop_new_m=reach)
-        ex = ActiveSplatExplorer(WORLD, 0.0, cfg)
-        ex.plan = Plan(graph=graph, subregions=subregions)
-        monkeypatch.setattr(ex, "_rotation_targets", lambda pose, n: list(target))
-        ex.visited.extend(np.array(p, float) for p in [(1.0, 1.5), *walked, (2.1, 1.5)])  # ... to here
-        assert ex.stop_on_the_way(_obs([2.1, 1.5]).pose) == stops, (reach, walked)
-
-
 def test_a_goal_with_no_path_is_skipped_for_the_replan_or_marked_failed_and_logged(monkeypatch):
     """stops.json's "failures" say which goals were skipped or closed and why (a closed goal stays closed
     until no goal is left, so these marks explain an agent that ignores part of the house)."""

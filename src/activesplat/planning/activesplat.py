@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import math
 
-import networkx as nx
 import numpy as np
 
 from activesplat.geometry import pose_yaw_pitch
@@ -16,7 +15,6 @@ from activesplat.planning.controller import floor_xz, yaw_toward
 from activesplat.planning.explorer import Explorer, WorldModel, snapshot_render
 from activesplat.planning.explorer_config import ExplorerConfig
 from activesplat.planning.goals import (
-    VISIT_MEMORY,
     GoalRules,
     bridge_toward,
     closer_on_the_way,
@@ -269,7 +267,7 @@ class ActiveSplatExplorer(Explorer):
         if not self.cfg.multi_stops:
             return False
         here = floor_xz(pose)
-        for node, data in self.plan.graph.nodes(data=True):
+        for _, data in self.plan.graph.nodes(data=True):
             if not data.get("multi"):
                 continue
             pos = np.asarray(data["pos"])
@@ -277,29 +275,9 @@ class ActiveSplatExplorer(Explorer):
                 continue
             if any(np.hypot(*(pos - p)) < self.cfg.multi_node_radius_m for p in self.stopped_multi):
                 continue
-            if self.cfg.multi_stop_new_m is not None and not self._near_new_subregion(node):
-                continue
             self.stopped_multi.append(pos)
             self.arrive(pose, self.cfg.multi_stop_views, cause="multi_stop")
             return bool(self.rotation_targets)
-        return False
-
-    def _near_new_subregion(self, node: int) -> bool:
-        """Whether a node of a subregion the agent has not been in lies within `multi_stop_new_m` of `node`
-        on the graph (`multi_stop_new_m`)."""
-        graph, labels = self.plan.graph, self.plan.subregions
-        near = nx.single_source_dijkstra_path_length(graph, node, cutoff=self.cfg.multi_stop_new_m,
-                                                     weight="weight")
-        candidates = {labels[n] for n in near if n in labels}
-        if not candidates:
-            return False
-        visited = np.asarray(self.visited[-VISIT_MEMORY:], float).reshape(-1, 2)
-        radius = self.cfg.planning.score.unvisited_radius_m
-        for label in candidates:
-            pos = np.array([graph.nodes[n]["pos"] for n, lab in labels.items() if lab == label], float)
-            gaps = np.hypot(pos[:, None, 0] - visited[None, :, 0], pos[:, None, 1] - visited[None, :, 1])
-            if not (gaps <= radius).any():
-                return True
         return False
 
     def _rotation_targets(self, pose: np.ndarray, max_views: int) -> list[RotationTarget]:

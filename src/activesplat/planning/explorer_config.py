@@ -75,11 +75,6 @@ class ExplorerConfig:
     pixels (ours: the rotation candidates' minimum cluster mass)."""
     multi_node_radius_m: float = 0.3
     """Passing within this of a multi-connected node forces a short rotation stop there (ours)."""
-    multi_stop_new_m: float | None = None
-    """A multi-connected node stops the agent only when a node of a subregion it has not been in (no node
-    of it within the visited radius of a past position) lies within this graph distance of it (ours; None:
-    every multi-connected node, as the paper). Meant to keep the stops that look into a room passed on the
-    way and drop those among the furniture of a room already walked through."""
     local_score_threshold: float = 5.0
     """Local planning keeps picking nodes of the current subregion while their information score
     w_o s_o + w_c s_c (eq. 12 without the unvisited / in-horizon flags) exceeds this (ours: 5 = a quarter of
@@ -316,11 +311,11 @@ class ExplorerConfig:
                                          "panorama_height_m", "bridge_gain_m", "route_min_info"),
                      positive=("unsampled_radius_m", "unsampled_voxel_m", "commit_global_m", "route_memory_m",
                                "keep_promise_m", "postpone_once_m", "local_near_m", "neck_margin_m",
-                               "cut_off_look_m", "way_back_m", "multi_stop_new_m"),
+                               "cut_off_look_m", "way_back_m"),
                      at_least_one=("max_panoramas", "start_blocks"),
                      optional=("bridge_gain_m", "commit_global_m", "route_memory_m", "keep_promise_m",
                                "postpone_once_m", "local_near_m", "neck_margin_m", "cut_off_look_m",
-                               "way_back_m", "start_blocks", "multi_stop_new_m"))
+                               "way_back_m", "start_blocks"))
         if self.tilt_within_deg is not None and not 0 <= self.tilt_within_deg <= 90:
             raise InvalidInputError(f"ExplorerConfig.tilt_within_deg must be in [0, 90] (or None = off), got "
                                     f"{self.tilt_within_deg}")
