@@ -275,7 +275,7 @@ def back_facing(quats: torch.Tensor, log_scales: torch.Tensor, means: torch.Tens
 def seen_from_behind(flat: torch.Tensor, normal: torch.Tensor, means: torch.Tensor, camera_center,
                      margin_deg: float = 0.0) -> torch.Tensor:
     """:func:`back_facing` from the Gaussians' flatness (:func:`is_flat`) and normals (``quat_normal``),
-    for callers that test many cameras against the same Gaussians (``splat.mapper.MapSnapshot``)."""
+    for callers that test many cameras against the same Gaussians (``splat.snapshot.MapSnapshot``)."""
     with torch.no_grad():
         c = torch.as_tensor(np.asarray(camera_center, dtype=np.float32), device=means.device)
         to_camera = c - means

@@ -52,17 +52,15 @@ from activesplat.splat.gaussians import (
     back_facing,
     f_dc_to_rgb,
     frustum_rows,
-    is_flat,
     rgb_to_f_dc,
-    seen_from_behind,
 )
-from activesplat.splat.kernels import quat_normal
 from activesplat.splat.keyframes import Keyframe, mapping_window
 from activesplat.splat.losses import mapping_loss
 from activesplat.splat.merge import merge_alike
 from activesplat.splat.optim import RowAdam, nonzero_rows
 from activesplat.splat.ply import load_ply, save_ply
 from activesplat.splat.raster import backend_device
+from activesplat.splat.snapshot import MapSnapshot
 
 
 @dataclass
@@ -129,17 +127,27 @@ class Mapper:
         visibility (``PanoramaConfig.front_faces_targets`` / ``front_faces_scores``).
         ``behind_margin_deg``: how far behind a plane the camera must be for its Gaussian to count as seen
         from behind (:func:`back_facing`)."""
-        K = self.K if K is None else as_intrinsics(K)
-        pose, width, height = as_pose(pose), width or self.width, height or self.height
+        pose, K, width, height = self._camera(pose, K, width, height)
         with torch.no_grad():
             if not front_alpha:
                 return self._render(pose, K, width, height)
             rows, behind = self._facing_rows(pose, K, width, height, behind_margin_deg)
-            raw = self.gaussians.rows(rows)
-            raw["f_dc"] = rgb_to_f_dc((~behind).to(torch.float32)[:, None].expand(-1, 3))
-            out = self._render(pose, K, width, height, rows, raw)
-            out.alpha = out.rgb[..., 0].clamp(0.0, 1.0)
-            return out
+            return self._draw_front(pose, K, width, height, activate(self.gaussians.rows(rows)), behind)
+
+    def _camera(self, pose, K, width: int | None,
+                height: int | None) -> tuple[np.ndarray, np.ndarray, int, int]:
+        """Checked pose and intrinsics of a render, the sensor's where not given."""
+        K = self.K if K is None else as_intrinsics(K)
+        return as_pose(pose), K, width or self.width, height or self.height
+
+    def _draw_front(self, pose: np.ndarray, K: np.ndarray, width: int, height: int,
+                    active: tuple[torch.Tensor, ...], behind: torch.Tensor):
+        """The ``front_alpha`` render of :meth:`render` from the activated rows ``active``: colours white,
+        black where ``behind`` (through the f_dc round trip of :func:`activate`), alpha = the red channel."""
+        grey = f_dc_to_rgb(rgb_to_f_dc((~behind).to(torch.float32)[:, None].expand(-1, 3)))
+        out = self._draw(pose, K, width, height, (*active[:4], grey))
+        out.alpha = out.rgb[..., 0].clamp(0.0, 1.0)
+        return out
 
     def _render(self, pose: np.ndarray, K: np.ndarray, width: int, height: int,
                 rows: torch.Tensor | None = None, raw: dict[str, torch.Tensor] | None = None):
@@ -164,7 +172,7 @@ class Mapper:
 
     def snapshot(self) -> MapSnapshot:
         """A renderer of the map as it is now for many views in a row (a replan's panoramas): the same
-        images as :meth:`render`, with the per-Gaussian work done once (:class:`MapSnapshot`)."""
+        images as :meth:`render`, with the per-Gaussian work done once (``splat.snapshot.MapSnapshot``)."""
         return MapSnapshot(self)
 
     def _view_rows(self, pose: np.ndarray, K: np.ndarray, width: int, height: int,
@@ -516,44 +524,3 @@ class _Clock:
         self.timings[name] = self.timings.get(name, 0.0) + 1000.0 * (now - self.t)
         self.t = now
 
-
-class MapSnapshot:
-    """Renders of a :class:`Mapper`'s map as it is at the snapshot, for many views in a row: the replan's
-    panoramas, ~30 positions x 3 cameras of an unchanged map. :meth:`Mapper.render` activates the
-    parameters of a view's rows (and, for front faces, their normals and flatness) anew for every view;
-    here that is done once for every Gaussian, on first use, and each view selects its frustum's rows of
-    the result. The images are bit-identical to :meth:`Mapper.render`'s (the same per-row arithmetic;
-    ``tests/splat/test_mapper.py``). Valid until the map changes: a call after ``add_frame`` (or after
-    the map's size changed) raises RuntimeError."""
-
-    def __init__(self, mapper: Mapper):
-        self._mapper = mapper
-        self._state = (mapper.received, len(mapper.gaussians))
-        self._active: tuple[torch.Tensor, ...] | None = None
-        self._facing: tuple[torch.Tensor, torch.Tensor] | None = None
-
-    def __call__(self, pose, K=None, width: int | None = None, height: int | None = None,
-                 front_alpha: bool = False, behind_margin_deg: float = 0.0):
-        """:meth:`Mapper.render` of the snapshot's map (same arguments, same outputs)."""
-        m = self._mapper
-        if (m.received, len(m.gaussians)) != self._state:
-            raise RuntimeError("MapSnapshot: the map changed since the snapshot was taken; take a new one")
-        K = m.K if K is None else as_intrinsics(K)
-        pose, width, height = as_pose(pose), width or m.width, height or m.height
-        with torch.no_grad():
-            if self._active is None:
-                self._active = activate({name: t.detach() for name, t in m.gaussians.params.items()})
-            rows = m._view_rows(pose, K, width, height)
-            active = [t.index_select(0, rows) for t in self._active]
-            if not front_alpha:
-                return m._draw(pose, K, width, height, tuple(active))
-            if self._facing is None:
-                p = m.gaussians.params
-                self._facing = (is_flat(p["log_scales"].detach()), quat_normal(p["quats"].detach()))
-            flat, normal = (t.index_select(0, rows) for t in self._facing)
-            behind = seen_from_behind(flat, normal, active[0], pose[:3, 3], behind_margin_deg)
-            # the grey of Mapper.render's front-face render, through the same f_dc round trip
-            active[4] = f_dc_to_rgb(rgb_to_f_dc((~behind).to(torch.float32)[:, None].expand(-1, 3)))
-            out = m._draw(pose, K, width, height, tuple(active))
-            out.alpha = out.rgb[..., 0].clamp(0.0, 1.0)
-            return out
