@@ -32,7 +32,6 @@ import math
 from pathlib import Path
 
 import numpy as np
-from scipy import sparse
 from scipy.sparse.csgraph import dijkstra
 
 from activesplat.eval.behaviour import BehaviourConfig
@@ -40,34 +39,7 @@ from activesplat.eval.coverage import CoverageAccumulator, CoverageConfig
 from activesplat.geometry import camera_pose, intrinsics
 from activesplat.planning.travel import shortest_tour
 from activesplat.sim import SimConfig, Simulator, load_scene
-
-
-def grid_graph(mask: np.ndarray, resolution: float) -> tuple[sparse.csr_matrix, np.ndarray]:
-    """8-connected graph of the True cells of `mask` (edge lengths in metres) and the (ix, iz) of each
-    node."""
-    cells = np.argwhere(mask)
-    index = -np.ones(mask.shape, dtype=np.int64)
-    index[cells[:, 0], cells[:, 1]] = np.arange(len(cells))
-    rows, cols, lengths = [], [], []
-    for dx, dz in ((1, 0), (0, 1), (1, 1), (1, -1)):
-        nx, nz = cells[:, 0] + dx, cells[:, 1] + dz
-        ok = (nx >= 0) & (nz >= 0) & (nx < mask.shape[0]) & (nz < mask.shape[1])
-        j = np.full(len(cells), -1)
-        j[ok] = index[nx[ok], nz[ok]]
-        # a diagonal step only where both cells beside it are free too (no corner cutting)
-        if dx and dz:
-            side_a = np.zeros(len(cells), bool)
-            side_b = np.zeros(len(cells), bool)
-            side_a[ok] = mask[nx[ok], cells[ok, 1]]
-            side_b[ok] = mask[cells[ok, 0], nz[ok]]
-            j[~(side_a & side_b)] = -1
-        keep = j >= 0
-        rows.append(np.nonzero(keep)[0])
-        cols.append(j[keep])
-        lengths.append(np.full(int(keep.sum()), resolution * math.hypot(dx, dz)))
-    r, c, w = (np.concatenate(a) for a in (rows, cols, lengths))
-    g = sparse.coo_matrix((w, (r, c)), shape=(len(cells), len(cells))).tocsr()
-    return g.maximum(g.T), cells
+from activesplat.sim.navmap import grid_graph
 
 
 def shortest_open_walk(dist: np.ndarray) -> tuple[float, list[int]]:

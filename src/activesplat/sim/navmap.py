@@ -12,10 +12,11 @@ position inside a navigable cell keeps the true radius from every obstacle.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import ndimage
+from scipy import ndimage, sparse
 
 from activesplat.sim.config import SimConfig
 
@@ -140,3 +141,31 @@ def build_navmap(vertices: np.ndarray, faces: np.ndarray, floor_height: float,
         largest = labels == (int(np.argmax(sizes)) + 1)
     return NavMap(grid=grid, floor=floor, clearance=clearance, largest=largest, origin=lo,
                   resolution=cell, floor_height=float(floor_height))
+
+
+def grid_graph(mask: np.ndarray, resolution: float) -> tuple[sparse.csr_matrix, np.ndarray]:
+    """8-connected graph of the True cells of `mask` (edge lengths in metres) and the (ix, iz) of each
+    node."""
+    cells = np.argwhere(mask)
+    index = -np.ones(mask.shape, dtype=np.int64)
+    index[cells[:, 0], cells[:, 1]] = np.arange(len(cells))
+    rows, cols, lengths = [], [], []
+    for dx, dz in ((1, 0), (0, 1), (1, 1), (1, -1)):
+        nx, nz = cells[:, 0] + dx, cells[:, 1] + dz
+        ok = (nx >= 0) & (nz >= 0) & (nx < mask.shape[0]) & (nz < mask.shape[1])
+        j = np.full(len(cells), -1)
+        j[ok] = index[nx[ok], nz[ok]]
+        # a diagonal step only where both cells beside it are free too (no corner cutting)
+        if dx and dz:
+            side_a = np.zeros(len(cells), bool)
+            side_b = np.zeros(len(cells), bool)
+            side_a[ok] = mask[nx[ok], cells[ok, 1]]
+            side_b[ok] = mask[cells[ok, 0], nz[ok]]
+            j[~(side_a & side_b)] = -1
+        keep = j >= 0
+        rows.append(np.nonzero(keep)[0])
+        cols.append(j[keep])
+        lengths.append(np.full(int(keep.sum()), resolution * math.hypot(dx, dz)))
+    r, c, w = (np.concatenate(a) for a in (rows, cols, lengths))
+    g = sparse.coo_matrix((w, (r, c)), shape=(len(cells), len(cells))).tocsr()
+    return g.maximum(g.T), cells
