@@ -29,6 +29,7 @@ import argparse
 import json
 import math
 import time
+from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
@@ -55,11 +56,14 @@ def view_sets(scene, sim: SimConfig, sweep: SweepConfig, cov: CoverageConfig, gt
               cache: Path | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The sweep's camera poses (V, 4, 4) and, per view, the ground-truth points it completes, as CSR
     (indptr (V + 1,), indices): a point is completed by a view when one of the view's back-projected
-    depth points lies within the threshold, exactly as the coverage protocol counts it."""
+    depth points lies within the threshold, exactly as the coverage protocol counts it. `cache`: an .npz
+    file read when it holds the same scene and settings, else written."""
     poses = sweep_poses(scene, sim, sweep)
+    settings = {"scene": scene.name, "sweep": asdict(sweep), "coverage": asdict(cov), "sim": asdict(sim)}
+    key = json.dumps(settings, sort_keys=True, default=str)
     if cache is not None and cache.is_file():
         data = np.load(cache)
-        if len(data["indptr"]) == len(poses) + 1:
+        if "key" in data.files and str(data["key"]) == key and len(data["indptr"]) == len(poses) + 1:
             return poses, data["indptr"], data["indices"]
     sensor = scene.sensor_for(sim)
     K = intrinsics(cov.resolution, cov.resolution, sim.hfov_deg)
@@ -80,7 +84,7 @@ def view_sets(scene, sim: SimConfig, sweep: SweepConfig, cov: CoverageConfig, gt
     indices = np.concatenate(parts) if parts else np.zeros(0, np.int32)
     if cache is not None:
         cache.parent.mkdir(parents=True, exist_ok=True)
-        np.savez(cache, indptr=indptr, indices=indices)
+        np.savez(cache, indptr=indptr, indices=indices, key=np.array(key))
     return poses, indptr, indices
 
 
@@ -119,7 +123,7 @@ def rotation_plan(yaw: float, pitch: float, targets: list[tuple[float, float]], 
 
 
 class OracleRoute:
-    """The greedy route of one episode start: the simulator, the coverage of its frames and the actions."""
+    """The route of one episode start: the simulator, the coverage of its frames and the actions."""
 
     def __init__(self, scene, seed: int, sim: SimConfig, cov: CoverageConfig, gt: np.ndarray,
                  poses: np.ndarray, indptr: np.ndarray, indices: np.ndarray, views_per_spot: int,
