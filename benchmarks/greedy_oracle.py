@@ -70,7 +70,7 @@ def view_sets(scene, sim: SimConfig, sweep: SweepConfig, cov: CoverageConfig, gt
     thr = cov.threshold_m
     parts, counts = [], []
     for pose in poses:
-        pts = backproject(sensor.render(pose, K, cov.resolution, cov.resolution)[1], pose, K)
+        pts = backproject(sensor.depth(pose, K, cov.resolution, cov.resolution), pose, K)
         hit = np.zeros(0, np.int32)
         if len(pts):
             lo, hi = pts.min(axis=0) - thr, pts.max(axis=0) + thr
@@ -168,7 +168,7 @@ class OracleRoute:
 
     def _frame(self) -> None:
         pose = self.sim.pose
-        self.cov.add_frame(self.sim.sensor.render(pose, self.K, self.res, self.res)[1], pose, self.K)
+        self.cov.add_frame(self.sim.sensor.depth(pose, self.K, self.res, self.res), pose, self.K)
 
     def act(self, action: str) -> bool:
         blocked = self.sim.act(action)
@@ -176,9 +176,10 @@ class OracleRoute:
         self._frame()
         return blocked
 
-    def gains(self) -> np.ndarray:
-        """Per sweep view: the ground-truth points it would complete that no frame has completed yet."""
-        open_ = ~self.cov.completed()
+    def gains(self, open_: np.ndarray | None = None) -> np.ndarray:
+        """Per sweep view: the ground-truth points it would complete that are still `open_` (default: that
+        no frame has completed yet)."""
+        open_ = ~self.cov.completed() if open_ is None else open_
         counts = np.bincount(self.owner, weights=open_[self.indices], minlength=len(self.poses))
         return counts.astype(np.int64)
 
@@ -194,8 +195,8 @@ class OracleRoute:
 
     def next_spot(self) -> tuple[int, list[int]] | None:
         """The spot completing the most per action (walk + turns toward it + its views), and its views."""
-        gains = self.gains()
         open_ = ~self.cov.completed()
+        gains = self.gains(open_)
         here = self.sim.state.position[[0, 2]]
         yaw, pitch = self.sim.state.yaw, self.sim.state.pitch
         dist = dijkstra(self.graph, indices=self._node(here))
@@ -208,13 +209,14 @@ class OracleRoute:
             walk = float(dist[n]) if n >= 0 else np.inf
             if not np.isfinite(walk):
                 continue
-            bearing = math.atan2(*(self.spots[s] - here)) if walk > 0.1 else yaw
-            face = len(turn_toward(yaw, bearing, self.ctl)) if walk > 0.1 else 0
-            order = rotation_plan(bearing, 0.0 if walk > 0.1 else pitch,
-                                  [self.view_angles[v] for v in views], self.ctl)
-            look = tour_actions(bearing, 0.0 if walk > 0.1 else pitch, order, self.ctl)
-            costs[s] = walk / self.ctl.forward_m + face + look + (len(tilt_toward(pitch, 0.0, self.ctl))
-                                                                   if walk > 0.1 else 0)
+            if walk > 0.1:  # level the camera, face the walk, arrive facing along it
+                bearing, level = math.atan2(*(self.spots[s] - here)), len(tilt_toward(pitch, 0.0, self.ctl))
+                face, arrive_pitch = len(turn_toward(yaw, bearing, self.ctl)), 0.0
+            else:
+                bearing, level, face, arrive_pitch = yaw, 0, 0, pitch
+            order = rotation_plan(bearing, arrive_pitch, [self.view_angles[v] for v in views], self.ctl)
+            look = tour_actions(bearing, arrive_pitch, order, self.ctl)
+            costs[s] = walk / self.ctl.forward_m + level + face + look
             upper[s] = gains[views].sum()
             plans[s] = views
         if not plans:
@@ -289,7 +291,7 @@ class OracleRoute:
         return bool(np.hypot(*(self.sim.state.position[[0, 2]] - self.spots[spot])) < 0.3)
 
     def look(self, views: list[int], budget: int) -> None:
-        """Turn and tilt to each view in the cheapest order, then level the camera."""
+        """Turn and tilt to each view in the cheapest order (the camera is levelled before the next walk)."""
         order = rotation_plan(self.sim.state.yaw, self.sim.state.pitch,
                               [self.view_angles[v] for v in views], self.ctl)
         for target_yaw, target_pitch in order:
@@ -325,7 +327,7 @@ class OracleRoute:
 
         skipped: set[int] = set()
         while len(skipped) < 20:
-            gains = np.bincount(self.owner, weights=open_[self.indices], minlength=len(self.poses))
+            gains = self.gains(open_)
             plans, upper, cost = {}, {}, {}
             for s_ in range(len(self.spots)):
                 views = self._targets(s_, gains)
