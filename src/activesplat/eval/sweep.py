@@ -87,7 +87,7 @@ def exhaustive_sweep(scene, sim_config=None, cfg: SweepConfig | None = None, cov
 
         it = tqdm(poses, desc=f"sweep {scene.name}", unit="view", mininterval=0.5)
     for pose in it:
-        coverage.add_frame(sensor.render(pose, K, cov_cfg.resolution, cov_cfg.resolution)[1], pose, K)
+        coverage.add_frame(sensor.depth(pose, K, cov_cfg.resolution, cov_cfg.resolution), pose, K)
     out = coverage.metrics()
     if getattr(scene, "house", None) is not None:
         from activesplat.eval.behaviour import room_completion
