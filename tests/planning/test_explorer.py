@@ -639,3 +639,39 @@ def test_passing_a_goal_that_had_no_path_turns_toward_it_once_then_replans(monke
         assert ex.cut_off == [] and len(ex.looked) == 1
     with pytest.raises(InvalidInputError, match="cut_off_look_m"):
         ExplorerConfig(cut_off_look_m=0.0)
+
+
+def test_an_agent_cut_off_from_every_goal_worth_a_visit_leaves_instead_of_shuttling(monkeypatch):
+    """`leave_when_cut_off`: the goal worth a visit has no path, the only goal with one promises nothing.
+    On, the replan leaves the spot (its own steps back or the escape) instead of walking to it; off, it
+    walks there, and from there back again: fresh medium-102 seed 0 shuttled so for its last 325 steps."""
+    ws = extract_workspace(corridor(), HERE, WCFG)
+    graph = build_voronoi_graph(ws, WCFG)
+    pos = {n: np.asarray(d["pos"], float) for n, d in graph.nodes(data=True)}
+    far = max(pos, key=lambda n: pos[n][0])
+    near = min((n for n in pos if np.hypot(*(pos[n] - HERE)) > 0.3), key=lambda n: np.hypot(*(pos[n] - HERE)))
+    real_path = explorer_module.plan_safe_path
+
+    def rank(plan, here, *a, **k):
+        plan.stage = "global"
+        plan.scores, plan.info = {far: 40.0, near: 10.0}, {far: 30.0, near: 0.0}
+        plan.travel = {n: float(abs(pos[n][0] - here[0])) for n in (far, near)}
+        return [far, near]
+
+    def cut_off(graph_, workspace, start, goal, cfg):
+        return None if np.allclose(goal, pos[far]) else real_path(graph_, workspace, start, goal, cfg)
+
+    monkeypatch.setattr(explorer_module, "build_plan", lambda *a, **k: Plan(workspace=ws, graph=graph))
+    monkeypatch.setattr(explorer_module, "rank_goals", rank)
+    monkeypatch.setattr(explorer_module, "plan_safe_path", cut_off)
+    obs = _obs(HERE)
+    for leave in (True, False):
+        ex = ActiveSplatExplorer(WORLD, 0.0, ExplorerConfig(workspace=WCFG, leave_when_cut_off=leave,
+                                                            **OBSERVED_ONLY))
+        _after_bootstrap(ex, obs)
+        ex.act(obs)
+        assert [f["why"] for f in ex.failures] == ["no path, skipped"]
+        if leave:
+            assert ex.replans[-1]["goal"] is None and ex.last_cause in ("escape", "way_back")
+        else:
+            assert np.allclose(ex.plan.goal, pos[near]) and ex.last_cause == "path"

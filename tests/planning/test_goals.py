@@ -299,6 +299,44 @@ def test_the_sampled_surface_term_adds_to_the_information_of_the_scored_nodes_on
         assert sampled[node] == (info + 20.0 if info > 0 else info)
 
 
+def test_the_sampled_surface_term_waits_until_little_unseen_space_is_left_when_gated():
+    from activesplat.planning.observed import ObservedSurface
+
+    base = ExplorerConfig(workspace=WCFG)
+    infos, largest = [], []
+    for gate in (None, 1e-6, 1.0):
+        score = dataclasses.replace(base.planning.score, w_q=20.0, quality_below_invisible=gate)
+        cfg = dataclasses.replace(base, planning=dataclasses.replace(base.planning, score=score))
+        ws = extract_workspace(corridor(), HERE, WCFG)
+        plan = Plan(workspace=ws, graph=build_voronoi_graph(ws, WCFG))
+        rank_goals(plan, HERE, HalfSeen().render, 0.0, [], [], cfg.planning, WCFG, goal_rules(cfg),
+                   np.random.default_rng(0), ObservedSurface())
+        infos.append(plan.info)
+        largest.append(plan.max_invisible)
+        assert plan.poor  # the shares are recorded whether or not the term counts
+    ungated, closed, open_ = infos
+    assert 0.0 < largest[0] < 1.0 and largest[0] == largest[1] == largest[2]
+    assert open_ == ungated  # the panoramas show less unseen space than the gate: the term counts
+    assert closed != ungated and all(closed[n] <= ungated[n] for n in closed)  # eq. 12 alone
+
+
+def test_the_sampled_surface_term_on_an_absolute_scale_promises_little_where_little_is_unsampled():
+    from activesplat.planning.config import ScoreConfig
+    from activesplat.planning.goals import sampled_surface_term
+
+    shares = np.array([0.0, 0.02, 0.1, 0.4])
+    # relative (the default): the largest share always promises the full weight, however small it is
+    relative = sampled_surface_term(shares * 0.1, ScoreConfig(w_q=10.0))
+    assert relative.tolist() == pytest.approx([0, 0.5, 2.5, 10])
+    absolute = ScoreConfig(w_q=10.0, quality_reference=0.2)
+    # capped at w_q
+    assert sampled_surface_term(shares, absolute).tolist() == pytest.approx([0, 1.0, 5.0, 10.0])
+    assert sampled_surface_term(shares * 0.1, absolute).max() == pytest.approx(2.0)  # a tenth: a fifth
+    assert sampled_surface_term(np.zeros(0), ScoreConfig(w_q=10.0)).size == 0
+    with pytest.raises(InvalidInputError, match="quality_reference"):
+        ScoreConfig(quality_reference=0.0)
+
+
 def test_a_node_keeps_its_promise_until_its_subregion_is_entered_or_it_is_visited():
     promises = Promises(radius=0.5)
     pos = np.array([[0.0, 0.0], [5.0, 0.0], [10.0, 0.0]])

@@ -97,8 +97,15 @@ class ActiveSplatExplorer(Explorer):
 
         self._ranked = goal_order[:self.cfg.replan_log_top]
         skipped = False  # a goal with no path skipped for this replan (`retry_unreachable`)
-        for node in goal_order:
+        cut_off = False  # a goal worth a visit had no path (`leave_when_cut_off`)
+        worth = worth_a_visit(np.array([plan.info.get(n, 0.0) for n in goal_order]), True,
+                              cfg.local_score_threshold)
+        last_worth = int(np.flatnonzero(worth)[-1]) if worth.any() else -1
+        for k, node in enumerate(goal_order):
             goal = np.asarray(plan.graph.nodes[node]["pos"], float)
+            if cfg.leave_when_cut_off and cut_off and k > last_worth:
+                skipped = True  # every goal worth a visit is cut off; the rest promise nothing: leave
+                break
             if np.hypot(*(goal - here)) <= cfg.controller.arrive_radius:
                 # already there: arriving again would end in a replan at once, every step (a `hull-only`
                 # agent spun on the spot for 200 steps that way, replanning four times per step)
@@ -116,6 +123,7 @@ class ActiveSplatExplorer(Explorer):
                 self._remember_cut_off(plan, node, goal)
                 bridge = self._bridge(plan, here, node, goal, find_path)
                 if bridge is None:
+                    cut_off = cut_off or bool(worth[k])
                     if cfg.retry_unreachable:
                         self._log_failure(goal, "no path, skipped")
                         skipped = True
@@ -224,7 +232,7 @@ class ActiveSplatExplorer(Explorer):
         plan, thr = self.plan, self.cfg.local_score_threshold
         rec = {"step": len(self.visited) - 1, "xz": [round(float(v), 3) for v in here], "stage": plan.stage,
                "candidates": len(plan.scores), "promising": sum(v > thr for v in plan.info.values()),
-               "goal": None}
+               "max_invisible": round(plan.max_invisible, 4), "goal": None}
         if node is not None and path is not None:
             rec.update(goal=[round(float(v), 3) for v in self.plan.goal], on_the_way=on_the_way,
                        committed=plan.committed,
@@ -329,11 +337,15 @@ def target_record(t: RotationTarget) -> dict:
 
 def ranked_entry(plan: Plan, node: int) -> dict:
     """One ranked candidate of a replan for stops.json: floor position, subregion, eq. 12 score, its
-    information part (0 without a panorama) and the graph travel to it."""
-    return {"xz": [round(float(v), 2) for v in plan.graph.nodes[node]["pos"]],
-            "subregion": plan.subregions.get(node), "score": round(plan.scores.get(node, float("nan")), 2),
-            "info": round(plan.info.get(node, float("nan")), 2),
-            "travel_m": round(plan.travel.get(node, float("nan")), 2)}
+    information part (0 without a panorama), the graph travel to it and, with the sampled-surface term
+    on, its poorly sampled share."""
+    entry = {"xz": [round(float(v), 2) for v in plan.graph.nodes[node]["pos"]],
+             "subregion": plan.subregions.get(node), "score": round(plan.scores.get(node, float("nan")), 2),
+             "info": round(plan.info.get(node, float("nan")), 2),
+             "travel_m": round(plan.travel.get(node, float("nan")), 2)}
+    if node in plan.poor:  # the sampled-surface term is on
+        entry["poor"] = round(plan.poor[node], 4)
+    return entry
 
 
 __all__ = ["ActiveSplatExplorer", "goal_rules"]

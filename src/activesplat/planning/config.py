@@ -204,6 +204,19 @@ class ScoreConfig:
     samples it densely)."""
     quality_voxel_m: float = 0.1
     """Voxel size of the sampled-surface memory (ours: twice the completion measure's 5 cm threshold)."""
+    quality_reference: float | None = None
+    """When set, the w_q term is w_q * min(1, share / this) instead of the share divided by its maximum over
+    the candidates: an absolute scale for the sampled-surface term (ours; None = relative). Relative to its
+    maximum the term always leaves some node near the agent worth a visit; on an absolute scale a room whose
+    near surface is sampled promises nothing more. w_q 10 with 0.25 in both stages, medium-0 seed 0: 86.29
+    -> 82.58 %, 69.0 -> 46.7 % by step 1000 (docs/benchmark.md "The sampled-surface term on an absolute
+    scale")."""
+    quality_below_invisible: float | None = None
+    """When set, the w_q term counts only at replans where no scored candidate's panorama is this much
+    invisible (its share, s_o before normalising): the sampled-surface term decides once eq. 12 finds little
+    unseen space left, and eq. 12 alone before (ours; None = whenever w_q > 0). Early in an episode a new room
+    shows far more than the dense sampling of a room already mapped returns. 0.1 with w_q 10 and
+    `quality_reference` 0.25, medium-0..3 seed 0: +0.00 points (the gate opened at steps 1005-1889)."""
     inv_reference: float | None = None
     """When set (with `vol_reference_m3`), s_o = min(1, invisible share / this) instead of the share
     divided by its maximum over the candidates: an absolute information scale (ours; None = relative, as
@@ -219,8 +232,10 @@ class ScoreConfig:
     def __post_init__(self) -> None:
         check_fields(self, non_negative=("w_o", "w_c", "w_u", "w_h", "failed_penalty", "unvisited_radius_m",
                                          "w_q"), positive=("quality_radius_m", "quality_voxel_m",
-                                                           "inv_reference", "vol_reference_m3"),
-                     optional=("inv_reference", "vol_reference_m3"))
+                                                           "inv_reference", "vol_reference_m3",
+                                                           "quality_reference", "quality_below_invisible"),
+                     optional=("inv_reference", "vol_reference_m3", "quality_reference",
+                               "quality_below_invisible"))
         if (self.inv_reference is None) != (self.vol_reference_m3 is None):
             raise InvalidInputError("ScoreConfig.inv_reference and vol_reference_m3 are set together (an "
                                     "absolute information scale) or both left None (relative)")

@@ -169,6 +169,15 @@ def local_then_global(scores: np.ndarray, info: np.ndarray, travel: np.ndarray, 
     return [i for i in ranked if worth[i]] + [i for i in ranked if not worth[i]]
 
 
+def sampled_surface_term(poor: np.ndarray, cfg) -> np.ndarray:
+    """The w_q information term of the candidates from their poorly sampled shares (`ScoreConfig.w_q`):
+    relative to the largest share, or on the absolute scale of `ScoreConfig.quality_reference`."""
+    poor = np.asarray(poor, float)
+    if cfg.quality_reference is not None:
+        return cfg.w_q * np.minimum(1.0, poor / cfg.quality_reference)
+    return cfg.w_q * poor / poor.max() if poor.size and poor.max() > 0 else np.zeros_like(poor)
+
+
 def rank_goals(plan: Plan, here: np.ndarray, render: RenderFn, floor_height: float,
                visited: Sequence[np.ndarray], failed: Sequence[np.ndarray], pcfg: PlanningConfig,
                wcfg: WorkspaceConfig, rules: GoalRules, rng: np.random.Generator,
@@ -215,8 +224,13 @@ def rank_goals(plan: Plan, here: np.ndarray, render: RenderFn, floor_height: flo
         vol[i] = hull_volume(pano, pcfg.hull)
         if quality:
             poor[i] = poorly_observed_share(pano, observed, score_cfg.quality_radius_m)
-    # the sampled-surface term (ours, off by default): normalised by its maximum like s_o and s_c
-    extra = score_cfg.w_q * poor / poor.max() if quality and poor.max() > 0 else np.zeros(len(nodes))
+    # the sampled-surface term (ours, off by default; `sampled_surface_term`), with its optional gate
+    plan.max_invisible = float(inv.max()) if scored.any() else 0.0
+    if quality:
+        plan.poor = {n: float(v) for n, v, s in zip(nodes, poor, scored, strict=True) if s}
+        gate = score_cfg.quality_below_invisible
+        quality = gate is None or plan.max_invisible < gate
+    extra = sampled_surface_term(poor, score_cfg) if quality else np.zeros(len(nodes))
     hierarchical = rules.hierarchical and bool(plan.subregions)
     local = agent_subregion(graph, plan.subregions, here) if hierarchical else None
     in_local = np.array([hierarchical and plan.subregions.get(n) == local for n in nodes])
@@ -392,5 +406,5 @@ def select_rotation_targets(targets: Sequence[RotationTarget], yaw: float, pcfg:
 
 
 __all__ = ["GoalRules", "closer_on_the_way", "distance_to_polyline", "goal_candidates", "local_then_global",
-           "node_state", "panorama_candidates", "rank_goals", "select_rotation_targets", "tour_first",
-           "worth_a_detour", "worth_a_visit"]
+           "node_state", "panorama_candidates", "rank_goals", "sampled_surface_term",
+           "select_rotation_targets", "tour_first", "worth_a_detour", "worth_a_visit"]

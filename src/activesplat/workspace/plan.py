@@ -33,6 +33,11 @@ class Plan:
     info: dict[int, float] = field(default_factory=dict)
     """The information part of each node's score (w_o s_o + w_c s_c), see
     `activesplat.planning.viewpoints.information_scores`."""
+    poor: dict[int, float] = field(default_factory=dict)
+    """With the sampled-surface term on (`ScoreConfig.w_q`), each panorama-scored node's share of mapped
+    surface near it that the agent's depth has not sampled (`planning.observed`); empty otherwise."""
+    max_invisible: float = 0.0
+    """The largest invisible share (eq. 12's s_o before normalising) of the panoramas of the last ranking."""
     travel: dict[int, float] = field(default_factory=dict)
     """Each candidate's travel length from the agent in metres (`planning.travel.travel_lengths`)."""
     stage: str = ""
