@@ -13,7 +13,7 @@ import networkx as nx
 import numpy as np
 
 from activesplat.geometry import wrap_angle
-from activesplat.planning.config import PlanningConfig
+from activesplat.planning.config import PlanningConfig, ScoreConfig
 from activesplat.planning.controller import ControllerConfig, fewest_actions_order
 from activesplat.planning.observed import ObservedSurface, poorly_observed_share
 from activesplat.planning.panorama import RenderFn, render_panorama
@@ -169,7 +169,7 @@ def local_then_global(scores: np.ndarray, info: np.ndarray, travel: np.ndarray, 
     return [i for i in ranked if worth[i]] + [i for i in ranked if not worth[i]]
 
 
-def sampled_surface_term(poor: np.ndarray, cfg) -> np.ndarray:
+def sampled_surface_term(poor: np.ndarray, cfg: ScoreConfig) -> np.ndarray:
     """The w_q information term of the candidates from their poorly sampled shares (`ScoreConfig.w_q`):
     relative to the largest share, or on the absolute scale of `ScoreConfig.quality_reference`."""
     poor = np.asarray(poor, float)
