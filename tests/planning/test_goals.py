@@ -217,6 +217,21 @@ def test_tour_first_orders_one_node_per_subregion_along_the_route():
                       graph) == ranked
 
 
+def test_a_route_in_place_reorders_only_the_stops_and_leaves_a_near_node_first():
+    graph, nodes, subregions, _, ranked = _corridor()  # the agent at x = 0
+    travel = np.array([3.0, 1.0, 2.0, 3.0, 4.0])
+    # only A (x = -3) and C (x = 4) are stops; B's node at x = 2 is ranked first but promises too little
+    stops = np.array([True, False, False, False, True])
+    # the route goes to A first (3 + 7 m against 4 + 7 m); by default both stops go ahead of everything
+    assert tour_first(ranked, stops, travel, nodes, subregions, graph) == [0, 4, 2, 1, 3]
+    # in place, A and C swap slots in the ranking, and B's near node keeps the lead
+    assert tour_first(ranked, stops, travel, nodes, subregions, graph, in_place=True) == [2, 1, 0, 4, 3]
+    # every subregion a stop: the route's order fills the slots of the representatives (B at index 2 in
+    # the first slot, C at 4 in the third, A at 0 in the fourth) and B's second node stays second
+    worth = np.array([True, True, True, False, True])
+    assert tour_first(ranked, worth, travel, nodes, subregions, graph, in_place=True) == [0, 1, 2, 4, 3]
+
+
 def test_a_remembered_route_keeps_its_order_and_inserts_new_stops_where_they_cost_least():
     memory = RouteMemory(radius=1.5)
     assert memory.follow(np.zeros((2, 2)), np.ones(2), np.ones((2, 2))) is None  # nothing remembered

@@ -326,7 +326,7 @@ def goal_rules(cfg: ExplorerConfig) -> GoalRules:
                      global_information_first=cfg.global_information_first,
                      panorama_every_subregion=cfg.panorama_every_subregion,
                      global_halving_m=cfg.global_halving_m, global_tour=cfg.global_tour,
-                     local_near_m=cfg.local_near_m)
+                     local_near_m=cfg.local_near_m, route_in_place=cfg.route_in_place)
 
 
 def target_record(t: RotationTarget) -> dict:

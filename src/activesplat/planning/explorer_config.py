@@ -182,6 +182,11 @@ class ExplorerConfig:
     route_min_info: float = 0.0
     """With `route_memory_m`: only subregions whose best node promises more than this information part are
     stops of the route (ours; 0 = every subregion worth a visit)."""
+    route_in_place: bool = False
+    """With `global_tour` or `route_memory_m`: the route only reorders the stops among themselves, each taking
+    the place of a stop in the global stage's own ranking, instead of putting every stop ahead of the rest
+    (ours; `goals.tour_first`). A near subregion that promises too little to be a stop (`route_min_info`)
+    and that the ranking puts first stays first, rather than waiting behind stops across the house."""
     keep_promise_m: float | None = None
     """Remember what each node outside the agent's subregion promised (its information part) across
     replans, by floor position within this many metres, and rank it by at least that until the agent has

@@ -55,6 +55,7 @@ class GoalRules:
     global_halving_m: float | None = None
     global_tour: bool = False
     local_near_m: float | None = None
+    route_in_place: bool = False
 
 
 def node_state(node_pos: np.ndarray, visited: Sequence[np.ndarray], failed: Sequence[np.ndarray],
@@ -103,13 +104,17 @@ def panorama_candidates(nodes: list[int], dist: np.ndarray, open_: np.ndarray, s
 
 
 def tour_first(ranked: list[int], worth: np.ndarray, travel: np.ndarray, nodes: Sequence[int],
-               subregions: dict[int, int], graph: nx.Graph, memory: RouteMemory | None = None) -> list[int]:
+               subregions: dict[int, int], graph: nx.Graph, memory: RouteMemory | None = None,
+               in_place: bool = False) -> list[int]:
     """The global stage's order with a route (ours, `global_tour`): of the nodes that promise something to
     see (`worth`), the first in `ranked` of each subregion stands for it; the subregions come in the order
     of the shortest open route from the agent through them all (`shortest_tour`), and the rest of `ranked`
     follows in its own order. Score minus distance alone sends the agent to the best node, then to the best
     from there, and a room left on the way is a long trip back at the end. With `memory` the order of the
-    last route is kept for the subregions still on it (`RouteMemory.follow`), and the route is remembered."""
+    last route is kept for the subregions still on it (`RouteMemory.follow`), and the route is remembered.
+    `in_place` (`ExplorerConfig.route_in_place`): the route reorders the subregions' representatives only
+    among themselves, each taking the place in `ranked` of the one it replaces, so a node `ranked` puts
+    ahead of every representative (a near subregion that promises too little to be a stop) stays ahead."""
     reps: list[int] = []
     seen: set = set()
     for i in ranked:
@@ -131,6 +136,10 @@ def tour_first(ranked: list[int], worth: np.ndarray, travel: np.ndarray, nodes: 
     if memory is not None:
         memory.stops = rep_pos[route]
     first = [reps[r] for r in route]
+    if in_place:
+        slots = iter(first)
+        rep_set = set(reps)
+        return [next(slots) if i in rep_set else i for i in ranked]
     taken = set(first)
     return first + [i for i in ranked if i not in taken]
 
@@ -268,7 +277,8 @@ def rank_goals(plan: Plan, here: np.ndarray, render: RenderFn, floor_height: flo
     order = local_then_global(scores, local_info, travel, open_, in_local, rules, global_scores, info)
     if (rules.global_tour or route_memory is not None) and plan.stage == "global":
         stops = promising if route_memory is None else promising & (info > route_memory.min_info)
-        order = tour_first(order, stops, travel, nodes, plan.subregions, graph, route_memory)
+        order = tour_first(order, stops, travel, nodes, plan.subregions, graph, route_memory,
+                           rules.route_in_place)
     plan.committed = False
     if commitment is not None and plan.stage == "global":
         order, plan.committed = commitment.first(order, promising, nodes, pos, plan.subregions)
