@@ -178,10 +178,11 @@ class ExplorerConfig:
     the route took every subregion still worth a visit in turn, 17-18 m trips for information 7); with
     `route_min_info` 20: 86.48 %, at step 1000 62.43 -> 63.47 %, rotations 50.2 -> 48.8 %, fresh
     medium-100..109 seed 0 86.37 -> 86.53 % (seven runs unchanged); so off
-    (docs/benchmark.md "A route that keeps its order"). Held-out medium-150..159 x 2 seeds with `route_min_info`
-    20: 94.02 -> 94.82 % of the sweep ceiling, the two runs that never reached one end of the house rescued
-    (72.3 -> 90.6, 81.9 -> 94.2) and two new ones (medium-153 s0 91.4 -> 86.0, medium-154 s0 96.4 -> 91.2)
-    (docs/benchmark.md "A route that keeps its order, on the houses whose far end was left for last")."""
+    (docs/benchmark.md "A route that keeps its order"). Held-out medium-150..159 x 2 seeds with
+    `route_min_info` 20: 94.02 -> 94.82 % of the sweep ceiling, the two runs that never reached one end of
+    the house rescued (72.3 -> 90.6, 81.9 -> 94.2) and two new ones (medium-153 s0 91.4 -> 86.0, medium-154
+    s0 96.4 -> 91.2) (docs/benchmark.md "A route that keeps its order, on the houses whose far end was left
+    for last")."""
     route_min_info: float = 0.0
     """With `route_memory_m`: only subregions whose best node promises more than this information part are
     stops of the route (ours; 0 = every subregion worth a visit)."""
