@@ -14,7 +14,7 @@ from layouts import RES, corridor  # noqa: E402
 
 from activesplat.errors import InvalidInputError  # noqa: E402
 from activesplat.planning.activesplat import goal_rules  # noqa: E402
-from activesplat.planning.config import PlanningConfig  # noqa: E402
+from activesplat.planning.config import PlanningConfig, ScoreConfig  # noqa: E402
 from activesplat.planning.controller import ControllerConfig, tour_actions  # noqa: E402
 from activesplat.planning.explorer_config import ExplorerConfig  # noqa: E402
 from activesplat.planning.goals import (  # noqa: E402
@@ -24,10 +24,12 @@ from activesplat.planning.goals import (  # noqa: E402
     local_then_global,
     panorama_candidates,
     rank_goals,
+    sampled_surface_term,
     select_rotation_targets,
     tour_first,
     worth_a_detour,
 )
+from activesplat.planning.observed import ObservedSurface  # noqa: E402
 from activesplat.planning.replan_memory import Commitment, Promises, RouteMemory  # noqa: E402
 from activesplat.planning.viewpoints import RotationTarget  # noqa: E402
 from activesplat.workspace.clean import extract_workspace  # noqa: E402
@@ -294,8 +296,6 @@ def test_node_information_is_scored_with_and_without_hierarchical_planning():
 
 
 def test_the_sampled_surface_term_adds_to_the_information_of_the_scored_nodes_only_when_asked():
-    from activesplat.planning.observed import ObservedSurface
-
     base = ExplorerConfig(workspace=WCFG)
     with_q = dataclasses.replace(base, planning=dataclasses.replace(
         base.planning, score=dataclasses.replace(base.planning.score, w_q=20.0)))
@@ -315,8 +315,6 @@ def test_the_sampled_surface_term_adds_to_the_information_of_the_scored_nodes_on
 
 
 def test_the_sampled_surface_term_waits_until_little_unseen_space_is_left_when_gated():
-    from activesplat.planning.observed import ObservedSurface
-
     base = ExplorerConfig(workspace=WCFG)
     infos, largest = [], []
     for gate in (None, 1e-6, 1.0):
@@ -336,9 +334,6 @@ def test_the_sampled_surface_term_waits_until_little_unseen_space_is_left_when_g
 
 
 def test_the_sampled_surface_term_on_an_absolute_scale_promises_little_where_little_is_unsampled():
-    from activesplat.planning.config import ScoreConfig
-    from activesplat.planning.goals import sampled_surface_term
-
     shares = np.array([0.0, 0.02, 0.1, 0.4])
     # relative (the default): the largest share always promises the full weight, however small it is
     relative = sampled_surface_term(shares * 0.1, ScoreConfig(w_q=10.0))
