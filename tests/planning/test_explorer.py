@@ -675,3 +675,67 @@ def test_an_agent_cut_off_from_every_goal_worth_a_visit_leaves_instead_of_shuttl
             assert ex.replans[-1]["goal"] is None and ex.last_cause in ("escape", "way_back")
         else:
             assert np.allclose(ex.plan.goal, pos[near]) and ex.last_cause == "path"
+
+
+@pytest.mark.parametrize("radius", [None, 0.05])
+def test_a_refusal_on_the_way_marks_the_spot_and_keeps_the_goal_open_until_the_second(radius):
+    # following a path down the corridor, the scene refuses a forward move 3 m short of the goal: the
+    # paper's rule fails the goal at once; `collision_obstacle_m` marks the floor ahead as an obstacle for
+    # the next workspaces and fails the goal only at the second refusal on the way to it
+    cfg = ExplorerConfig(workspace=WCFG, collision_obstacle_m=radius)
+    ex = ActiveSplatExplorer(WORLD, 0.0, cfg)
+    ex.queue, ex.queue_causes = [], []
+    ex.plan = Plan(workspace=extract_workspace(corridor(), HERE, WCFG))
+    goal = np.array([5.0, 1.5])
+    east = np.pi / 2  # yaw toward +x
+    for refusal in (1, 2):
+        ex.go_to(goal, np.stack([HERE, goal]))
+        ex.act(_obs(HERE, east, collided=True))
+        assert ex.follower is None and ex.last_cause == "escape"
+        if radius is None:
+            assert len(ex.failed) == 1 and ex.workspace_obstacles() == {}
+            return
+        assert len(ex.failed) == refusal - 1
+        assert ex.failures[-1]["why"] == ("collision, kept" if refusal == 1 else "blocked")
+        marks = ex.workspace_obstacles()
+        assert marks["obstacle_radius_m"] == 0.05 and len(marks["obstacles"]) == refusal
+        ahead = WCFG.agent_radius + cfg.controller.forward_m
+        assert np.allclose(marks["obstacles"][-1], HERE + [ahead, 0.0], atol=1e-9)
+        ex.queue, ex.queue_causes = [], []
+    # a refusal while escaping (no path followed) marks the spot only; forgetting the failures clears all
+    ex.act(_obs(HERE, 0.0, collided=True))
+    assert len(ex.failed) == 1 and len(ex.workspace_obstacles()["obstacles"]) == 3
+    ex.forget_failures()
+    assert not ex.failed and ex.workspace_obstacles() == {}
+
+
+def test_the_collision_obstacle_options_reject_bad_values():
+    for kwargs in ({"collision_obstacle_m": 0.0}, {"collision_obstacle_m": -0.1}, {"collision_fail_after": 0},
+                   {"collision_arrive_m": 0.0}):
+        with pytest.raises(InvalidInputError, match="collision"):
+            ExplorerConfig(**kwargs)
+
+
+def test_a_refusal_near_the_goal_is_an_arrival_with_its_rotation_targets(monkeypatch):
+    # refused 0.2 m short of the goal: with `collision_arrive_m` the agent turns to the rotation targets
+    # from where it stands (no escape, the goal stays open); farther than that, or with the option off,
+    # the refusal is handled as before
+    target = SimpleNamespace(yaw=np.pi, pitch=0.0)
+    monkeypatch.setattr(ActiveSplatExplorer, "_rotation_targets", lambda self, pose, views: [target])
+    goal = np.array([2.2, 1.5])
+    east = np.pi / 2
+    for near, short_m, arrives in ((0.5, 0.2, True), (0.5, 0.8, False), (None, 0.2, False)):
+        cfg = ExplorerConfig(workspace=WCFG, collision_arrive_m=near, collision_obstacle_m=0.05)
+        ex = ActiveSplatExplorer(WORLD, 0.0, cfg)
+        ex.queue, ex.queue_causes = [], []
+        ex.plan = Plan(workspace=extract_workspace(corridor(), HERE, WCFG))
+        here = goal - [short_m, 0.0]
+        ex.go_to(goal, np.stack([here, goal]))
+        action = ex.act(_obs(here, east, collided=True))
+        assert ex.follower is None and not ex.failed
+        if arrives:
+            assert action in ("turn_left", "turn_right") and ex.last_cause == "arrival"
+            assert ex.rotation_targets == [target] and not ex.queue and not ex.failures
+            assert len(ex.workspace_obstacles()["obstacles"]) == 1
+        else:
+            assert ex.last_cause == "escape" and ex.failures[-1]["why"] == "collision, kept"

@@ -72,7 +72,7 @@ class ActiveSplatExplorer(Explorer):
         cfg = self.cfg
         here = floor_xz(pose)
         plan = self.plan = build_plan(self.world.gaussians, self.floor_height, here, cfg.workspace,
-                                      self.timers)
+                                      self.timers, **self.workspace_obstacles())
         rules = goal_rules(cfg)
         grown: Plan | None = None  # the floor grown into unknown, built when a node first has no path
 
@@ -161,7 +161,7 @@ class ActiveSplatExplorer(Explorer):
         # goals exist but none has a path from here: escape first, as when they were all marked failed (with
         # skipped goals alone, turning on the spot would find the same graph at every replan)
         stuck = bool(self.failed) or skipped
-        self.failed.clear()  # fallback: forget failures, the next replan gives every goal a second chance
+        self.forget_failures()  # fallback: the next replan gives every goal a second chance
         self.idle(pose, stuck)
 
     def _put_off_before(self, goal: np.ndarray) -> bool:

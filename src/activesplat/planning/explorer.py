@@ -195,6 +195,10 @@ class Explorer:
         self.refused: list[tuple[np.ndarray, float]] = []
         """(floor position, yaw) of the refused forward moves at the agent's spot (older spots are dropped
         at the next refusal): the escape does not try a refused heading from the same spot again."""
+        self.collision_obstacles: list[np.ndarray] = []
+        """Floor points (x, z) just ahead of forward moves the scene refused, marked obstacle in every
+        workspace until the failures are forgotten (`collision_obstacle_m`; empty when off)."""
+        self._goal_collisions: list[tuple[np.ndarray, int]] = []  # (goal, refusals on the way to it)
         self._path_start: np.ndarray | None = None  # where the current path began (`go_to`)
         self._start_blocks: list[np.ndarray] = []
         """The spots of the latest paths refused ahead before their first forward move, in a row
@@ -396,12 +400,73 @@ class Explorer:
         self.failures.append({"step": len(self.visited) - 1, "goal": [round(float(v), 3) for v in goal],
                               "why": why, "failed_now": len(self.failed)})
 
+    def workspace_obstacles(self) -> dict:
+        """The `build_plan` arguments that mark the refused spots as obstacles (`collision_obstacle_m`)."""
+        if self.cfg.collision_obstacle_m is None or not self.collision_obstacles:
+            return {}
+        return {"obstacles": np.array(self.collision_obstacles),
+                "obstacle_radius_m": self.cfg.collision_obstacle_m}
+
+    def forget_failures(self) -> None:
+        """The fallback when no goal has a path: every failed goal gets a second chance, and the spots
+        refused on the way are forgotten (a refusal beside a jamb can close a door in the workspace)."""
+        self.failed.clear()
+        self.collision_obstacles.clear()
+        self._goal_collisions = []
+
+    def _collide_on_the_way(self, pose: np.ndarray) -> None:
+        """`collision_obstacle_m`: remember the refused spot, and mark the goal failed only after
+        `collision_fail_after` refusals on the way to it; the next replan plans around the spot."""
+        self._mark_refused_spot(pose)
+        goal = self.plan.goal
+        if self.follower is None or goal is None:
+            return  # refused while escaping or turning back: no goal was being followed
+        self.follower = None
+        k = next((i for i, (g, _) in enumerate(self._goal_collisions) if np.hypot(*(g - goal)) <= 0.3), None)
+        count = 1 if k is None else self._goal_collisions[k][1] + 1
+        if k is None:
+            self._goal_collisions.append((np.asarray(goal, float), count))
+        else:
+            self._goal_collisions[k] = (self._goal_collisions[k][0], count)
+        if count >= self.cfg.collision_fail_after:
+            self._mark_failed(goal, "blocked")
+        else:
+            self._log_failure(goal, "collision, kept")
+
+    def _mark_refused_spot(self, pose: np.ndarray) -> None:
+        """Remember the floor one agent radius and one forward step ahead as an obstacle."""
+        yaw = pose_yaw_pitch(pose)[0]
+        ahead = self.cfg.workspace.agent_radius + self.cfg.controller.forward_m
+        self.collision_obstacles.append(floor_xz(pose) + ahead * np.array([math.sin(yaw), math.cos(yaw)]))
+
+    def _arrive_on_collision(self, pose: np.ndarray) -> bool:
+        """`collision_arrive_m`: a refusal this near the goal is an arrival there, with its rotation targets
+        from where the agent stands. False (nothing done but the arrival's bookkeeping) when the option is
+        off, the goal is farther, or the spot gives no rotation targets."""
+        near, goal = self.cfg.collision_arrive_m, self.plan.goal
+        if near is None or self.follower is None or goal is None or np.hypot(*(floor_xz(pose) - goal)) > near:
+            return False
+        self.arrive(pose)
+        if not self.rotation_targets:
+            return False
+        self.follower = None
+        self.queue, self.queue_causes = [], []
+        if self.cfg.collision_obstacle_m is not None:
+            self._mark_refused_spot(pose)
+        return True
+
     def _on_collision(self, pose: np.ndarray) -> None:
-        """A refused forward move: mark the goal failed and escape toward the clearest heading not yet
-        refused from this spot. Where the map shows free space that the scene does not have (a chair leg,
-        a door frame it has not mapped), the clearest heading on the map is refused every time: without
-        the memory an agent tried the same three headings for 1300 steps (fresh medium-101, seed 2)."""
-        self._fail_goal()
+        """A refused forward move: mark the goal failed (or, with `collision_obstacle_m`, mark the spot) and
+        escape toward the clearest heading not yet refused from this spot. Where the map shows free space
+        that the scene does not have (a chair leg, a door frame it has not mapped), the clearest heading on
+        the map is refused every time: without the memory an agent tried the same three headings for 1300
+        steps (fresh medium-101, seed 2). With `collision_arrive_m`, a refusal near the goal is an arrival."""
+        if self._arrive_on_collision(pose):
+            return
+        if self.cfg.collision_obstacle_m is None:
+            self._fail_goal()
+        else:
+            self._collide_on_the_way(pose)
         self.rotation_targets = []
         self.queue, self.queue_causes = [], []
         here = floor_xz(pose)

@@ -156,7 +156,7 @@ class FrontierExplorer(Explorer):
         cfg = self.cfg
         here = floor_xz(pose)
         plan = self.plan = build_plan(self.world.gaussians, self.floor_height, here, cfg.workspace,
-                                      self.timers, graph=False)
+                                      self.timers, graph=False, **self.workspace_obstacles())
         stuck = bool(self.failed)
         path = self.timers.time("position_selection", nearest_frontier_path, plan.grids, plan.workspace,
                                 here, [*self.failed, *self.reached], cfg.workspace, self.fcfg)
@@ -165,7 +165,7 @@ class FrontierExplorer(Explorer):
             # reachable from here (the failed ones covered every reachable frontier; kept, they held the
             # agent in a corner for 1500 steps, escaping and turning, on fresh medium-101 and medium-105)
             self.reached.clear()
-            self.failed.clear()
+            self.forget_failures()
             plan.goal = plan.path = None
             self.idle(pose, stuck)
             return

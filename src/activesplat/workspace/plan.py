@@ -15,7 +15,7 @@ from activesplat.timing import Timers
 from activesplat.workspace.clean import Workspace, extract_workspace
 from activesplat.workspace.config import WorkspaceConfig
 from activesplat.workspace.subregions import partition_subregions
-from activesplat.workspace.topdown import TopDownGrids, render_topdown
+from activesplat.workspace.topdown import TopDownGrids, render_topdown, with_obstacles
 from activesplat.workspace.voronoi import build_voronoi_graph
 
 
@@ -52,13 +52,17 @@ class Plan:
 
 
 def build_plan(gaussians: Any, floor_height: float, agent_xz: np.ndarray, wcfg: WorkspaceConfig,
-               timers: Timers | None = None, graph: bool = True) -> Plan:
+               timers: Timers | None = None, graph: bool = True, obstacles: np.ndarray | None = None,
+               obstacle_radius_m: float = 0.0) -> Plan:
     """Top-down grids -> workspace -> Voronoi graph -> subregions of the current map (sec. III-A, III-C).
-    `graph=False` stops after the workspace (frontier exploration needs no graph). Each stage is timed
-    under its Tab. VI module name."""
+    `graph=False` stops after the workspace (frontier exploration needs no graph). `obstacles` (K, 2): world
+    (x, z) points marked obstacle in the grids, discs of `obstacle_radius_m` (`topdown.with_obstacles`).
+    Each stage is timed under its Tab. VI module name."""
     timers = timers or Timers()
     plan = Plan()
     plan.grids = timers.time("workspace", render_topdown, gaussians, floor_height, wcfg, agent_xz)
+    if obstacles is not None and len(obstacles):
+        plan.grids = with_obstacles(plan.grids, obstacles, obstacle_radius_m)
     plan.workspace = timers.time("workspace", extract_workspace, plan.grids, agent_xz, wcfg)
     if graph:
         plan.graph = timers.time("voronoi", build_voronoi_graph, plan.workspace, wcfg)
