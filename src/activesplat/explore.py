@@ -145,6 +145,7 @@ def explore_environment(env, run, out: str | Path, overwrite: bool = False, prog
             explorer.observe_mapping(obs, env.K)
             if evaluator is not None:
                 timers.time("evaluation", evaluator.observe, obs.pose)
+            explorer.steps_left = steps - step + 1
             action = explorer.act(obs)
             if hasattr(env, "waypoint"):  # a base with its own controller: the planner's next waypoint
                 env.waypoint(_next_waypoint(explorer))

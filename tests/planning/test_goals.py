@@ -21,6 +21,7 @@ from activesplat.planning.goals import (  # noqa: E402
     bridge_toward,
     closer_on_the_way,
     distance_to_polyline,
+    last_call_first,
     local_then_global,
     panorama_candidates,
     rank_goals,
@@ -475,3 +476,27 @@ def test_rotation_targets_lighter_than_a_share_of_their_sources_heaviest_are_ski
     assert sorted(t.weight for t in kept) == [2.0, 400.0, 4000.0]
     with pytest.raises(InvalidInputError, match="min_relative_weight"):
         dataclasses.replace(pcfg.rotation, min_relative_weight=1.5)
+
+
+def test_a_node_on_its_last_call_goes_first_and_only_then():
+    # nodes by (information, travel m): with 20 actions per metre, a node is on its last call when walking
+    # there leaves between 60 and 300 of the steps left; the one that promises most goes first
+    nodes = {"near": (28.0, 2.0), "far": (25.0, 12.0), "farther": (22.0, 21.0), "farthest": (30.0, 24.5),
+             "little": (15.0, 12.0), "visited": (29.0, 12.0), "failed": (29.5, 13.0)}
+    plan = Plan()
+    for k, (info, travel) in enumerate(nodes.values()):
+        plan.graph.add_node(k, pos=np.array([float(k), 0.0]))
+        plan.info[k], plan.travel[k] = info, travel
+    order = list(range(len(nodes)))
+    visited, failed = [np.array([5.0, 0.2])], [np.array([6.0, 0.0])]
+
+    def first(steps_left):
+        ranked = last_call_first(order, plan, steps_left, visited, failed, 0.65, window=300, min_info=20.0,
+                                 steps_per_m=20.0)
+        assert sorted(ranked) == order
+        return list(nodes)[ranked[0]]
+
+    assert first(1000) == "near"  # nothing on its last call yet: the order as it was
+    assert first(600) == "farthest"  # 24.5 m leaves 110 and it promises most; 12 m would leave 360
+    assert first(500) == "far"  # 24.5 m would leave 10; 12 m leaves 260, 21 m 80, and 12 m promises more
+    assert first(250) == "near"  # 12 m would leave 10; 2 m leaves 210

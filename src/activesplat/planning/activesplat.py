@@ -18,6 +18,7 @@ from activesplat.planning.goals import (
     GoalRules,
     bridge_toward,
     closer_on_the_way,
+    last_call_first,
     rank_goals,
     select_rotation_targets,
     worth_a_detour,
@@ -90,6 +91,11 @@ class ActiveSplatExplorer(Explorer):
                                       self.failed, cfg.planning, cfg.workspace, rules, self.rng,
                                       self.observed, self.promises, self.commitment, self.route_memory,
                                       no_path_travel if cfg.neck_travel else None)
+
+        if cfg.last_call_steps is not None and self.steps_left is not None and plan.stage:
+            goal_order = last_call_first(goal_order, plan, self.steps_left, self.visited, self.failed,
+                                         cfg.planning.score.unvisited_radius_m, cfg.last_call_steps,
+                                         cfg.last_call_min_info, cfg.last_call_steps_per_m)
 
         def find_path(goal: np.ndarray, on: Plan = plan) -> np.ndarray | None:
             return self.timers.time("planner", plan_safe_path, on.graph, on.workspace, here, goal,

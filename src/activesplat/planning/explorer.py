@@ -200,6 +200,9 @@ class Explorer:
         workspace until the failures are forgotten (`collision_obstacle_m`; empty when off)."""
         self._goal_collisions: list[tuple[np.ndarray, int]] = []  # (goal, refusals on the way to it)
         self._path_start: np.ndarray | None = None  # where the current path began (`go_to`)
+        self.steps_left: int | None = None
+        """Actions left in the episode's budget, counting the next one; the loop sets it before every `act`
+        (None: unknown, e.g. a robot run without a budget)."""
         self._start_blocks: list[np.ndarray] = []
         """The spots of the latest paths refused ahead before their first forward move, in a row
         (`start_blocks`)."""

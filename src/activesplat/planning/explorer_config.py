@@ -196,6 +196,20 @@ class ExplorerConfig:
     sixteen runs -0.23), shaped on these runs; fresh medium-100..109 seed 1: 95.13 -> 95.20 % (eight of ten
     runs the same); so off (docs/benchmark.md "A route that keeps its order, on the houses whose far end
     was left for last")."""
+    last_call_steps: int | None = None
+    """A node's last call: once the steps left after walking to an open node that promises at least
+    `last_call_min_info` (its travel times `last_call_steps_per_m`) fall to this many, it goes first, over
+    the local stage too, while at least 60 would be left to look around there (ours; None = off). The
+    route leaves the far end of the house for last, and whether the steps still reach it depends on how
+    long the stops before it take (held-out medium-153 and -154 seed 1, fresh medium-105 seed 0 with the
+    arrival rule of `collision_arrive_m`: the east end 16 m away promised 24 at step 1387 while the
+    local stage took nodes promising 5-8; it was chosen at step 1948, too late to reach)."""
+    last_call_min_info: float = 20.0
+    """The information part (of 30) a node must promise for its last call (`last_call_steps`; ours)."""
+    last_call_steps_per_m: float = 20.0
+    """Actions per metre of travel for the last call's estimate (`last_call_steps`): 15.4 forward moves of
+    0.065 m and the turns on the way (paths in the medium houses take about 1.3 actions per forward move,
+    stops on the way included; ours)."""
     keep_promise_m: float | None = None
     """Remember what each node outside the agent's subregion promised (its information part) across
     replans, by floor position within this many metres, and rank it by at least that until the agent has
@@ -314,7 +328,7 @@ class ExplorerConfig:
     (docs/benchmark.md "A forward move the scene refuses")."""
     collision_fail_after: int = 2
     """With `collision_obstacle_m`: the refused forward moves on the way to one goal (within 0.3 m) after
-    which it is marked failed."""
+    which it is marked failed (ours)."""
     lookahead_m: float = 0.65
     """Re-check this much of the path ahead at every step (release: 10 forward steps)."""
     ahead_tolerance_m: float = 0.05
@@ -351,15 +365,18 @@ class ExplorerConfig:
                                          "escape_forward_steps", "lookahead_m", "ahead_tolerance_m",
                                          "unsampled_views", "unsampled_min_weight",
                                          "detour_min_info", "replan_log_top",
-                                         "panorama_height_m", "bridge_gain_m", "route_min_info"),
+                                         "panorama_height_m", "bridge_gain_m", "route_min_info",
+                                         "last_call_min_info"),
                      positive=("unsampled_radius_m", "unsampled_voxel_m", "commit_global_m", "route_memory_m",
                                "keep_promise_m", "postpone_once_m", "local_near_m", "neck_margin_m",
                                "cut_off_look_m", "way_back_m", "collision_obstacle_m",
-                               "collision_arrive_m"),
-                     at_least_one=("max_panoramas", "start_blocks", "collision_fail_after"),
+                               "collision_arrive_m", "last_call_steps_per_m"),
+                     at_least_one=("max_panoramas", "start_blocks", "collision_fail_after",
+                                   "last_call_steps"),
                      optional=("bridge_gain_m", "commit_global_m", "route_memory_m", "keep_promise_m",
                                "postpone_once_m", "local_near_m", "neck_margin_m", "cut_off_look_m",
-                               "way_back_m", "start_blocks", "collision_obstacle_m", "collision_arrive_m"))
+                               "way_back_m", "start_blocks", "collision_obstacle_m", "collision_arrive_m",
+                               "last_call_steps"))
         if self.tilt_within_deg is not None and not 0 <= self.tilt_within_deg <= 90:
             raise InvalidInputError(f"ExplorerConfig.tilt_within_deg must be in [0, 90] (or None = off), got "
                                     f"{self.tilt_within_deg}")

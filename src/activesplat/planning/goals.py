@@ -178,6 +178,31 @@ def local_then_global(scores: np.ndarray, info: np.ndarray, travel: np.ndarray, 
     return [i for i in ranked if worth[i]] + [i for i in ranked if not worth[i]]
 
 
+def last_call_first(order: list[int], plan: Plan, steps_left: int, visited: Sequence[np.ndarray],
+                    failed: Sequence[np.ndarray], radius: float, window: int, min_info: float,
+                    steps_per_m: float, look_steps: int = 60) -> list[int]:
+    """`order` with the node on its last call first (`ExplorerConfig.last_call_steps`): among the open nodes
+    that promise at least `min_info`, those whose arrival (their travel times `steps_per_m`) leaves between
+    `look_steps` and `window` of the `steps_left`; the one that promises most (ties: the nearer). A node
+    left for later would be out of reach before the budget ends. `order` itself when no node is on it."""
+    calls = []
+    for n in order:
+        info, travel = plan.info.get(n, 0.0), plan.travel.get(n, np.inf)
+        if info < min_info or not np.isfinite(travel):
+            continue
+        after = steps_left - travel * steps_per_m
+        if not look_steps <= after <= window:
+            continue
+        pos = np.asarray(plan.graph.nodes[n]["pos"], float)
+        unvisited, is_failed = node_state(pos, visited, failed, radius)
+        if unvisited and not is_failed:
+            calls.append(n)
+    if not calls:
+        return order
+    best = max(calls, key=lambda n: (plan.info[n], -plan.travel[n]))
+    return [best] + [n for n in order if n != best]
+
+
 def sampled_surface_term(poor: np.ndarray, cfg: ScoreConfig) -> np.ndarray:
     """The w_q information term of the candidates from their poorly sampled shares (`ScoreConfig.w_q`):
     relative to the largest share, or on the absolute scale of `ScoreConfig.quality_reference`."""
@@ -415,6 +440,6 @@ def select_rotation_targets(targets: Sequence[RotationTarget], yaw: float, pcfg:
     return [chosen[i] for i in order]
 
 
-__all__ = ["GoalRules", "closer_on_the_way", "distance_to_polyline", "goal_candidates", "local_then_global",
-           "node_state", "panorama_candidates", "rank_goals", "sampled_surface_term",
+__all__ = ["GoalRules", "closer_on_the_way", "distance_to_polyline", "goal_candidates", "last_call_first",
+           "local_then_global", "node_state", "panorama_candidates", "rank_goals", "sampled_surface_term",
            "select_rotation_targets", "tour_first", "worth_a_detour", "worth_a_visit"]
