@@ -88,7 +88,7 @@ def test_episode_folder_is_complete(episode):
         assert all(len(c["xz"]) == 2 and c["travel_m"] >= 0 for c in r["ranked"])
     failures = json.loads((out / "stops.json").read_text())["failures"]
     whys = ("no path", "no path, skipped", "blocked")
-    assert all(f["why"] in whys and len(f["goal"]) == 2 for f in failures)
+    assert all(f["why"] in whys and len(f["goal"]) == 2 and isinstance(f["refused"], bool) for f in failures)
     # poses are rigid transforms, camera 1.25 m above the floor
     R = ep.poses[:, :3, :3]
     assert np.allclose(R @ R.transpose(0, 2, 1), np.eye(3), atol=1e-6)

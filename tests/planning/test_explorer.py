@@ -244,7 +244,7 @@ def test_a_goal_with_no_path_is_skipped_for_the_replan_or_marked_failed_and_logg
     assert np.allclose(ex.plan.goal, pos[mid])
     assert len(ex.failed) == 1 and np.allclose(ex.failed[0], pos[far])
     assert ex.failures == [{"step": len(ex.visited) - 1, "goal": [round(float(v), 3) for v in pos[far]],
-                            "why": "no path", "failed_now": 1}]
+                            "why": "no path", "failed_now": 1, "refused": False}]
     # with retry_unreachable (the default) the goal is only skipped: not closed, logged as such
     ex = ActiveSplatExplorer(WORLD, 0.0, ExplorerConfig(workspace=WCFG, **OBSERVED_ONLY))
     _after_bootstrap(ex, obs)
@@ -444,6 +444,7 @@ def test_paths_refused_at_their_first_step_from_one_spot_make_the_agent_leave_it
         else:
             assert action == "move_forward" and causes[-1] == "escape"
             assert [f["why"] for f in ex.failures] == ["blocked"] * 3
+            assert not any(f["refused"] for f in ex.failures)  # refused ahead on the map, not by the scene
 
 
 def test_a_global_replan_stops_first_at_a_node_worth_a_detour(monkeypatch):
@@ -693,10 +694,11 @@ def test_a_refusal_on_the_way_marks_the_spot_and_keeps_the_goal_open_until_the_s
         ex.act(_obs(HERE, east, collided=True))
         assert ex.follower is None and ex.last_cause == "escape"
         if radius is None:
-            assert len(ex.failed) == 1 and ex.workspace_obstacles() == {}
+            assert len(ex.failed) == 1 and ex.workspace_obstacles() == {} and ex.failures[-1]["refused"]
             return
         assert len(ex.failed) == refusal - 1
         assert ex.failures[-1]["why"] == ("collision, kept" if refusal == 1 else "blocked")
+        assert ex.failures[-1]["refused"]
         marks = ex.workspace_obstacles()
         assert marks["obstacle_radius_m"] == 0.05 and len(marks["obstacles"]) == refusal
         ahead = WCFG.agent_radius + cfg.controller.forward_m

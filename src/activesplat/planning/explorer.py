@@ -186,8 +186,9 @@ class Explorer:
         self.failed: list[np.ndarray] = []
         self.failures: list[dict] = []
         """Every goal marked failed: step, goal (x, z), why ("no path" to it on the graph, or the path was
-        "blocked" ahead / a forward move refused) and the failed list's size then (the episode's
-        stops.json, under "failures"). A failed goal stays closed until no goal is left."""
+        "blocked" ahead / a forward move refused), the failed list's size then and whether the scene refused
+        a forward move (`refused`; else the map blocked the path ahead) (the episode's stops.json, under
+        "failures"). A failed goal stays closed until no goal is left."""
         self.dense_mapping = True
         self.last_panorama: Panorama | None = None
         self.queue: list[str] = []
@@ -390,18 +391,18 @@ class Explorer:
         self._start_blocks = []
         self._leave_spot(pose)
 
-    def _fail_goal(self) -> None:
+    def _fail_goal(self, refused: bool = False) -> None:
         if self.plan.goal is not None:
-            self._mark_failed(self.plan.goal, "blocked")
+            self._mark_failed(self.plan.goal, "blocked", refused)
         self.follower = None
 
-    def _mark_failed(self, goal: np.ndarray, why: str) -> None:
+    def _mark_failed(self, goal: np.ndarray, why: str, refused: bool = False) -> None:
         self.failed.append(goal)
-        self._log_failure(goal, why)
+        self._log_failure(goal, why, refused)
 
-    def _log_failure(self, goal: np.ndarray, why: str) -> None:
+    def _log_failure(self, goal: np.ndarray, why: str, refused: bool = False) -> None:
         self.failures.append({"step": len(self.visited) - 1, "goal": [round(float(v), 3) for v in goal],
-                              "why": why, "failed_now": len(self.failed)})
+                              "why": why, "failed_now": len(self.failed), "refused": refused})
 
     def workspace_obstacles(self) -> dict:
         """The `build_plan` arguments that mark the refused spots as obstacles (`collision_obstacle_m`)."""
@@ -432,9 +433,9 @@ class Explorer:
         else:
             self._goal_collisions[k] = (self._goal_collisions[k][0], count)
         if count >= self.cfg.collision_fail_after:
-            self._mark_failed(goal, "blocked")
+            self._mark_failed(goal, "blocked", refused=True)
         else:
-            self._log_failure(goal, "collision, kept")
+            self._log_failure(goal, "collision, kept", refused=True)
 
     def _mark_refused_spot(self, pose: np.ndarray) -> None:
         """Remember the floor one agent radius and one forward step ahead as an obstacle."""
@@ -467,7 +468,7 @@ class Explorer:
         if self._arrive_on_collision(pose):
             return
         if self.cfg.collision_obstacle_m is None:
-            self._fail_goal()
+            self._fail_goal(refused=True)
         else:
             self._collide_on_the_way(pose)
         self.rotation_targets = []
