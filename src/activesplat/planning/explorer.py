@@ -413,7 +413,7 @@ class Explorer:
 
     def forget_failures(self) -> None:
         """The fallback when no goal has a path: every failed goal gets a second chance, and the spots
-        refused on the way are forgotten (a refusal beside a jamb can close a door in the workspace)."""
+        refused on the way are forgotten (a spot marked in a narrow passage can close it in the workspace)."""
         self.failed.clear()
         self.collision_obstacles.clear()
         self._goal_collisions = []

@@ -317,7 +317,7 @@ class ExplorerConfig:
     show floor where a door jamb or a thin piece of furniture stands; the next path then avoids the spot
     instead of giving up the goal (fresh medium-105 seed 0: a refusal in the corridor, 4.7 m short of room
     4's door, closed the room for the rest of the run). 0.05 on fresh medium-100..109 seed 0: 86.32 ->
-    85.95 %; a spot marked in a door cuts the graph there (medium-104 -3.36), so off (docs/benchmark.md
+    85.95 %; a spot marked in a narrow passage closes it (medium-104 -3.36), so off (docs/benchmark.md
     "A forward move the scene refuses")."""
     collision_arrive_m: float | None = None
     """A forward move the scene refuses this near the goal counts as the arrival there: the rotation targets
