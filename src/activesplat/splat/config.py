@@ -393,10 +393,6 @@ class MapperConfig:
     merge_min_opacity: float = 0.5  # project: both at least this opaque
     merge_scale_ratio: float = 2.0  # project: in-plane radii within this factor of each other
 
-    # --- area budget (project; see class docstring "Area budget"): None = off (paper, release)
-    area_budget_slack: float | None = None  # project: a cell may exceed its cap by this share; None = off
-    area_budget_cell_m: float = 0.2  # project: the cells it is counted in (a multiple of 5 cm)
-
     # --- schedule (release): normal walking, and the denser look-around schedule
     schedule: Schedule = field(default_factory=lambda: Schedule(map_every=5, keyframe_every=5, iterations=2))
     dense_schedule: Schedule = field(default_factory=lambda: Schedule(map_every=2, keyframe_every=1,
@@ -454,10 +450,6 @@ class MapperConfig:
         if self.merge_voxel_m is not None and self.merge_voxel_m <= 0.0:
             raise InvalidInputError(f"MapperConfig.merge_voxel_m must be > 0 (or None = off), got "
                                     f"{self.merge_voxel_m}")
-        ratio = self.area_budget_cell_m / 0.05
-        if ratio < 1.0 - 1e-9 or abs(ratio - round(ratio)) > 1e-6:
-            raise InvalidInputError(f"MapperConfig.area_budget_cell_m must be a positive multiple of 0.05 m, "
-                                    f"got {self.area_budget_cell_m}")
         if self.merge_scale_ratio < 1.0 or not 0.0 <= self.merge_min_opacity < 1.0:
             raise InvalidInputError(f"MapperConfig needs merge_scale_ratio >= 1 and merge_min_opacity in "
                                     f"[0, 1), got {self.merge_scale_ratio} and {self.merge_min_opacity}")

@@ -10,8 +10,8 @@ Per accepted frame (``add_frame``), following the schedule of :class:`MapperConf
 4. densification, eq. 8: new Gaussians on the masked pixels;
 5. a few Adam iterations over the mapping window (best-overlap keyframes + last keyframe + current
    frame), loss eqs. 5-7;
-6. merging of alike Gaussians in the current view and the area budget (project rules, off by default),
-   pruning of near-transparent and oversized Gaussians, and the Gaussian cap;
+6. merging of alike Gaussians in the current view (a project rule, off by default), pruning of
+   near-transparent and oversized Gaussians, and the Gaussian cap;
 7. every ``keyframe_every`` frames, the frame joins the keyframe buffer.
 
 Input checks (:mod:`activesplat.splat.frames`): wrong shapes/dtypes, non-finite poses or colours raise
@@ -33,7 +33,6 @@ import torch
 
 from activesplat.errors import InvalidInputError
 from activesplat.geometry import voxel_keys
-from activesplat.splat.budget import ObservedSurface, worth
 from activesplat.splat.config import MapperConfig, Schedule
 from activesplat.splat.densify import (
     cap_mask,
@@ -77,7 +76,6 @@ class FrameStats:
     pruned: int = 0
     refreshed: int = 0  # coarse Gaussians made transparent for the coarse refresh (MapperConfig)
     merged: int = 0  # Gaussians merged into an alike one of the current view (MapperConfig "Merging")
-    budgeted: int = 0  # Gaussians removed by the area budget (MapperConfig "Area budget")
     loss: float | None = None
     ms: float = 0.0
     timings: dict[str, float] = field(default_factory=dict)
@@ -115,10 +113,6 @@ class Mapper:
         # are in the order they were added, so the first _sizes[0] rows are that many frames old or more)
         self._sizes: deque[int] = deque(maxlen=max(1, self.config.densify_represented_age))
         self._rng = np.random.default_rng(self.config.seed)
-        self.surface: ObservedSurface | None = None
-        """The observed surface the area budget counts (MapperConfig "Area budget"); None when it is off."""
-        if self.config.area_budget_slack is not None:
-            self.surface = ObservedSurface(self.config.area_budget_cell_m)
 
     # ------------------------------------------------------------------ rendering
     def render(self, pose, K=None, width: int | None = None, height: int | None = None,
@@ -297,10 +291,7 @@ class Mapper:
             touched[rows] = True
         merged = self._merge(current_rows)
         stats.merged = int(merged.numel())
-        budgeted = self._over_budget(depth, pose, candidates, current_rows, merged, before)
-        stats.budgeted = int(budgeted.numel())
-        stats.pruned = self._prune(torch.nonzero(touched, as_tuple=True)[0], pose, obs_depth, coarse,
-                                   torch.cat([merged, budgeted]))
+        stats.pruned = self._prune(torch.nonzero(touched, as_tuple=True)[0], pose, obs_depth, coarse, merged)
         clock.lap("prune")
 
     def _represented(self, pose: np.ndarray, obs_depth: torch.Tensor, rows: torch.Tensor | None
@@ -375,35 +366,6 @@ class Mapper:
                     self.gaussians.params[name][leaders] = value
         return rows[merge.absorbed]
 
-    def _over_budget(self, depth: np.ndarray, pose: np.ndarray, counted: torch.Tensor | None,
-                     current: torch.Tensor, absorbed: torch.Tensor, new_from: int) -> torch.Tensor:
-        """The area budget (MapperConfig "Area budget", :mod:`activesplat.splat.budget`): this frame's
-        observed depth joins the observed surface, then the rows to remove so that no cell of the view has
-        more Gaussians than its density allows. A cell counts the Gaussians of ``counted`` (the
-        view's frustum and the rows added since; default: the frustum) and loses only rows this frame added
-        (from row ``new_from`` on) that its view sees (``current``, the rows its depth does not hide): what
-        the map held before the frame stays. The ``absorbed`` rows (merged into others) neither count nor
-        go twice. Empty when it is off."""
-        if self.surface is None:
-            return current[:0]
-        self.surface.add(depth, pose, self.K)
-        rows = self._view_rows(pose, self.K, self.width, self.height) if counted is None else counted
-        if absorbed.numel():
-            rows = rows[~torch.isin(rows, absorbed)]
-            current = current[~torch.isin(current, absorbed)]
-        new = current[current >= new_from]  # rows are sorted: the frustum's, then those added since
-        p = self.gaussians.params
-        surface = self.surface
-
-        def whole(keys: np.ndarray) -> np.ndarray:
-            return surface.cells_in_view(keys, pose, self.K, self.width, self.height)
-
-        values = worth(p["log_scales"].index_select(0, new), p["opacity_logits"].index_select(0, new))
-        gone = surface.enforce(p["means"].detach().index_select(0, rows).cpu().numpy(),
-                               torch.searchsorted(rows, new).cpu().numpy(), values, whole,
-                               self.config.area_budget_slack)
-        return new[torch.from_numpy(gone).to(new.device)]
-
     def _append(self, raw: dict[str, torch.Tensor]) -> int:
         """Add new Gaussians to the map and their (zero) state to the optimiser."""
         if self.config.sparse_adam:
@@ -418,8 +380,7 @@ class Mapper:
         this frame; nothing else changed): transparent / oversized (:func:`prune_mask`) and floaters in
         the free space the current frame observes (:func:`free_space_mask`), and the ``retired`` rows of
         the coarse refresh; then the optional global cap (:func:`cap_mask`). The ``absorbed`` rows (merged
-        into others, :meth:`_merge`, or over the area budget, :meth:`_over_budget`) are removed as well but
-        not counted. Returns the number pruned."""
+        into others, :meth:`_merge`) are removed as well but not counted. Returns the number pruned."""
         cfg = self.config
         keep = torch.ones(len(self.gaussians), dtype=torch.bool, device=self.device)
         for gone in (retired, absorbed):
@@ -543,9 +504,6 @@ class Mapper:
         with np.load(directory / "keyframes.npz") as data:  # each data[key] decompresses: read once
             rgb, depth, pose, step = data["rgb"], data["depth"], data["pose"], data["step"]
         mapper.keyframes = [Keyframe(rgb[i], depth[i], pose[i], int(step[i])) for i in range(len(step))]
-        if mapper.surface is not None:  # the area budget's observed surface, again from the keyframes
-            for kf in mapper.keyframes:
-                mapper.surface.add(kf.depth, kf.pose, mapper.K)
         mapper.frames = int(meta["frames"])
         # the map's size over the last frames (the age rule); a folder without it: every row counts as old
         mapper._sizes.extend(meta.get("recent_sizes", [len(mapper.gaussians)] * mapper._sizes.maxlen))
