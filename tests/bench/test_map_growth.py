@@ -3,18 +3,37 @@
 from _bench import load_benchmark
 
 
-def test_rows_count_the_observed_surface_of_a_tiny_exploration(tmp_path):
+def _explore(out, steps: int) -> None:
     from activesplat.cli import parse_command
     from activesplat.config import ExploreCommand
     from activesplat.explore import explore_episode
 
-    growth = load_benchmark("map_growth")
-    cmd = parse_command(ExploreCommand, ["--scene", "small-0", "--steps", "40", "--sim.width", "64",
+    cmd = parse_command(ExploreCommand, ["--scene", "small-0", "--steps", str(steps), "--sim.width", "64",
                                          "--sim.height", "64", "--coverage.n-gt-points", "4000",
                                          "--coverage.batch-frames", "10", "--backend", "numba"], "explore")
-    explore_episode(cmd.run, out=tmp_path, progress=False)
+    explore_episode(cmd.run, out=out, progress=False)
+
+
+def test_rows_count_the_observed_surface_of_a_tiny_exploration(tmp_path):
+    growth = load_benchmark("map_growth")
+    _explore(tmp_path, 40)
     rows = growth.growth_rows(tmp_path, every=20)
     assert [r["step"] for r in rows] == [20, 40]
     assert 0 < rows[0]["observed_m2"] <= rows[1]["observed_m2"]  # the area only grows
     for r in rows:
         assert r["gaussians"] > 0 and abs(r["per_m2"] * r["observed_m2"] / r["gaussians"] - 1) < 1e-9
+
+
+def test_the_growth_after_a_shorter_run_is_split_by_cells_whose_surface_grew(tmp_path):
+    from activesplat.splat.ply import load_ply
+
+    growth = load_benchmark("map_growth")
+    _explore(tmp_path / "short", 20)
+    _explore(tmp_path / "long", 40)
+    g = growth.cell_growth(tmp_path / "short", tmp_path / "long", cell_m=0.2, caps=(1e3, 1e9))
+    sizes = [len(load_ply(tmp_path / run / "gaussians.ply")) for run in ("short", "long")]
+    assert g["step"] == 20 and [g["gaussians_then"], g["gaussians_now"]] == sizes
+    split = g["added_where_surface_grew"] + g["added_elsewhere"] + g["added_outside_observed"]
+    assert split == sizes[1] - sizes[0] and g["area_growth"] >= 0.0
+    # with no cap that binds, the excess is the map's growth against the surface's
+    assert abs(g["excess_with_cap"][1e9] - (sizes[1] / sizes[0]) / (1 + g["area_growth"]) + 1) < 1e-9
