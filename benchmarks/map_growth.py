@@ -121,6 +121,9 @@ def main() -> None:
     parser.add_argument("--cell-m", type=float, default=0.2,
                         help="cell size for --earlier (a multiple of 5 cm)")
     args = parser.parse_args()
+    for folder in (args.episode, args.earlier):
+        if folder is not None and not (folder / "metrics.json").is_file():
+            sys.exit(f"map_growth: {folder} has no metrics.json: not a finished explore episode")
     print("| step | observed m² | completion % | Gaussians | per m² |")
     print("|---|---|---|---|---|")
     for r in growth_rows(args.episode, args.every):
