@@ -101,6 +101,18 @@ def growth_rows(episode: Path, every: int) -> list[dict]:
     return rows
 
 
+def check_earlier(earlier: Path, later: Path, cell_m: float) -> None:
+    """Exit with a message unless ``earlier`` is a shorter run whose actions begin ``later``'s and
+    ``cell_m`` is a positive multiple of 5 cm."""
+    ratio = cell_m / SURFACE_VOXEL_M
+    if ratio < 0.999 or abs(ratio - round(ratio)) > 1e-6:
+        sys.exit(f"map_growth: --cell-m must be a positive multiple of {SURFACE_VOXEL_M} m, got {cell_m}")
+    first, second = ((folder / "actions.txt").read_text().split() for folder in (earlier, later))
+    if len(first) >= len(second) or second[: len(first)] != first:
+        sys.exit(f"map_growth: {earlier} must be a shorter run whose actions begin those of {later} "
+                 f"({len(first)} and {len(second)} actions)")
+
+
 def print_cell_growth(g: dict) -> None:
     print(f"\nGaussians added after step {g['step']:,}: {g['gaussians_now'] - g['gaussians_then']:+,} "
           f"({g['gaussians_now'] / g['gaussians_then'] - 1:+.1%}; observed surface {g['area_growth']:+.1%})")
@@ -124,6 +136,8 @@ def main() -> None:
     for folder in (args.episode, args.earlier):
         if folder is not None and not (folder / "metrics.json").is_file():
             sys.exit(f"map_growth: {folder} has no metrics.json: not a finished explore episode")
+    if args.earlier is not None:
+        check_earlier(args.earlier, args.episode, args.cell_m)
     print("| step | observed m² | completion % | Gaussians | per m² |")
     print("|---|---|---|---|---|")
     for r in growth_rows(args.episode, args.every):

@@ -1,5 +1,6 @@
 """benchmarks/map_growth.py: the map's size against the surface observed, on a tiny real exploration."""
 
+import pytest
 from _bench import load_benchmark
 
 
@@ -37,3 +38,19 @@ def test_the_growth_after_a_shorter_run_is_split_by_cells_whose_surface_grew(tmp
     assert split == sizes[1] - sizes[0] and g["area_growth"] >= 0.0
     # with no cap that binds, the excess is the map's growth against the surface's
     assert abs(g["excess_with_cap"][1e9] - (sizes[1] / sizes[0]) / (1 + g["area_growth"]) + 1) < 1e-9
+
+
+def test_an_earlier_run_that_does_not_begin_the_later_one_is_refused(tmp_path):
+    growth = load_benchmark("map_growth")
+    runs = {"short": "turn_left\nmove_forward\n", "long": "turn_left\nmove_forward\nturn_left\n",
+            "other": "turn_right\n"}
+    for run, actions in runs.items():
+        (tmp_path / run).mkdir()
+        (tmp_path / run / "actions.txt").write_text(actions)
+    growth.check_earlier(tmp_path / "short", tmp_path / "long", 0.2)  # a prefix: accepted
+    with pytest.raises(SystemExit, match="shorter run whose actions begin"):
+        growth.check_earlier(tmp_path / "other", tmp_path / "long", 0.2)
+    with pytest.raises(SystemExit, match="shorter run whose actions begin"):
+        growth.check_earlier(tmp_path / "long", tmp_path / "short", 0.2)
+    with pytest.raises(SystemExit, match="multiple of 0.05"):
+        growth.check_earlier(tmp_path / "short", tmp_path / "long", 0.07)
