@@ -44,15 +44,17 @@ def first_seen(episode: Path) -> tuple[np.ndarray, np.ndarray]:
 
 
 def cell_growth(earlier: Path, later: Path, cell_m: float = 0.2,
-                caps: tuple[float, ...] = (600.0, 1000.0, 3000.0)) -> dict:
+                caps: tuple[float, ...] = (600.0, 1000.0, 3000.0),
+                seen: tuple[np.ndarray, np.ndarray] | None = None) -> dict:
     """Where the Gaussians of ``later``'s final map that ``earlier``'s final map lacks lie (module
     docstring): counts per cell of ``cell_m`` (a multiple of 5 cm), and for each cap B the growth of
     sum(min(count, B x observed m²)) over the cells against the growth of the observed surface (a cell
-    with no surface observed by the earlier step is not capped there)."""
+    with no surface observed by the earlier step is not capped there). ``seen``: ``first_seen(later)``
+    when the caller has it already (it renders every second frame)."""
     from activesplat.splat.ply import load_ply
 
     step = int(json.loads((earlier / "metrics.json").read_text())["steps"])
-    voxels, steps = first_seen(later)
+    voxels, steps = first_seen(later) if seen is None else seen
     ratio = int(round(cell_m / SURFACE_VOXEL_M))
     cells, inverse = np.unique(np.floor_divide(voxels, ratio), axis=0, return_inverse=True)
     inverse = inverse.reshape(-1)
@@ -86,11 +88,11 @@ def cell_growth(earlier: Path, later: Path, cell_m: float = 0.2,
             "excess_with_cap": capped}
 
 
-def growth_rows(episode: Path, every: int) -> list[dict]:
+def growth_rows(episode: Path, every: int, seen: tuple[np.ndarray, np.ndarray] | None = None) -> list[dict]:
     """One row per `every` steps of the episode's completion curve: step, observed m², completion %,
-    Gaussians and Gaussians per m² observed."""
+    Gaussians and Gaussians per m² observed. ``seen``: ``first_seen(episode)`` when the caller has it."""
     at = {p["step"]: p for p in json.loads((episode / "metrics.json").read_text())["curve"]}
-    _voxels, first = first_seen(episode)
+    _voxels, first = first_seen(episode) if seen is None else seen
     rows = []
     for step in sorted(at):
         if step > 0 and step % every == 0:
@@ -140,11 +142,12 @@ def main() -> None:
         check_earlier(args.earlier, args.episode, args.cell_m)
     print("| step | observed m² | completion % | Gaussians | per m² |")
     print("|---|---|---|---|---|")
-    for r in growth_rows(args.episode, args.every):
+    seen = first_seen(args.episode)  # the slow part (a render per second frame), done once
+    for r in growth_rows(args.episode, args.every, seen):
         print(f"| {r['step']} | {r['observed_m2']:.1f} | {r['completion_pct']:.2f} | {r['gaussians']:,} | "
               f"{r['per_m2']:.0f} |")
     if args.earlier is not None:
-        print_cell_growth(cell_growth(args.earlier, args.episode, args.cell_m))
+        print_cell_growth(cell_growth(args.earlier, args.episode, args.cell_m, seen=seen))
 
 
 if __name__ == "__main__":
