@@ -51,6 +51,7 @@ def cell_growth(earlier: Path, later: Path, cell_m: float = 0.2,
     sum(min(count, B x observed m²)) over the cells against the growth of the observed surface (a cell
     with no surface observed by the earlier step is not capped there). ``seen``: ``first_seen(later)``
     when the caller has it already (it renders every second frame)."""
+    from activesplat.geometry import in_sorted, voxel_keys
     from activesplat.splat.ply import load_ply
 
     step = int(json.loads((earlier / "metrics.json").read_text())["steps"])
@@ -61,16 +62,15 @@ def cell_growth(earlier: Path, later: Path, cell_m: float = 0.2,
     area_then = np.bincount(inverse, weights=(steps <= step) * SURFACE_VOXEL_M ** 2, minlength=len(cells))
     area_now = np.bincount(inverse, minlength=len(cells)) * SURFACE_VOXEL_M ** 2
 
+    cell_keys = voxel_keys(cells + 0.5, 1.0)  # one int64 per integer cell index (np.unique sorted them)
+
     def counts(episode: Path) -> tuple[np.ndarray, int]:
         means = load_ply(episode / "gaussians.ply").params["means"].detach().numpy()
         index = np.floor_divide(np.floor(means / SURFACE_VOXEL_M).astype(np.int64), ratio)
-        both, which = np.unique(np.vstack([cells, index]), axis=0, return_inverse=True)
-        which = which.reshape(-1)
-        position = np.full(len(both), -1)
-        position[which[: len(cells)]] = np.arange(len(cells))
-        mine = position[which[len(cells):]]
-        inside = mine >= 0
-        return np.bincount(mine[inside], minlength=len(cells)), int((~inside).sum())
+        keys = voxel_keys(index + 0.5, 1.0)
+        inside = in_sorted(cell_keys, keys)
+        mine = np.searchsorted(cell_keys, keys[inside])
+        return np.bincount(mine, minlength=len(cells)), int((~inside).sum())
 
     (then, out_then), (now, out_now) = counts(earlier), counts(later)
     grew = area_now > area_then

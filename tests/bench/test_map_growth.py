@@ -15,24 +15,30 @@ def _explore(out, steps: int) -> None:
     explore_episode(cmd.run, out=out, progress=False)
 
 
-def test_rows_count_the_observed_surface_of_a_tiny_exploration(tmp_path):
+@pytest.fixture(scope="module")
+def run_40(tmp_path_factory):
+    """A 40-step exploration, shared by the tests that read one (explored once per module)."""
+    out = tmp_path_factory.mktemp("long")
+    _explore(out, 40)
+    return out
+
+
+def test_rows_count_the_observed_surface_of_a_tiny_exploration(run_40):
     growth = load_benchmark("map_growth")
-    _explore(tmp_path, 40)
-    rows = growth.growth_rows(tmp_path, every=20)
+    rows = growth.growth_rows(run_40, every=20)
     assert [r["step"] for r in rows] == [20, 40]
     assert 0 < rows[0]["observed_m2"] <= rows[1]["observed_m2"]  # the area only grows
     for r in rows:
         assert r["gaussians"] > 0 and abs(r["per_m2"] * r["observed_m2"] / r["gaussians"] - 1) < 1e-9
 
 
-def test_the_growth_after_a_shorter_run_is_split_by_cells_whose_surface_grew(tmp_path):
+def test_the_growth_after_a_shorter_run_is_split_by_cells_whose_surface_grew(tmp_path, run_40):
     from activesplat.splat.ply import load_ply
 
     growth = load_benchmark("map_growth")
-    _explore(tmp_path / "short", 20)
-    _explore(tmp_path / "long", 40)
-    g = growth.cell_growth(tmp_path / "short", tmp_path / "long", cell_m=0.2, caps=(1e3, 1e9))
-    sizes = [len(load_ply(tmp_path / run / "gaussians.ply")) for run in ("short", "long")]
+    _explore(tmp_path, 20)
+    g = growth.cell_growth(tmp_path, run_40, cell_m=0.2, caps=(1e3, 1e9))
+    sizes = [len(load_ply(run / "gaussians.ply")) for run in (tmp_path, run_40)]
     assert g["step"] == 20 and [g["gaussians_then"], g["gaussians_now"]] == sizes
     split = g["added_where_surface_grew"] + g["added_elsewhere"] + g["added_outside_observed"]
     assert split == sizes[1] - sizes[0] and g["area_growth"] >= 0.0
