@@ -161,6 +161,27 @@ def test_a_goal_the_agent_stands_on_is_skipped(monkeypatch):
     assert not ex.dense_mapping  # travelling
 
 
+def test_goals_are_ranked_flat_until_the_given_step_and_hierarchically_after(monkeypatch):
+    """`flat_until_step`: the replans before that step rank as `no-hp` does, the later ones local-then-global;
+    unset, every replan is hierarchical."""
+    ws = extract_workspace(corridor(), HERE, WCFG)
+    graph = build_voronoi_graph(ws, WCFG)
+    far = max(graph.nodes, key=lambda n: graph.nodes[n]["pos"][0])
+    monkeypatch.setattr(explorer_module, "build_plan", lambda *a, **k: Plan(workspace=ws, graph=graph))
+    seen = []  # rules.hierarchical of each replan (rank_goals' ninth argument)
+    monkeypatch.setattr(explorer_module, "rank_goals",
+                        lambda *a, **k: seen.append(a[8].hierarchical) or [far])
+    obs = _obs(HERE)
+    for flat_until, expected in ((None, True), (80, False), (73, True)):
+        ex = ActiveSplatExplorer(WORLD, 0.0, ExplorerConfig(workspace=WCFG, flat_until_step=flat_until))
+        _after_bootstrap(ex, obs)  # 72 actions: the first replan comes at the 73rd step
+        seen.clear()
+        ex.act(obs)
+        assert len(ex.visited) == 73 and seen == [expected], (flat_until, seen)
+    with pytest.raises(InvalidInputError, match="flat_until_step"):
+        ExplorerConfig(flat_until_step=0)
+
+
 def test_a_multi_connected_stop_takes_its_own_view_budget_and_is_counted_as_such(monkeypatch):
     import networkx as nx
 

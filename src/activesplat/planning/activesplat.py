@@ -6,6 +6,7 @@ multi-connected nodes. The shared behaviour (bootstrap, path following, escapes)
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -75,6 +76,8 @@ class ActiveSplatExplorer(Explorer):
         plan = self.plan = build_plan(self.world.gaussians, self.floor_height, here, cfg.workspace,
                                       self.timers, **self.workspace_obstacles())
         rules = goal_rules(cfg)
+        if cfg.flat_until_step is not None and len(self.visited) < cfg.flat_until_step:
+            rules = dataclasses.replace(rules, hierarchical=False)
         grown: Plan | None = None  # the floor grown into unknown, built when a node first has no path
 
         def grown_floor(timers: Timers = self.timers) -> Plan:
