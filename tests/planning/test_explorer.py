@@ -182,31 +182,6 @@ def test_goals_are_ranked_flat_until_the_given_step_and_hierarchically_after(mon
         ExplorerConfig(flat_until_step=0)
 
 
-def test_node_scores_count_front_faces_only_once_the_given_share_of_the_budget_is_spent(monkeypatch):
-    """`front_faces_scores_after`: the replans from that share of the step budget on score nodes with front
-    faces only; before it, and without a known budget, with the panorama's own setting."""
-    ws = extract_workspace(corridor(), HERE, WCFG)
-    graph = build_voronoi_graph(ws, WCFG)
-    far = max(graph.nodes, key=lambda n: graph.nodes[n]["pos"][0])
-    monkeypatch.setattr(explorer_module, "build_plan", lambda *a, **k: Plan(workspace=ws, graph=graph))
-    seen = []  # planning.panorama.front_faces_scores of each replan (rank_goals' seventh argument)
-    monkeypatch.setattr(explorer_module, "rank_goals",
-                        lambda *a, **k: seen.append(a[6].panorama.front_faces_scores) or [far])
-    obs = _obs(HERE)
-    # the first replan comes at the 73rd step; steps_left counts that step: 73 + 28 - 1 = 100 in all
-    cases = ((None, 28, False), (0.73, 28, True), (0.74, 28, False), (0.5, None, False))
-    for after, steps_left, expected in cases:
-        ex = ActiveSplatExplorer(WORLD, 0.0, ExplorerConfig(workspace=WCFG, front_faces_scores_after=after))
-        _after_bootstrap(ex, obs)
-        ex.steps_left = steps_left
-        seen.clear()
-        ex.act(obs)
-        assert len(ex.visited) == 73 and seen == [expected], (after, steps_left, seen)
-        assert ex.budget_spent() == (None if steps_left is None else 0.73)
-    with pytest.raises(InvalidInputError, match="front_faces_scores_after"):
-        ExplorerConfig(front_faces_scores_after=1.5)
-
-
 def test_a_multi_connected_stop_takes_its_own_view_budget_and_is_counted_as_such(monkeypatch):
     import networkx as nx
 

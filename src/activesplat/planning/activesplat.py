@@ -78,11 +78,6 @@ class ActiveSplatExplorer(Explorer):
         rules = goal_rules(cfg)
         if cfg.flat_until_step is not None and len(self.visited) < cfg.flat_until_step:
             rules = dataclasses.replace(rules, hierarchical=False)
-        planning = cfg.planning
-        spent, late = self.budget_spent(), cfg.front_faces_scores_after
-        if late is not None and spent is not None and spent >= late:  # back faces read as unseen from here on
-            planning = dataclasses.replace(planning, panorama=dataclasses.replace(planning.panorama,
-                                                                                  front_faces_scores=True))
         grown: Plan | None = None  # the floor grown into unknown, built when a node first has no path
 
         def grown_floor(timers: Timers = self.timers) -> Plan:
@@ -96,7 +91,7 @@ class ActiveSplatExplorer(Explorer):
 
         goal_order = self.timers.time("position_selection", rank_goals, plan, here,
                                       snapshot_render(self.world), self.floor_height, self.visited,
-                                      self.failed, planning, cfg.workspace, rules, self.rng,
+                                      self.failed, cfg.planning, cfg.workspace, rules, self.rng,
                                       self.observed, self.promises, self.commitment, self.route_memory,
                                       no_path_travel if cfg.neck_travel else None)
 

@@ -215,13 +215,6 @@ class Explorer:
         actions by cause (where the rotations go)."""
         self.enqueue(bootstrap_actions(self.cfg), "bootstrap")
 
-    def budget_spent(self) -> float | None:
-        """Share of the episode's step budget taken so far, this step included (None: no budget known)."""
-        if self.steps_left is None:
-            return None
-        taken = len(self.visited)
-        return taken / max(taken + self.steps_left - 1, 1)
-
     # ------------------------------------------------------------------ the loop's interface
     def observe_mapping(self, obs: Any, K: np.ndarray) -> None:
         """Called after the mapper processed `obs`: track its high-loss samples (eq. 10), and with the w_q

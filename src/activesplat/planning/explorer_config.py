@@ -351,13 +351,6 @@ class ExplorerConfig:
     39.1 %; fresh medium-100..107 seed 0 +0.42 (85.32 -> 85.74 %, standard error 0.34), 69.8 -> 73.4 % of
     the ceiling at step 1000, rotations 46.7 -> 39.5 %. Off: it lost on the tuning houses
     (docs/benchmark.md "No-hp first, the hierarchy after")."""
-    front_faces_scores_after: float | None = None
-    """Once this share of the step budget is spent, the panoramas that score candidate nodes count only
-    surfaces seen from the side that observed them (`PanoramaConfig.front_faces_scores` from then on; ours;
-    None = the panorama's own setting for the whole episode). Late in an episode what is left unseen is
-    mostly the far side of walls and rooms looked into from their door; with every Gaussian's opacity those
-    read as seen. From the start the same scores spend the steps unevenly (docs/benchmark.md "Front
-    faces"). Needs the loop to tell the explorer its steps left (`Explorer.steps_left`)."""
     rotations: bool = True
     """On-the-spot rotations toward panorama / high-loss targets on arrival (paper sec. III-B); off for
     `position`."""
@@ -386,13 +379,12 @@ class ExplorerConfig:
                                "keep_promise_m", "postpone_once_m", "local_near_m", "neck_margin_m",
                                "cut_off_look_m", "way_back_m", "collision_obstacle_m",
                                "collision_arrive_m", "last_call_steps_per_m"),
-                     unit=("front_faces_scores_after",),
                      at_least_one=("max_panoramas", "start_blocks", "collision_fail_after",
                                    "last_call_steps", "flat_until_step"),
                      optional=("bridge_gain_m", "commit_global_m", "route_memory_m", "keep_promise_m",
                                "postpone_once_m", "local_near_m", "neck_margin_m", "cut_off_look_m",
                                "way_back_m", "start_blocks", "collision_obstacle_m", "collision_arrive_m",
-                               "last_call_steps", "flat_until_step", "front_faces_scores_after"))
+                               "last_call_steps", "flat_until_step"))
         if self.tilt_within_deg is not None and not 0 <= self.tilt_within_deg <= 90:
             raise InvalidInputError(f"ExplorerConfig.tilt_within_deg must be in [0, 90] (or None = off), got "
                                     f"{self.tilt_within_deg}")
