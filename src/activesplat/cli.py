@@ -264,6 +264,12 @@ def _cmd_robot(args: argparse.Namespace) -> int:
 
 
 # --------------------------------------------------------------------------- view / benchmark
+def _cmd_compare(args: argparse.Namespace) -> int:
+    from activesplat.bench.compare import compare_from_args
+
+    return compare_from_args(args)
+
+
 def _cmd_view(args: argparse.Namespace) -> int:
     from activesplat.viz.viewer import view_from_args
 
@@ -408,6 +414,18 @@ def build_parser() -> argparse.ArgumentParser:
     p_robot.add_argument("--overwrite", action="store_true")
     p_robot.add_argument("--no-progress", action="store_true")
     p_robot.set_defaults(func=_cmd_robot)
+
+    # compare
+    p_cmp = sub.add_parser("compare", help="two benchmark roots (or two policies of one) run by run: the "
+                           "mean difference and its paired standard error")
+    p_cmp.add_argument("base", help="benchmark root of the reference runs (ROOT/<scene>/<policy>/s<seed>)")
+    p_cmp.add_argument("new", help="benchmark root of the runs to compare with them (may be BASE itself)")
+    p_cmp.add_argument("--policy", default="activesplat", help="policy of NEW's runs (default activesplat)")
+    p_cmp.add_argument("--base-policy", default=None, help="policy of BASE's runs (default: --policy)")
+    p_cmp.add_argument("--ceilings", default=None,
+                       help="a folder with <scene>/sweep.json ceilings, when neither root has them")
+    p_cmp.add_argument("--out", default=None, help="also write the markdown table to this file")
+    p_cmp.set_defaults(func=_cmd_compare)
 
     # view
     p_view = sub.add_parser("view", help="serve a viser web viewer of a finished episode")
