@@ -5,7 +5,7 @@ import json
 
 import pytest
 
-from activesplat.bench.compare import at_step, compare_report, pair_runs, read_ceilings
+from activesplat.bench.compare import _signed, at_step, compare_report, pair_runs, read_ceilings
 from activesplat.cli import main
 
 
@@ -71,6 +71,7 @@ def test_sweep_ceilings_give_the_share_of_the_ceiling_and_the_worst_room_of_its_
     assert "1 higher, 0 lower, 0 the same);" in md
     assert at_step({"curve": [{"step": 0, "completion_ratio_pct": 1.0}]}, 10) == 1.0
     assert at_step({"curve": []}, 10) is None
+    assert (_signed(-0.001), _signed(-1.234), _signed(0.5)) == ("+0.00", "-1.23", "+0.50")  # no "-0.00"
 
 
 @pytest.mark.parametrize("setup, argv, needle", [

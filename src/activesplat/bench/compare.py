@@ -156,6 +156,11 @@ def _fmt(v, d: int) -> str:
     return "n/a" if v is None else f"{v:.{d}f}"
 
 
+def _signed(v: float) -> str:
+    """+1.23 / -1.23, and +0.00 for what rounds to zero (no "-0.00")."""
+    return f"{v if round(v, 2) else 0.0:+.2f}"
+
+
 def _mean(values) -> float | None:
     values = [v for v in values if v is not None]
     return float(np.mean(values)) if values else None
@@ -179,22 +184,22 @@ def compare_report(pairs: list[Pair], ceilings: dict[str, dict] | None = None, b
         same = {True: "yes", False: "no", None: "n/a"}[p.same_actions]
         lines.append("| " + " | ".join([p.scene, str(p.seed),
                                         *(f"{_fmt(b[k], d)} → {_fmt(n[k], d)}" for k, _, d in cols),
-                                        f"{p.delta:+.2f}", same]) + " |")
+                                        _signed(p.delta), same]) + " |")
     # counts (rooms entered) average to fractions
     means = [f"{_fmt(_mean(b[k] for _, b, _ in rows), d or 2)} → "
              f"{_fmt(_mean(n[k] for _, _, n in rows), d or 2)}" for k, _, d in cols]
     deltas = np.array([p.delta for p in pairs])
-    lines.append("| " + " | ".join([f"**mean of {len(pairs)}**", "", *means, f"**{deltas.mean():+.2f}**", ""])
-                 + " |")
+    mean_row = [f"**mean of {len(pairs)}**", "", *means, f"**{_signed(deltas.mean())}**", ""]
+    lines.append("| " + " | ".join(mean_row) + " |")
     same = [abs(p.delta) < SAME_TOL_PCT for p in pairs]
     higher = sum(1 for p, s in zip(pairs, same, strict=True) if not s and p.delta > 0)
     lower = sum(1 for p, s in zip(pairs, same, strict=True) if not s and p.delta < 0)
     se = float(deltas.std(ddof=1) / math.sqrt(len(deltas))) if len(deltas) > 1 else None
     identical = sum(1 for p, s in zip(pairs, same, strict=True) if s and p.same_actions)
-    lines += ["", f"Completion, NEW − BASE: **{deltas.mean():+.2f} points** (paired standard error "
+    lines += ["", f"Completion, NEW − BASE: **{_signed(deltas.mean())} points** (paired standard error "
               f"{_fmt(se, 2)}; {higher} higher, {lower} lower, {sum(same)} the same"
               f"{f', {identical} of them with the same actions' if identical else ''}"
-              f"); lowest {deltas.min():+.2f}, highest {deltas.max():+.2f}."]
+              f"); lowest {_signed(deltas.min())}, highest {_signed(deltas.max())}."]
     if se is not None and se > 0:
         lines.append(f"The mean difference is {abs(deltas.mean()) / se:.1f} standard errors from zero.")
     if unpaired:
