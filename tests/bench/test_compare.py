@@ -61,12 +61,16 @@ def test_sweep_ceilings_give_the_share_of_the_ceiling_and_the_worst_room_of_its_
     (tops / "medium-0" / "sweep.json").write_text(json.dumps({
         "completion_ratio_pct": 88.0, "rooms": {"room 1": {"completion_ratio_pct": 90.0, "points": 1000},
                                                 "room 2": {"completion_ratio_pct": 50.0, "points": 1000}}}))
+    for root, psnr in ((base, 28.0), (new, 29.5)):  # render-eval's numbers, when both have them
+        (root / "medium-0" / "activesplat" / "s0" / "render_metrics.json").write_text(json.dumps({
+            "test": {"psnr": psnr, "lpips": 0.25, "depth_l1_cm": 4.0}, "train": {"psnr": psnr + 3}}))
     pairs, _ = pair_runs(base, new)
     ceilings = read_ceilings({"medium-0"}, [new, base, tops])
     md = compare_report(pairs, ceilings)
     # of ceiling 80 / 88 -> 90.9 %, 100 %; at step 1000 40 / 44 of 88; worst room 88.9 / 90 % of its ceiling
     assert "| medium-0 | 0 | 80.00 → 88.00 | 90.9 → 100.0 | 40.00 → 44.00 | 45.5 → 50.0 |" in md
-    assert "| 88.9 → 90.0 | +8.00 | yes |" in md and "room's own sweep ceiling" in md
+    assert "| 88.9 → 90.0 | 28.00 → 29.50 | 0.250 → 0.250 | 4.00 → 4.00 | 31.00 → 32.50 | +8.00 | yes |" in md
+    assert "room's own sweep ceiling" in md
     # the same actions with another completion (other settings) is not the same run
     assert "1 higher, 0 lower, 0 the same);" in md
     assert at_step({"curve": [{"step": 0, "completion_ratio_pct": 1.0}]}, 10) == 1.0

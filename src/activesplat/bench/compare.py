@@ -13,6 +13,8 @@ and how many runs are higher, lower, or the same; runs whose action logs are byt
 counted as the same run. With a scene's sweep ceiling (ROOT/<scene>/sweep.json as `activesplat benchmark`
 caches it, in either root or in `--ceilings DIR`) it adds the share of the ceiling and the worst room
 against the room's own ceiling; without one, the worst room is the lowest share of a room's own points.
+Runs with a render_metrics.json (`activesplat render-eval`) add the test and train PSNR, the test LPIPS
+and depth L1 of their maps.
 """
 
 from __future__ import annotations
@@ -41,6 +43,9 @@ class Pair:
     new: dict
     same_actions: bool | None
     """Whether both action logs are byte for byte the same (None: a log is missing)."""
+    base_render: dict | None = None
+    new_render: dict | None = None
+    """The runs' render_metrics.json (`activesplat render-eval`), where there is one."""
 
     @property
     def delta(self) -> float:
@@ -92,10 +97,19 @@ def pair_runs(base_root: str | Path, new_root: str | Path, policy: str = "active
         if b.get("steps") != n.get("steps"):
             raise InvalidInputError(f"{scene} seed {seed}: BASE ran {b.get('steps')} steps and NEW "
                                     f"{n.get('steps')}; compare runs of the same budget")
-        pairs.append(Pair(scene, seed, b, n, _same_actions(base[(scene, seed)], new[(scene, seed)])))
+        pairs.append(Pair(scene, seed, b, n, _same_actions(base[(scene, seed)], new[(scene, seed)]),
+                          _render_metrics(base[(scene, seed)]), _render_metrics(new[(scene, seed)])))
     unpaired = [f"only in BASE: {s} seed {d}" for s, d in sorted(set(base) - set(new))]
     unpaired += [f"only in NEW: {s} seed {d}" for s, d in sorted(set(new) - set(base))]
     return pairs, unpaired
+
+
+def _render_metrics(out: Path) -> dict | None:
+    path = out / "render_metrics.json"
+    try:
+        return json.loads(path.read_text()) if path.is_file() else None
+    except ValueError:
+        return None
 
 
 def _names(runs: dict) -> str:
@@ -123,8 +137,9 @@ def at_step(metrics: dict, step: int) -> float | None:
     return float(points[-1]["completion_ratio_pct"]) if points else None
 
 
-def _measures(metrics: dict, ceiling: dict | None) -> dict:
-    """The compared measures of one run; None where the run does not have one."""
+def _measures(metrics: dict, ceiling: dict | None, render: dict | None = None) -> dict:
+    """The compared measures of one run (`render`: its render_metrics.json); None where the run does not
+    have one."""
     from activesplat.eval.behaviour import relative_to_ceiling
 
     steps = int(metrics.get("steps") or 0)
@@ -142,13 +157,17 @@ def _measures(metrics: dict, ceiling: dict | None) -> dict:
         out["of_ceiling"] = rel.get("of_ceiling_pct")
         out["half_of_ceiling"] = None if half is None or top <= 0 else 100.0 * half / top
         out["worst"] = rel.get("worst_room_of_ceiling_pct", out["worst"])
+    for split in ("test", "train"):
+        for key in ("psnr", "lpips", "depth_l1_cm"):
+            out[f"{split}_{key}"] = ((render or {}).get(split) or {}).get(key)
     return out
 
 
 COLUMNS = (("completion", "completion %", 2), ("of_ceiling", "of ceiling %", 1),
            ("half", "at half the steps %", 2), ("half_of_ceiling", "at half, of ceiling %", 1),
            ("rotations", "rotations %", 1), ("path", "path m", 1), ("rooms", "rooms entered", 0),
-           ("worst", "worst room %", 1))
+           ("worst", "worst room %", 1), ("test_psnr", "test PSNR dB", 2), ("test_lpips", "test LPIPS", 3),
+           ("test_depth_l1_cm", "test depth L1 cm", 2), ("train_psnr", "train PSNR dB", 2))
 """(measure, column, decimals) of the comparison table; a column no run has is left out."""
 
 
@@ -171,8 +190,8 @@ def compare_report(pairs: list[Pair], ceilings: dict[str, dict] | None = None, b
     """Markdown: one row per pair (BASE -> NEW for each measure, the completion's difference), the means,
     and the summary of the completion's differences."""
     ceilings = ceilings or {}
-    rows = [(p, _measures(p.base, ceilings.get(p.scene)), _measures(p.new, ceilings.get(p.scene)))
-            for p in pairs]
+    rows = [(p, _measures(p.base, ceilings.get(p.scene), p.base_render),
+             _measures(p.new, ceilings.get(p.scene), p.new_render)) for p in pairs]
     cols = [c for c in COLUMNS if any(b[c[0]] is not None or n[c[0]] is not None for _, b, n in rows)]
     head = ["scene", "seed", *(name for _, name, _ in cols), "Δ completion", "same actions"]
     lines = [f"# {new_name} against {base_name}", "",
