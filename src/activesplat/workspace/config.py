@@ -104,7 +104,8 @@ class WorkspaceConfig:
     subregion_cut: float = 2.0
     """UPGMA dendrogram cut distance in metres (paper sec. III-C: 'fixed distance threshold of 2 m'). 4 m
     (room-sized subregions) was measured: tuning medium-0..3 +0.53 points, fresh medium-100..107 -3.33, the
-    far end of a house never reached (docs/benchmark.md "Subregions cut at 4 m instead of 2 m")."""
+    far end of a house never reached; 3 m: +0.29 and -0.05, level (docs/benchmark.md "Subregions cut at 4 m
+    instead of 2 m")."""
     path_weight: float = 0.5
     """Weight of the graph shortest-path length in the UPGMA distance (docs/protocol.md §5)."""
     euclidean_weight: float = 0.5
