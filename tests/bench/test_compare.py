@@ -85,6 +85,8 @@ def test_sweep_ceilings_give_the_share_of_the_ceiling_and_the_worst_room_of_its_
     (lambda t: (_run(t / "a", "small-0", "activesplat", 0, 80.0),
                 _run(t / "b", "small-1", "activesplat", 0, 80.0)),
      ["compare", "{t}/a", "{t}/b"], "no scene and seed is in both: BASE has small-0 s0, NEW has small-1 s0"),
+    (lambda t: _run(t / "a", "small-0", "activesplat", 0, 80.0),
+     ["compare", "{t}/a", "{t}/a", "--out", "{t}/no/such/dir/c.md"], "cannot write --out"),
     (lambda t: (_run(t / "a", "small-0", "activesplat", 0, 80.0, steps=1000),
                 _run(t / "b", "small-0", "activesplat", 0, 80.0)),
      ["compare", "{t}/a", "{t}/b"], "BASE ran 1000 steps and NEW 2000"),

@@ -235,7 +235,10 @@ def compare_from_args(args) -> int:
     report = compare_report(pairs, ceilings, base_name, f"{args.new} ({args.policy})", unpaired)
     print(report, end="")
     if args.out:
-        Path(args.out).write_text(report, encoding="utf-8")
+        try:
+            Path(args.out).write_text(report, encoding="utf-8")
+        except OSError as exc:
+            raise InvalidInputError(f"cannot write --out {args.out}: {exc.strerror}") from exc
     return 0
 
 
