@@ -349,8 +349,9 @@ class ExplorerConfig:
     paper). `no-hp` crosses the house sooner and turns less, the hierarchy finishes rooms; 1000 on medium
     houses: tuning medium-0..3 seed 0 -1.27 points (86.47 -> 85.20 %, medium-2 -4.9), rotations 49.1 ->
     39.1 %; fresh medium-100..107 seed 0 +0.42 (85.32 -> 85.74 %, standard error 0.34), 69.8 -> 73.4 % of
-    the ceiling at step 1000, rotations 46.7 -> 39.5 %. Off: it lost on the tuning houses
-    (docs/benchmark.md "No-hp first, the hierarchy after")."""
+    the ceiling at step 1000, rotations 46.7 -> 39.5 %; held-out medium-150..159 seed 0 -1.39 (86.08 ->
+    84.70 %, two houses lose rooms), rotations 46.0 -> 39.2 %. Off (docs/benchmark.md "No-hp first, the
+    hierarchy after")."""
     rotations: bool = True
     """On-the-spot rotations toward panorama / high-loss targets on arrival (paper sec. III-B); off for
     `position`."""
