@@ -124,9 +124,12 @@ def read_ceilings(scenes, roots) -> dict[str, dict]:
             path = Path(root) / scene / "sweep.json"
             if path.is_file():
                 try:
-                    out[scene] = json.loads(path.read_text())
+                    found = json.loads(path.read_text())
                 except ValueError as exc:
                     raise InvalidInputError(f"{path} is not a sweep ceiling (JSON: {exc})") from exc
+                if not isinstance(found, dict) or "completion_ratio_pct" not in found:
+                    raise InvalidInputError(f"{path} is not a sweep ceiling (no completion_ratio_pct)")
+                out[scene] = found
                 break
     return out
 
