@@ -52,15 +52,17 @@ class Pair:
         return float(self.new["completion_ratio_pct"]) - float(self.base["completion_ratio_pct"])
 
 
-def find_runs(root: str | Path, policy: str) -> dict[tuple[str, int], Path]:
-    """The complete runs of `policy` under a root (ROOT/<scene>/<policy>/s<seed>), by (scene, seed)."""
+def find_runs(root: str | Path, policy: str) -> dict[tuple[str, int], tuple[Path, dict]]:
+    """The complete runs of `policy` under a root (ROOT/<scene>/<policy>/s<seed>), by (scene, seed): each
+    run's folder and its metrics."""
     root = Path(root)
     if not root.is_dir():
         raise InvalidInputError(f"no such benchmark folder: {root}")
     runs = {}
     for out in sorted(root.glob(f"*/{policy}/s*")):
-        if out.is_dir() and out.name[1:].isdigit() and read_metrics(out) is not None:
-            runs[(out.parent.parent.name, int(out.name[1:]))] = out
+        metrics = read_metrics(out) if out.is_dir() and out.name[1:].isdigit() else None
+        if metrics is not None:
+            runs[(out.parent.parent.name, int(out.name[1:]))] = (out, metrics)
     return runs
 
 
@@ -93,12 +95,12 @@ def pair_runs(base_root: str | Path, new_root: str | Path, policy: str = "active
                                 f"NEW has {_names(new)}")
     pairs = []
     for scene, seed in keys:
-        b, n = read_metrics(base[(scene, seed)]), read_metrics(new[(scene, seed)])
+        (b_out, b), (n_out, n) = base[(scene, seed)], new[(scene, seed)]
         if b.get("steps") != n.get("steps"):
             raise InvalidInputError(f"{scene} seed {seed}: BASE ran {b.get('steps')} steps and NEW "
                                     f"{n.get('steps')}; compare runs of the same budget")
-        pairs.append(Pair(scene, seed, b, n, _same_actions(base[(scene, seed)], new[(scene, seed)]),
-                          _render_metrics(base[(scene, seed)]), _render_metrics(new[(scene, seed)])))
+        pairs.append(Pair(scene, seed, b, n, _same_actions(b_out, n_out), _render_metrics(b_out),
+                          _render_metrics(n_out)))
     unpaired = [f"only in BASE: {s} seed {d}" for s, d in sorted(set(base) - set(new))]
     unpaired += [f"only in NEW: {s} seed {d}" for s, d in sorted(set(new) - set(base))]
     return pairs, unpaired
