@@ -9,10 +9,11 @@ two batches means something only next to its spread (docs/benchmark.md, "How lar
 can show"). The table pairs every run of NEW with the run of BASE of the same scene and seed, prints both
 sides of each measure and the difference of the completion, and ends with the mean difference, its
 standard error (the standard deviation of the paired differences over the square root of their number),
-and how many runs are higher, lower, or the same; runs whose action logs are byte for byte the same are
-counted as the same run. With a scene's sweep ceiling (ROOT/<scene>/sweep.json as `activesplat benchmark`
-caches it, in either root or in `--ceilings DIR`) it adds the share of the ceiling and the worst room
-against the room's own ceiling; without one, the worst room is the lowest share of a room's own points.
+and how many runs are higher, lower, or the same (completion within 0.005 points); runs whose action
+logs are byte for byte the same are marked. With a scene's sweep ceiling (ROOT/<scene>/sweep.json as
+`activesplat benchmark` caches it, in either root or in `--ceilings DIR`) it adds the share of the ceiling
+and the worst room against the room's own ceiling; without one, the worst room is the lowest share of a
+room's own points.
 Runs with a render_metrics.json (`activesplat render-eval`) add the test and train PSNR, the test LPIPS
 and depth L1 of their maps.
 """
