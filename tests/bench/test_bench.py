@@ -169,7 +169,12 @@ def test_resume_skips_complete_runs_and_reruns_partial_ones(tmp_path, fake):
     assert again.calls == []
 
 
-def test_a_failing_run_is_reported_not_fatal(tmp_path, fake, capsys):
+def test_a_failing_run_is_reported_not_fatal(tmp_path, fake, capsys, monkeypatch):
+    # the command measures each scene's sweep ceiling by default: a stand-in sweep (the real one takes
+    # a minute on small-0; tests/eval/test_sweep.py tests it) shows it is measured once and then cached
+    sweeps = []
+    monkeypatch.setattr("activesplat.eval.sweep.exhaustive_sweep",
+                        lambda scene, *a, **k: sweeps.append(scene.name) or {"completion_ratio_pct": 95.0})
     fake(fail={("fbe", 0)})
     code = main(["benchmark", "--scenes", "small-0", "--policies", "activesplat", "fbe", "--steps", "20",
                  "--root", str(tmp_path)])
@@ -185,6 +190,11 @@ def test_a_failing_run_is_reported_not_fatal(tmp_path, fake, capsys):
                  "--root", str(tmp_path)]) == 0
     assert f.calls == [("small-0", "fbe", 0)]
     assert not (tmp_path / "small-0" / "fbe" / "s0" / "error.txt").exists()
+    assert sweeps == ["small-0"]
+    assert json.loads((tmp_path / "small-0" / "sweep.json").read_text())["completion_ratio_pct"] == 95.0
+    rows = {r["policy"]: r for r in csv.DictReader(open(tmp_path / "results.csv"))}
+    assert float(rows["fbe"]["ceiling_pct"]) == 95.0
+    assert float(rows["fbe"]["of_ceiling_pct"]) == pytest.approx(100 * 90 / 95)
 
 
 def test_ctrl_c_stops_and_keeps_the_tables_of_what_is_done(tmp_path, fake):
