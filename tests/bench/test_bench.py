@@ -192,7 +192,7 @@ def test_a_failing_run_is_reported_not_fatal(tmp_path, fake, capsys, monkeypatch
     assert not (tmp_path / "small-0" / "fbe" / "s0" / "error.txt").exists()
     assert sweeps == ["small-0"]
     assert json.loads((tmp_path / "small-0" / "sweep.json").read_text())["completion_ratio_pct"] == 95.0
-    rows = {r["policy"]: r for r in csv.DictReader(open(tmp_path / "results.csv"))}
+    rows = {r["policy"]: r for r in csv.DictReader((tmp_path / "results.csv").read_text().splitlines())}
     assert float(rows["fbe"]["ceiling_pct"]) == 95.0
     assert float(rows["fbe"]["of_ceiling_pct"]) == pytest.approx(100 * 90 / 95)
 
