@@ -154,11 +154,12 @@ class MapperConfig:
     0, 1) reached 79.47 % instead of 85.94 % completion, one run losing half the house, and with the
     defaults of 2026-11-27 86.21 vs 86.60 % (tuning) and 85.37 vs 86.37 % (fresh medium-100..109). With
     the defaults of 2026-12-02 (docs/mapping.md, "Depth edges, again"): seed 0 on medium-0..3 and fresh
-    medium-100..107 level with the grid alone (mean difference -0.1 points over the twelve houses, seven
-    of them within a point), small-0..3 level (+0.03), and the live maps better on every mean: train
-    31.09 vs 30.97 dB, test 28.21 vs 28.03 dB, LPIPS 0.246 vs 0.259, depth L1 4.41 vs 4.82 cm; the
-    plain house's train views 34.64 vs 32.92 dB. Default 2 since. Costs: about 9 % more Gaussians and 10 %
-    more mapper CPU, and a second pass over the same trajectory adds 9.8 % Gaussians instead of 8.0 %.
+    medium-100..107 level with the grid alone (+0.07 points over the twelve houses, six higher, seven
+    within a point), small-0..3 level (+0.03), and the live maps better on every mean: train 31.09 vs
+    30.97 dB, test 28.21 vs 28.03 dB, LPIPS 0.246 vs 0.259, depth L1 4.41 vs 4.82 cm; the plain house's
+    train views 34.64 vs 32.92 dB. On one replayed trajectory: train depth L1 2.50 -> 2.18 cm, test
+    27.87 -> 28.00 dB. Default 2 since. Costs: 5-9 % more Gaussians and 6-10 % more mapper CPU, and a
+    second pass over the same trajectory adds 9.8 % Gaussians instead of 8.0 %.
 
     Colour detail (``detail_colour_range``; paper and release: one Gaussian per pixel everywhere, the
     project one per ``pixel_stride`` block). Where the observed colours of a block span more than this
