@@ -150,8 +150,8 @@ class MapperConfig:
     27.09 / 0.321 / 4.80 cm, every house better on both splits, for 9 % more Gaussians and 10 % more
     mapper CPU. Both sides of the jump at pixel resolution, with any 5 % step between neighbours counted
     as a jump, scored higher on the train views and lower on the test views for twice the extra Gaussians.
-    It was off until 2026-12-03: the tuning explorations run with the first version (medium-0..3 x seeds
-    0, 1) reached 79.47 % instead of 85.94 % completion, one run losing half the house, and with the
+    It was off until 2026-12-03: the tuning explorations run with it on earlier defaults
+    (medium-0..3 x seeds 0, 1) reached 79.47 % instead of 85.94 %, one run losing half the house; with the
     defaults of 2026-11-27 86.21 vs 86.60 % (tuning) and 85.37 vs 86.37 % (fresh medium-100..109). With
     the defaults of 2026-12-02 (docs/mapping.md, "Depth edges, again"): seed 0 on medium-0..3 and fresh
     medium-100..107 level with the grid alone (+0.07 points over the twelve houses, six higher, seven
