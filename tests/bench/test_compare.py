@@ -99,3 +99,21 @@ def test_bad_input_is_a_one_line_error(tmp_path, capsys, setup, argv, needle):
     assert main([a.format(t=tmp_path) for a in argv]) == 2
     err = capsys.readouterr().err
     assert needle in err and err.count("\n") == 1, err
+
+
+def test_the_mean_row_averages_both_sides_over_the_same_pairs(tmp_path):
+    """A run without render-eval on one side leaves its pair out of the render columns' means."""
+    base, new = tmp_path / "base", tmp_path / "new"
+    for seed, (psnr_b, psnr_n) in enumerate([(28.0, 29.0), (None, 20.0), (27.0, 30.0)]):
+        _run(base, "medium-0", "activesplat", seed, 80.0)
+        _run(new, "medium-0", "activesplat", seed, 81.0)
+        for root, psnr in ((base, psnr_b), (new, psnr_n)):
+            if psnr is not None:
+                (root / "medium-0" / "activesplat" / f"s{seed}" / "render_metrics.json").write_text(
+                    json.dumps({"test": {"psnr": psnr}}))
+    pairs, _ = pair_runs(base, new)
+    md = compare_report(pairs)
+    assert "| medium-0 | 1 |" in md and "n/a → 20.00" in md  # the row shows what each side has
+    # seeds 0 and 2: 27.5 → 29.5 (NEW over all three would be 26.33)
+    assert "| 27.50 → 29.50 (2 of 3) |" in md
+    assert "| **mean of 3** |  | 80.00 → 81.00 |" in md  # complete columns: no count

@@ -15,7 +15,8 @@ logs are byte for byte the same are marked. With a scene's sweep ceiling (ROOT/<
 and the worst room against the room's own ceiling; without one, the worst room is the lowest share of a
 room's own points.
 Runs with a render_metrics.json (`activesplat render-eval`) add the test and train PSNR, the test LPIPS
-and depth L1 of their maps.
+and depth L1 of their maps. The mean row averages each measure over the pairs that have it on both sides
+(and says how many when not all), so that BASE's and NEW's means are over the same runs.
 """
 
 from __future__ import annotations
@@ -191,6 +192,18 @@ def _mean(values) -> float | None:
     return float(np.mean(values)) if values else None
 
 
+def _paired_mean(rows: list[tuple[Pair, dict, dict]], key: str, decimals: int) -> str:
+    """The mean row's cell of one measure: BASE's mean → NEW's mean over the pairs where both sides have
+    it (a run without render-eval leaves its pair out of the render columns on both sides, so the two
+    means cover the same runs), and how many pairs that is when not all."""
+    both = [(b[key], n[key]) for _, b, n in rows if b[key] is not None and n[key] is not None]
+    if not both:
+        return "n/a"
+    d = decimals or 2  # counts (rooms entered) average to fractions
+    cell = f"{_fmt(_mean(v for v, _ in both), d)} → {_fmt(_mean(v for _, v in both), d)}"
+    return cell if len(both) == len(rows) else f"{cell} ({len(both)} of {len(rows)})"
+
+
 def compare_report(pairs: list[Pair], ceilings: dict[str, dict] | None = None, base_name: str = "BASE",
                    new_name: str = "NEW", unpaired: list[str] | None = None) -> str:
     """Markdown: one row per pair (BASE -> NEW for each measure, the completion's difference), the means,
@@ -210,9 +223,7 @@ def compare_report(pairs: list[Pair], ceilings: dict[str, dict] | None = None, b
         lines.append("| " + " | ".join([p.scene, str(p.seed),
                                         *(f"{_fmt(b[k], d)} → {_fmt(n[k], d)}" for k, _, d in cols),
                                         _signed(p.delta), same]) + " |")
-    # counts (rooms entered) average to fractions
-    means = [f"{_fmt(_mean(b[k] for _, b, _ in rows), d or 2)} → "
-             f"{_fmt(_mean(n[k] for _, _, n in rows), d or 2)}" for k, _, d in cols]
+    means = [_paired_mean(rows, k, d) for k, _, d in cols]
     deltas = np.array([p.delta for p in pairs])
     mean_row = [f"**mean of {len(pairs)}**", "", *means, f"**{_signed(deltas.mean())}**", ""]
     lines.append("| " + " | ".join(mean_row) + " |")
