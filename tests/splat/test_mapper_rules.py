@@ -189,6 +189,44 @@ def test_gaussians_from_pixels_backprojects_with_projective_radius():
     assert torch.allclose(0.5 + SH_C0 * raw["f_dc"], rgb[2, 5])
 
 
+def test_the_birth_radius_cap_bounds_far_gaussians_and_leaves_near_ones():
+    """init_max_radius_m caps the projective radius: a pixel 6 m away gets the cap, one 1 m away its own
+    radius (stride x depth / focal x scale)."""
+    K = np.array([[8.0, 0, 4], [0, 8.0, 4], [0, 0, 1]])
+    depth = torch.full((8, 8), 6.0)
+    depth[:, :4] = 1.0
+    mask = torch.ones(8, 8, dtype=torch.bool)
+    for cap in (None, 0.3):
+        cfg = MapperConfig(pixel_stride=2, init_normal_scale=1.0, edge_band_px=0, detail_colour_range=None,
+                           init_max_radius_m=cap)
+        raw = gaussians_from_pixels(mask, torch.zeros(8, 8, 3), depth, np.eye(4), K, cfg)
+        radius = torch.exp(raw["log_scales"]).max(dim=1).values
+        near = raw["means"][:, 2] < 2.0
+        assert torch.allclose(radius[near], torch.tensor(cfg.init_radius_scale * 2 * 1.0 / 8.0))
+        far = cfg.init_radius_scale * 2 * 6.0 / 8.0 if cap is None else cap
+        assert torch.allclose(radius[~near], torch.tensor(far))
+    with pytest.raises(InvalidInputError, match="init_max_radius_m"):
+        MapperConfig(init_max_radius_m=0.0)
+
+
+def test_the_capped_fill_gives_every_far_pixel_its_own_gaussian():
+    """With init_capped_fill, where the capped radius is under half the grid's spacing (here the pixels 6 m
+    away: spacing 2 x 6 / 8 = 1.5 m, cap 0.3 m) every pixel gets a Gaussian; nearer ones keep the grid."""
+    K = np.array([[8.0, 0, 4], [0, 8.0, 4], [0, 0, 1]])
+    depth = torch.full((8, 8), 6.0)
+    depth[:, :4] = 1.0
+    counts = []
+    for fill in (False, True):
+        cfg = MapperConfig(pixel_stride=2, edge_band_px=0, detail_colour_range=None, init_max_radius_m=0.3,
+                           init_capped_fill=fill)
+        raw = gaussians_from_pixels(torch.ones(8, 8, dtype=torch.bool), torch.zeros(8, 8, 3), depth, np.eye(4),
+                                    K, cfg)
+        far = raw["means"][:, 2] > 2.0
+        counts.append((int((~far).sum()), int(far.sum())))
+        assert torch.exp(raw["log_scales"]).max() <= 0.3 + 1e-6
+    assert counts == [(8, 8), (8, 32)]
+
+
 def test_pixel_stride_subsamples_the_mask():
     cfg = MapperConfig(pixel_stride=2, init_normal_scale=1.0)
     K = np.array([[8.0, 0, 4], [0, 8.0, 4], [0, 0, 1]])

@@ -288,6 +288,23 @@ class MapperConfig:
     houses with both options 85.00 %), the other nine 85.87 % either way; small-100..109 88.52 -> 88.31 %,
     their live maps test 30.79 -> 30.67 dB. ``refine`` takes the learning rates of the map's mapper.json.
 
+    Capped birth radius (``init_max_radius_m``, ``init_capped_fill``; paper, release and SplaTAM: the
+    projective radius whatever the depth). A new Gaussian's radius grows with its depth (1.2 cm per metre on
+    the 2-px grid of the 256-px, 90-degree camera), and the release's scale learning rate leaves it there:
+    what the robot first saw from 6-8 m keeps 7-9 cm Gaussians when it walks up to it, which blur close
+    views and, at wall ends, reach tens of pixels past the edge. The cap bounds the radius; on its own it
+    leaves the far grid's Gaussians apart (the capped radius under half the grid's spacing), which close
+    views show as a lattice and as unmapped gaps. With ``init_capped_fill`` every pixel beyond that depth
+    gets its own Gaussian (as the depth edges do), so the far surface is covered in one frame. Replays of
+    the seed-0 explorations of medium-0..3 (``benchmarks/mapper.py --episode E --set
+    init_max_radius_m=0.03``), test PSNR / LPIPS / depth L1, train PSNR / LPIPS: defaults 28.21 dB / 0.246 /
+    4.41 cm, 31.09 / 0.169; cap 3 cm 28.33 / 0.214 / 4.20, 31.64 / 0.143, +12 % Gaussians. The same cap in
+    the loop (medium-0..3, seed 0): completion -0.34 points (87.08 / 89.17 / 83.21 / 86.75 -> 86.89 / 89.35
+    / 82.87 / 85.74 %) and live test 28.21 -> 27.59 dB, depth L1 4.41 -> 5.80 cm, unmapped 0.7 -> 1.6 % of
+    the test pixels (train 31.09 -> 31.50 dB): off. Cap and fill: replays 28.38 / 0.218 / 4.04 cm, 31.66 /
+    0.144, +14 % Gaussians; in the loop medium-0 and medium-1 live test 27.81 / 29.04 -> 26.45 / 27.25 dB,
+    1.5-1.8 % of the test pixels unmapped (0.4-0.6): off (docs/mapping.md, "A capped birth radius").
+
     Floater pruning (``prune_floater_margin_m``): a Gaussian whose centre the current frame sees as free
     space (projects in front of the observed depth by more than the margin, where the whole 3x3
     neighbourhood is valid and farther) is removed; this is how a map with known poses loses
@@ -319,6 +336,12 @@ class MapperConfig:
     init_opacity: float = 0.99  # project: paper/release 0.5 (see class docstring)
     pixel_stride: int = 2  # project: one Gaussian per stride x stride pixels (1 = paper)
     init_radius_scale: float = 0.75  # project: radius = scale * stride * depth / focal (paper 1.0)
+    # project: a new Gaussian's radius is at most this (m); None = no cap (paper, release; see class
+    # docstring "Capped birth radius")
+    init_max_radius_m: float | None = None
+    # project: with the cap, every pixel (not one per stride block) where the capped radius is under half
+    # the grid's spacing (see class docstring "Capped birth radius")
+    init_capped_fill: bool = False
     # project: stretch a new Gaussian along the surface it samples by 1 / cos(viewing angle), at most this
     # much (1 = isotropic, as paper and release; see class docstring "Grazing surfaces")
     init_max_elongation: float = 1.0
@@ -449,12 +472,10 @@ class MapperConfig:
         if not 0.0 < self.init_normal_scale <= 1.0:
             raise InvalidInputError(f"MapperConfig.init_normal_scale must be in (0, 1], got "
                                     f"{self.init_normal_scale}")
-        if self.densify_voxel_m is not None and self.densify_voxel_m <= 0.0:
-            raise InvalidInputError(f"MapperConfig.densify_voxel_m must be > 0 (or None = off), got "
-                                    f"{self.densify_voxel_m}")
-        if self.merge_voxel_m is not None and self.merge_voxel_m <= 0.0:
-            raise InvalidInputError(f"MapperConfig.merge_voxel_m must be > 0 (or None = off), got "
-                                    f"{self.merge_voxel_m}")
+        for name in ("densify_voxel_m", "merge_voxel_m", "init_max_radius_m"):
+            if getattr(self, name) is not None and getattr(self, name) <= 0.0:
+                raise InvalidInputError(f"MapperConfig.{name} must be > 0 (or None = off), got "
+                                        f"{getattr(self, name)}")
         if self.merge_scale_ratio < 1.0 or not 0.0 <= self.merge_min_opacity < 1.0:
             raise InvalidInputError(f"MapperConfig needs merge_scale_ratio >= 1 and merge_min_opacity in "
                                     f"[0, 1), got {self.merge_scale_ratio} and {self.merge_min_opacity}")

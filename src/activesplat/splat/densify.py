@@ -226,6 +226,11 @@ def gaussians_from_pixels(mask: torch.Tensor, rgb: torch.Tensor, depth: torch.Te
     if cfg.detail_colour_range is not None and cfg.pixel_stride > 1:  # and every pixel of a detailed block
         detail = mask & colour_detail(rgb, cfg.pixel_stride, cfg.detail_colour_range)
         fine = detail if fine is None else fine | detail
+    if cfg.init_max_radius_m is not None and cfg.init_capped_fill and cfg.pixel_stride > 1:
+        # and every pixel where the capped radius would fall below half the grid's spacing
+        focal_px = 0.5 * (float(K[0, 0]) + float(K[1, 1]))
+        sparse = mask & (depth * (0.5 * cfg.pixel_stride / focal_px) > cfg.init_max_radius_m)
+        fine = sparse if fine is None else fine | sparse
     if fine is not None:
         pick = pick | fine
     v, u = (t.cpu().numpy() for t in torch.nonzero(pick, as_tuple=True))
@@ -246,6 +251,8 @@ def gaussians_from_pixels(mask: torch.Tensor, rgb: torch.Tensor, depth: torch.Te
     if fine is not None:
         stride = torch.where(fine.cpu()[torch.from_numpy(v), torch.from_numpy(u)], 1.0, stride)
     radii = cfg.init_radius_scale * stride * z / focal
+    if cfg.init_max_radius_m is not None:
+        radii = torch.clamp(radii, max=cfg.init_max_radius_m)
     if budget is not None:  # the centres the budget kept cover the voxels between them
         floor = torch.from_numpy(np.where(budget, cfg.densify_voxel_radius * cfg.densify_voxel_m, 0.0))
         radii = torch.maximum(radii, floor.to(radii.dtype))
