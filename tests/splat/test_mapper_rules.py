@@ -219,8 +219,8 @@ def test_the_capped_fill_gives_every_far_pixel_its_own_gaussian():
     for fill in (False, True):
         cfg = MapperConfig(pixel_stride=2, edge_band_px=0, detail_colour_range=None, init_max_radius_m=0.3,
                            init_capped_fill=fill)
-        raw = gaussians_from_pixels(torch.ones(8, 8, dtype=torch.bool), torch.zeros(8, 8, 3), depth, np.eye(4),
-                                    K, cfg)
+        raw = gaussians_from_pixels(torch.ones(8, 8, dtype=torch.bool), torch.zeros(8, 8, 3), depth,
+                                    np.eye(4), K, cfg)
         far = raw["means"][:, 2] > 2.0
         counts.append((int((~far).sum()), int(far.sum())))
         assert torch.exp(raw["log_scales"]).max() <= 0.3 + 1e-6

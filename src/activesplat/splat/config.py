@@ -302,8 +302,10 @@ class MapperConfig:
     the loop (medium-0..3, seed 0): completion -0.34 points (87.08 / 89.17 / 83.21 / 86.75 -> 86.89 / 89.35
     / 82.87 / 85.74 %) and live test 28.21 -> 27.59 dB, depth L1 4.41 -> 5.80 cm, unmapped 0.7 -> 1.6 % of
     the test pixels (train 31.09 -> 31.50 dB): off. Cap and fill: replays 28.38 / 0.218 / 4.04 cm, 31.66 /
-    0.144, +14 % Gaussians; in the loop medium-0 and medium-1 live test 27.81 / 29.04 -> 26.45 / 27.25 dB,
-    1.5-1.8 % of the test pixels unmapped (0.4-0.6): off (docs/mapping.md, "A capped birth radius").
+    0.144, +14 % Gaussians; in the loop completion -0.18 points, live test 28.21 -> 27.66 dB (two houses
+    -1.4 to -1.8 dB on routes that left more unseen, two +0.2 and +0.7), LPIPS 0.246 -> 0.231, depth L1
+    4.41 -> 4.85 cm, train 31.09 -> 31.83 dB: off until more seeds say (docs/mapping.md, "A capped birth
+    radius").
 
     Floater pruning (``prune_floater_margin_m``): a Gaussian whose centre the current frame sees as free
     space (projects in front of the observed depth by more than the margin, where the whole 3x3
