@@ -216,9 +216,11 @@ def gaussians_from_pixels(mask: torch.Tensor, rgb: torch.Tensor, depth: torch.Te
     radius along the slant direction is stretched by 1 / cos(viewing angle) (at most
     ``init_max_elongation``) so that a surface seen at a grazing angle is covered between the rows of
     pixels that sample it, and its radius along the normal is ``init_normal_scale`` times the radius
-    (departures, see MapperConfig). With ``occupied`` (sorted voxel keys of the map's centres in view) and
-    ``cfg.densify_voxel_m``, the picks are thinned by :func:`one_per_voxel`, except those on ``exempt``
-    pixels ((H, W) bool)."""
+    (departures, see MapperConfig). With ``init_max_radius_m`` no radius exceeds it, and with
+    ``init_capped_fill`` every pixel where the capped radius is under half the grid's spacing is picked
+    (MapperConfig "Capped birth radius"). With ``occupied`` (sorted voxel keys of the map's centres in
+    view) and ``cfg.densify_voxel_m``, the picks are thinned by :func:`one_per_voxel`, except those on
+    ``exempt`` pixels ((H, W) bool)."""
     pick = stride_mask(mask, cfg.pixel_stride)
     fine = None
     if cfg.edge_band_px > 0 and cfg.pixel_stride > 1:  # every pixel near a depth jump, at its own radius
