@@ -189,12 +189,17 @@ def test_gaussians_from_pixels_backprojects_with_projective_radius():
     assert torch.allclose(0.5 + SH_C0 * raw["f_dc"], rgb[2, 5])
 
 
+def _near_and_far_view():
+    """An 8x8 camera (focal 8 px) whose left half sees a surface 1 m away and its right half one 6 m away."""
+    depth = torch.full((8, 8), 6.0)
+    depth[:, :4] = 1.0
+    return np.array([[8.0, 0, 4], [0, 8.0, 4], [0, 0, 1]]), depth
+
+
 def test_the_birth_radius_cap_bounds_far_gaussians_and_leaves_near_ones():
     """init_max_radius_m caps the projective radius: a pixel 6 m away gets the cap, one 1 m away its own
     radius (stride x depth / focal x scale)."""
-    K = np.array([[8.0, 0, 4], [0, 8.0, 4], [0, 0, 1]])
-    depth = torch.full((8, 8), 6.0)
-    depth[:, :4] = 1.0
+    K, depth = _near_and_far_view()
     mask = torch.ones(8, 8, dtype=torch.bool)
     for cap in (None, 0.3):
         cfg = MapperConfig(pixel_stride=2, init_normal_scale=1.0, edge_band_px=0, detail_colour_range=None,
@@ -212,9 +217,7 @@ def test_the_birth_radius_cap_bounds_far_gaussians_and_leaves_near_ones():
 def test_the_capped_fill_gives_every_far_pixel_its_own_gaussian():
     """With init_capped_fill, where the capped radius is under half the grid's spacing (here the pixels 6 m
     away: spacing 2 x 6 / 8 = 1.5 m, cap 0.3 m) every pixel gets a Gaussian; nearer ones keep the grid."""
-    K = np.array([[8.0, 0, 4], [0, 8.0, 4], [0, 0, 1]])
-    depth = torch.full((8, 8), 6.0)
-    depth[:, :4] = 1.0
+    K, depth = _near_and_far_view()
     counts = []
     for fill in (False, True):
         cfg = MapperConfig(pixel_stride=2, edge_band_px=0, detail_colour_range=None, init_max_radius_m=0.3,

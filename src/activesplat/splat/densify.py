@@ -221,6 +221,7 @@ def gaussians_from_pixels(mask: torch.Tensor, rgb: torch.Tensor, depth: torch.Te
     (MapperConfig "Capped birth radius"). With ``occupied`` (sorted voxel keys of the map's centres in
     view) and ``cfg.densify_voxel_m``, the picks are thinned by :func:`one_per_voxel`, except those on
     ``exempt`` pixels ((H, W) bool)."""
+    focal = 0.5 * (float(K[0, 0]) + float(K[1, 1]))
     pick = stride_mask(mask, cfg.pixel_stride)
     fine = None
     if cfg.edge_band_px > 0 and cfg.pixel_stride > 1:  # every pixel near a depth jump, at its own radius
@@ -230,8 +231,7 @@ def gaussians_from_pixels(mask: torch.Tensor, rgb: torch.Tensor, depth: torch.Te
         fine = detail if fine is None else fine | detail
     if cfg.init_max_radius_m is not None and cfg.init_capped_fill and cfg.pixel_stride > 1:
         # and every pixel where the capped radius would fall below half the grid's spacing
-        focal_px = 0.5 * (float(K[0, 0]) + float(K[1, 1]))
-        sparse = mask & (depth * (0.5 * cfg.pixel_stride / focal_px) > cfg.init_max_radius_m)
+        sparse = mask & (depth * (0.5 * cfg.pixel_stride / focal) > cfg.init_max_radius_m)
         fine = sparse if fine is None else fine | sparse
     if fine is not None:
         pick = pick | fine
@@ -248,7 +248,6 @@ def gaussians_from_pixels(mask: torch.Tensor, rgb: torch.Tensor, depth: torch.Te
         v, u, points_np = v[keep], u[keep], points_np[keep]
     points = torch.from_numpy(points_np.astype(np.float32))
     z = torch.from_numpy(depth_np[v, u])
-    focal = 0.5 * (float(K[0, 0]) + float(K[1, 1]))
     stride = float(cfg.pixel_stride)
     if fine is not None:
         stride = torch.where(fine.cpu()[torch.from_numpy(v), torch.from_numpy(u)], 1.0, stride)
