@@ -61,6 +61,18 @@ def test_front_faces_asks_the_world_for_front_facing_opacity_when_it_can_give_it
     assert np.allclose(render_panorama(faces, ORIGIN, front_faces=True, back_face_seen=1.0).invisibility, 0.0)
     with pytest.raises(InvalidInputError, match="scores_back_face_seen"):
         PanoramaConfig(scores_back_face_seen=1.5)
+    # PanoramaConfig.back_faces_in_window reaches a world that takes it, and not one that does not
+    asked = []
+
+    def windowed(pose, K, width, height, front_alpha=False, behind_margin_deg=0.0, behind_in_window=False):
+        asked.append(behind_in_window)
+        return faces(pose, K, width, height, front_alpha, behind_margin_deg)
+
+    render_panorama(windowed, ORIGIN, PanoramaConfig(back_faces_in_window=True), front_faces=True)
+    render_panorama(windowed, ORIGIN, PanoramaConfig(), front_faces=True)
+    assert asked == [True] * 3 + [False] * 3
+    # a world without the parameter (faces) is not asked for it
+    render_panorama(faces, ORIGIN, PanoramaConfig(back_faces_in_window=True), front_faces=True)
 
 
 def test_panorama_rays_point_where_the_pose_looks():

@@ -48,6 +48,13 @@ class PanoramaConfig:
     back_face_margin_deg: float = 15.0
     """With the two options above, a Gaussian is seen from behind only when the camera lies this far behind
     its plane (ours): walls and floors seen edge-on would otherwise flicker between seen and unseen."""
+    back_faces_in_window: bool = False
+    """With the two options above, a Gaussian seen from behind is drawn only if its centre lies within the
+    window where the projection's Jacobian is not clamped (ours; `Mapper.render`'s ``behind_in_window``).
+    At a stop 0.2 m from a wall, the far face's Gaussians beside the camera fall outside that window; the
+    rasterizer draws them, as 3DGS does, with the Jacobian of the window's edge, as blobs that cover the
+    near face, so a third of a camera's view read as unseen (medium-1: the front-faces panorama's seen
+    share 0.64 -> 0.97 for the camera facing the wall)."""
 
     def __post_init__(self) -> None:
         check_fields(self, positive=("hfov_deg", "vfov_deg"),

@@ -47,10 +47,12 @@ class WorldModel(Protocol):
     high_loss_mask: Any
 
     def render(self, pose: np.ndarray, K: np.ndarray | None = None, width: int | None = None,
-               height: int | None = None, front_alpha: bool = False, behind_margin_deg: float = 0.0) -> Any:
+               height: int | None = None, front_alpha: bool = False, behind_margin_deg: float = 0.0,
+               behind_in_window: bool = False) -> Any:
         """``alpha`` and ``median_depth`` of a view; with ``front_alpha`` the opacity of surfaces seen from
-        the side that observed them (`Mapper.render`). A world without those two parameters gives the
-        plain opacity to the panoramas (`planning.panorama.render_panorama`)."""
+        the side that observed them (`Mapper.render`). A world without ``front_alpha`` gives the plain
+        opacity to the panoramas, one without ``behind_in_window`` ignores that option
+        (`planning.panorama.render_panorama`)."""
 
 
 def snapshot_render(world: WorldModel) -> Any:

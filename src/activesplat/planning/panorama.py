@@ -92,6 +92,8 @@ def render_panorama(render: RenderFn, origin, cfg: PanoramaConfig | None = None,
     # a world model that cannot tell faces apart (no ``front_alpha`` parameter) gives the plain opacity
     front = ({"front_alpha": True, "behind_margin_deg": cfg.back_face_margin_deg}
              if front_faces and _takes(render, "front_alpha") else {})
+    if front and cfg.back_faces_in_window and _takes(render, "behind_in_window"):
+        front["behind_in_window"] = True
     for pose in panorama_poses(origin, cfg):
         out = render(pose, K=K, width=cfg.width_per_camera, height=cfg.height, **front)
         seen = _np(out.alpha)
