@@ -286,21 +286,18 @@ def seen_from_behind(flat: torch.Tensor, normal: torch.Tensor, means: torch.Tens
 def in_clamp_window(means: torch.Tensor, pose, K, width: int, height: int) -> torch.Tensor:
     """(N,) bool: the Gaussians whose centre lies in front of the camera-to-world ``pose`` and within the
     window where the rasterizer's EWA Jacobian is not clamped (the image plus 30 % of its half-size on each
-    side, ``raster.torch_ref.fov_limits``). Outside that window a Gaussian near the camera is drawn with
+    side, ``raster.torch_ref.in_window``). Outside that window a Gaussian near the camera is drawn with
     the Jacobian of the window's edge: a blob over much of the image, not where the Gaussian is
     (``RasterConstants.clamp_cull_depth``)."""
-    from activesplat.splat.raster.torch_ref import fov_limits
+    from activesplat.splat.raster.torch_ref import in_window
 
     with torch.no_grad():
         view = torch.as_tensor(np.linalg.inv(np.asarray(pose, dtype=np.float64)), dtype=torch.float32,
                                device=means.device)
         p = means @ view[:3, :3].T + view[:3, 3]
         z = p[:, 2]
-        lim_xn, lim_xp, lim_yn, lim_yp = fov_limits(torch.as_tensor(np.asarray(K, dtype=np.float32)), width,
-                                                    height)
-        zs = z.clamp_min(1e-12)
-        rx, ry = p[:, 0] / zs, p[:, 1] / zs
-        return (z > 0) & (rx >= -lim_xn) & (rx <= lim_xp) & (ry >= -lim_yn) & (ry <= lim_yp)
+        K = torch.as_tensor(np.asarray(K, dtype=np.float32))
+        return (z > 0) & in_window(p[:, 0], p[:, 1], z.clamp_min(1e-12), K, width, height)
 
 
 def _frustum_rows_torch(means, log_scales, pose, K, width, height, depth, occlusion_margin_m,

@@ -27,16 +27,21 @@ def fov_limits(K: Tensor, width: int, height: int) -> tuple[float, float, float,
     return cx / fx + pad_x, (width - cx) / fx + pad_x, cy / fy + pad_y, (height - cy) / fy + pad_y
 
 
+def in_window(x: Tensor, y: Tensor, z: Tensor, K: Tensor, width: int, height: int) -> Tensor:
+    """(N,) bool: the centre (camera coordinates x, y, z > 0) lies within the window where the Jacobian is
+    not clamped (:func:`fov_limits`)."""
+    lim_xn, lim_xp, lim_yn, lim_yp = fov_limits(K, width, height)
+    rx, ry = x / z, y / z
+    return (rx >= -lim_xn) & (rx <= lim_xp) & (ry >= -lim_yn) & (ry <= lim_yp)
+
+
 def inside_clamp(x: Tensor, y: Tensor, z: Tensor, K: Tensor, width: int, height: int) -> Tensor:
     """(N,) bool: the Gaussian is drawn by the clamp rule: its centre (camera coordinates x, y, z > 0) lies
-    within the window where the Jacobian is not clamped (:func:`fov_limits`), or it is at least
+    within the window where the Jacobian is not clamped (:func:`in_window`), or it is at least
     ``RASTER.clamp_cull_depth`` away (True everywhere when that is 0)."""
     if RASTER.clamp_cull_depth <= 0.0:
         return torch.ones_like(z, dtype=torch.bool)
-    lim_xn, lim_xp, lim_yn, lim_yp = fov_limits(K, width, height)
-    rx, ry = x / z, y / z
-    inside = (rx >= -lim_xn) & (rx <= lim_xp) & (ry >= -lim_yn) & (ry <= lim_yp)
-    return inside | (z >= RASTER.clamp_cull_depth)
+    return in_window(x, y, z, K, width, height) | (z >= RASTER.clamp_cull_depth)
 
 
 def project_torch(means, quats, scales, viewmat, K, width, height, mask=None) -> Projection:
