@@ -164,6 +164,7 @@ def test_parallel_tile_lists_are_stable_and_match_the_binned_rows():
     np.testing.assert_array_equal(ids[slot], np.repeat(order, np.diff(emit_start)))
     shapes = ((n, 2), (n, 3), (n,), (n, 3), (n,), (n, 2))
     f32 = [rng.random(shape, dtype=np.float32) + 0.5 for shape in shapes]
+    f32[1][:] = (1e-6, 0.0, 1e-6)  # alpha >= 1/255 boxes thousands of pixels wide: every rect tile kept
     starts2, feat, emit2, slot2 = tiles.bin_features(order, rects, grid_x, grid_x * grid_y, *f32)
     np.testing.assert_array_equal(starts2, tile_starts)
     np.testing.assert_array_equal(emit2, emit_start)
@@ -172,6 +173,28 @@ def test_parallel_tile_lists_are_stable_and_match_the_binned_rows():
     np.testing.assert_array_equal(feat[:, tiles.CBL], f32[3][ids, 2])
     np.testing.assert_array_equal(feat[:, tiles.DZ], f32[4][ids])
     np.testing.assert_array_equal(feat[:, tiles.PV], f32[5][ids, 1])
+
+
+def test_binning_leaves_out_the_tiles_the_alpha_box_misses():
+    """A Gaussian's instances are the tiles of its 3-sigma rectangle that hold a pixel centre of its
+    alpha >= 1/255 box: a thin or faint footprint gets fewer tiles than its rectangle."""
+    from activesplat.splat.raster import numba_tiles as tiles
+
+    grid_x, grid_y = 6, 6
+    rects = np.array([[0, 6, 0, 6], [0, 6, 0, 6], [1, 3, 1, 3]], np.int32)
+    means2d = np.array([[48.0, 48.0], [40.0, 48.0], [31.5, 31.5]], np.float32)
+    # 0: wide and opaque (whole rectangle); 1: thin along x (sigma_x 0.5 px, sigma_y 10 px);
+    # 2: centred on a tile corner, small: its box reaches the four tiles around the corner
+    conics = np.array([[1e-4, 0.0, 1e-4], [4.0, 0.0, 0.01], [1.0, 0.0, 1.0]], np.float32)
+    opacities = np.full(3, 0.99, np.float32)
+    args = (means2d, conics, opacities, np.ones((3, 3), np.float32), np.ones(3, np.float32),
+            np.zeros((3, 2), np.float32))
+    starts, _feat, emit, slot = tiles.bin_features(np.arange(3), rects, grid_x, grid_x * grid_y, *args)
+    # 1: columns 38-41 (x within 3.3 sigma), all in tile column 2; rows 15-80, tile rows 0-5
+    assert np.diff(emit).tolist() == [36, 6, 4]
+    tile_of = np.repeat(np.arange(grid_x * grid_y), np.diff(starts))
+    assert (tile_of[slot[emit[1]:emit[2]]] % grid_x).tolist() == [2] * 6
+    assert sorted(tile_of[slot[emit[2]:emit[3]]].tolist()) == [7, 8, 13, 14]
 
 
 @pytest.mark.parametrize("backend", ["numba", "torch"])

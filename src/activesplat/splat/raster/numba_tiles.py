@@ -146,6 +146,7 @@ def bin_features(order, rects, grid_x, n_tiles, means2d, conics, opacities, colo
     The rows are first gathered in depth order (independent random reads, in parallel), so the
     counting and filling passes read them sequentially."""
     n_vis = order.shape[0]
+    grid_y = n_tiles // grid_x
     rows = np.empty((n_vis, N_FEAT), F32)
     rects_o = np.empty((n_vis, 4), rects.dtype)
     for r in prange(n_vis):
@@ -160,8 +161,13 @@ def bin_features(order, rects, grid_x, n_tiles, means2d, conics, opacities, colo
         rows[r, HY] = np.sqrt(max(ZERO, level * a / det)) + BOX_PAD
         rows[r, PMAX] = min(HALF * level + POWER_PAD, POWER_CAP)
         rows[r, PU], rows[r, PV] = slopes[g, 0], slopes[g, 1]
-        for m in range(4):
-            rects_o[r, m] = rects[g, m]
+        # the tiles of the projection's 3-sigma rectangle that hold a pixel centre of the alpha >= 1/255
+        # box, found as visit_range finds them: the others would visit no pixel, so they get no instance
+        jx0, jx1 = pixel_range(rows[r, MX], rows[r, HX], 0, grid_x * TILE)
+        iy0, iy1 = pixel_range(rows[r, MY], rows[r, HY], 0, grid_y * TILE)
+        tx0, ty0 = max(rects[g, 0], jx0 // TILE), max(rects[g, 2], iy0 // TILE)
+        rects_o[r, 0], rects_o[r, 1] = tx0, max(tx0, min(rects[g, 1], jx1 // TILE + 1))
+        rects_o[r, 2], rects_o[r, 3] = ty0, max(ty0, min(rects[g, 3], iy1 // TILE + 1))
     tile_starts, emit_start, bounds, fill = tile_offsets(np.arange(n_vis), rects_o, grid_x, n_tiles)
     feat = np.empty((emit_start[-1], N_FEAT), F32)
     slot = np.empty(emit_start[-1], np.int64)
