@@ -246,3 +246,22 @@ def test_baseline_policies_run_the_same_harness(tmp_path, policy):
     assert ep.complete and len(ep.actions) == 110 and m["policy"] == policy
     # after the bootstrap the policy plans: the agent leaves its start
     assert ep.actions[72:].count("move_forward") > 0
+
+
+def test_write_npz_reads_back_bit_for_bit_and_leaves_no_temporary(tmp_path):
+    """The episode's npz writer (deflate level 1, through a temporary file): ``np.load`` reads every array
+    back unchanged, compressed, and only the final file is left."""
+    from activesplat.episode import write_npz
+
+    rng = np.random.default_rng(0)
+    arrays = {"rgb": rng.integers(0, 255, (3, 8, 8, 3), dtype=np.uint8),
+              "depth": np.zeros((3, 64, 64), np.float32), "pose": rng.normal(size=(3, 4, 4)),
+              "step": np.arange(3, dtype=np.int64)}
+    write_npz(tmp_path / "keyframes.npz", **arrays)
+    assert [p.name for p in tmp_path.iterdir()] == ["keyframes.npz"]
+    with np.load(tmp_path / "keyframes.npz") as data:
+        assert sorted(data.files) == sorted(arrays)
+        for name, value in arrays.items():
+            assert data[name].dtype == value.dtype
+            np.testing.assert_array_equal(data[name], value)
+    assert (tmp_path / "keyframes.npz").stat().st_size < arrays["depth"].nbytes // 4  # zeros compress

@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from activesplat.episode import write_json_atomic
+from activesplat.episode import write_json_atomic, write_npz
 from activesplat.errors import EpisodeError, InvalidInputError
 from activesplat.eval.render_eval import HELDOUT_FILE
 from activesplat.robot.recording import Recording
@@ -115,7 +115,7 @@ def map_recording(
             )
         mapper.save(tmp)
         h, w = rec.height, rec.width
-        np.savez_compressed(
+        write_npz(
             tmp / HELDOUT_FILE,
             rgb=np.stack(held["rgb"]) if held["rgb"] else np.zeros((0, h, w, 3), np.uint8),
             depth=np.stack(held["depth"]) if held["depth"] else np.zeros((0, h, w), np.float32),

@@ -31,6 +31,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from activesplat.episode import write_npz
 from activesplat.errors import InvalidInputError
 from activesplat.geometry import voxel_keys
 from activesplat.splat.config import MapperConfig, Schedule
@@ -485,7 +486,7 @@ class Mapper:
         save_ply(self.gaussians, directory / "gaussians.ply")
         kfs = self.keyframes
         h, w = self.height, self.width
-        np.savez_compressed(
+        write_npz(
             directory / "keyframes.npz",
             rgb=np.stack([k.rgb for k in kfs]) if kfs else np.zeros((0, h, w, 3), np.uint8),
             depth=np.stack([k.depth for k in kfs]) if kfs else np.zeros((0, h, w), np.float32),
