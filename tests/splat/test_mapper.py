@@ -433,7 +433,7 @@ def test_far_face_beside_the_camera_does_not_hide_the_near_face_with_behind_in_w
     face's wide Gaussians beside the camera lie outside the Jacobian's clamp window and are drawn as blobs
     over the near face, so the front-faces render reads a fifth of the view as unseen; with
     ``behind_in_window`` they are left out and the near face reads as seen (Mapper.render)."""
-    near, far = _wall_face(0.2, 0.01, 0.008, -1.0), _wall_face(0.3, 0.06, 0.06, 1.0)
+    near, far = _wall_face(0.2, 0.015, 0.012, -1.0), _wall_face(0.3, 0.06, 0.06, 1.0)
     K = geometry.intrinsics(24, 30, 120.0, 150.0)
     mapper = Mapper(K, 24, 30, MapperConfig(), backend=backend)
     mapper.gaussians = GaussianMap({k: torch.cat([near[k], far[k]]) for k in near})
@@ -441,8 +441,8 @@ def test_far_face_beside_the_camera_does_not_hide_the_near_face_with_behind_in_w
     plain = float(mapper.render(cam).alpha.mean())
     front = float(mapper.render(cam, front_alpha=True).alpha.mean())
     window = float(mapper.render(cam, front_alpha=True, behind_in_window=True).alpha.mean())
-    assert plain > 0.97 and window > 0.95, (plain, window)  # measured 0.983, 0.959
-    assert front < 0.85, front  # measured 0.808
+    assert plain > 0.97 and window > 0.95, (plain, window)  # measured 0.982, 0.956
+    assert front < 0.85, front  # measured 0.810
     # a wall mapped from its far side only still reads as unseen, and still hides what lies behind it
     behind = _wall_face(1.5, 0.03, 0.03, -1.0)
     mapper.gaussians = GaussianMap({k: torch.cat([far[k], behind[k]]) for k in far})
