@@ -11,7 +11,7 @@ import torch
 
 from activesplat.geometry import backproject, in_sorted, voxel_groups, voxel_keys
 from activesplat.splat.config import MapperConfig
-from activesplat.splat.gaussians import GaussianMap
+from activesplat.splat.gaussians import GaussianMap, camera_points
 
 
 def opacity_test_mask(alpha: torch.Tensor, obs_depth: torch.Tensor, cfg: MapperConfig) -> torch.Tensor:
@@ -284,9 +284,7 @@ def gaussians_from_pixels(mask: torch.Tensor, rgb: torch.Tensor, depth: torch.Te
 def _project(means: torch.Tensor, pose: np.ndarray, K: np.ndarray, h: int, w: int
              ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
     """Camera depth, integer pixel column and row of each centre, and whether it lies in the image."""
-    rot = torch.from_numpy(pose[:3, :3].astype(np.float32)).to(means.device)
-    t = torch.from_numpy(pose[:3, 3].astype(np.float32)).to(means.device)
-    cam = (means.detach() - t) @ rot  # world -> camera: R^T (p - t)
+    cam = camera_points(means, pose)
     z = cam[:, 2]
     safe_z = torch.where(z > 1e-6, z, torch.ones_like(z))
     u = torch.floor(float(K[0, 0]) * cam[:, 0] / safe_z + float(K[0, 2])).long()

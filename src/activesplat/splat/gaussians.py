@@ -283,6 +283,14 @@ def seen_from_behind(flat: torch.Tensor, normal: torch.Tensor, means: torch.Tens
         return flat & ((to_camera * normal).sum(dim=1) < limit)
 
 
+def camera_points(means: torch.Tensor, pose) -> torch.Tensor:
+    """(N, 3) the centres ``means`` in the camera frame of the camera-to-world ``pose``: R^T (p - t)."""
+    pose = np.asarray(pose, dtype=np.float64)
+    rot = torch.from_numpy(pose[:3, :3].astype(np.float32)).to(means.device)
+    t = torch.from_numpy(pose[:3, 3].astype(np.float32)).to(means.device)
+    return (means.detach() - t) @ rot
+
+
 def in_clamp_window(means: torch.Tensor, pose, K, width: int, height: int) -> torch.Tensor:
     """(N,) bool: the Gaussians whose centre lies in front of the camera-to-world ``pose`` and within the
     window where the rasterizer's EWA Jacobian is not clamped (the image plus 30 % of its half-size on each
@@ -292,9 +300,7 @@ def in_clamp_window(means: torch.Tensor, pose, K, width: int, height: int) -> to
     from activesplat.splat.raster.torch_ref import in_window
 
     with torch.no_grad():
-        view = torch.as_tensor(np.linalg.inv(np.asarray(pose, dtype=np.float64)), dtype=torch.float32,
-                               device=means.device)
-        p = means @ view[:3, :3].T + view[:3, 3]
+        p = camera_points(means, pose)
         z = p[:, 2]
         K = torch.as_tensor(np.asarray(K, dtype=np.float32))
         return (z > 0) & in_window(p[:, 0], p[:, 1], z.clamp_min(1e-12), K, width, height)
@@ -306,10 +312,7 @@ def _frustum_rows_torch(means, log_scales, pose, K, width, height, depth, occlus
     from activesplat.splat.raster.constants import RASTER
 
     with torch.no_grad():
-        pose = np.asarray(pose, dtype=np.float64)
-        rot = torch.from_numpy(pose[:3, :3].astype(np.float32)).to(means.device)
-        t = torch.from_numpy(pose[:3, 3].astype(np.float32)).to(means.device)
-        cam = (means.detach() - t) @ rot  # world -> camera: R^T (p - t)
+        cam = camera_points(means, pose)
         z = cam[:, 2]
         front = z > RASTER.near
         safe_z = torch.where(front, z, torch.ones_like(z))
