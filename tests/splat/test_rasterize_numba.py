@@ -144,6 +144,21 @@ def test_vectorisable_exp_matches_numpy():
     assert exp_neg(np.float32(0.0)) == 1.0
 
 
+def test_depth_order_is_the_stable_argsort_of_the_candidates():
+    """The radix sort equals numpy's stable argsort: ties (a third of the depths repeat) keep the
+    candidates' order, and depths spanning every exponent byte sort as floats."""
+    from activesplat.splat.raster import numba_tiles as tiles
+
+    rng = np.random.default_rng(5)
+    n = 50_000
+    depths = (10.0 ** rng.uniform(-2, 3, n)).astype(np.float32)
+    depths[rng.random(n) < 0.33] = np.float32(2.5)
+    candidates = np.sort(rng.choice(n, 30_000, replace=False))
+    order = tiles.stable_depth_order(candidates, depths)
+    np.testing.assert_array_equal(order, candidates[np.argsort(depths[candidates], kind="stable")])
+    assert tiles.stable_depth_order(candidates[:0], depths).shape == (0,)
+
+
 def test_parallel_tile_lists_are_stable_and_match_the_binned_rows():
     """Enough Gaussians for several chunks: every tile lists its Gaussians in ``order`` order, and the
     fused binning writes each instance the row of the Gaussian the plain lists name."""

@@ -120,21 +120,29 @@ def build_tile_lists(order, rects, grid_x, n_tiles):
 @njit(cache=True, error_model="numpy")
 def stable_depth_order(candidates, depths):
     """``candidates`` sorted by depth (all > 0), stable: LSD radix sort on the float32 bit patterns
-    (order-preserving for positive floats), 3 passes of 11 bits; equals np.argsort(kind="stable")."""
-    keys = depths.view(np.uint32)
+    (order-preserving for positive floats), 3 passes of 11 bits; equals np.argsort(kind="stable").
+    Each key travels with its candidate, so the passes read sequentially instead of looking the key up
+    in ``depths`` at a random place (a panorama camera's 290k candidates: 22.6 -> 16.3 ms)."""
+    n = candidates.shape[0]
+    bits = depths.view(np.uint32)
+    keys = np.empty(n, np.uint32)
+    for r in range(n):
+        keys[r] = bits[candidates[r]]
     order = candidates.copy()
-    scratch = np.empty_like(order)
+    order_next, keys_next = np.empty_like(order), np.empty_like(keys)
     for shift in (0, 11, 22):
         counts = np.zeros(2049, np.int64)
-        for r in range(order.shape[0]):
-            counts[((keys[order[r]] >> shift) & 2047) + 1] += 1
+        for r in range(n):
+            counts[((keys[r] >> shift) & 2047) + 1] += 1
         for d in range(2048):
             counts[d + 1] += counts[d]
-        for r in range(order.shape[0]):
-            digit = (keys[order[r]] >> shift) & 2047
-            scratch[counts[digit]] = order[r]
-            counts[digit] += 1
-        order, scratch = scratch, order
+        for r in range(n):
+            digit = (keys[r] >> shift) & 2047
+            slot = counts[digit]
+            order_next[slot], keys_next[slot] = order[r], keys[r]
+            counts[digit] = slot + 1
+        order, order_next = order_next, order
+        keys, keys_next = keys_next, keys
     return order
 
 
