@@ -6,8 +6,9 @@
 EPISODE is an exploration episode folder with its ``gaussians.ply`` (or ``--gaussians``, e.g. the map a
 ``benchmarks/mapper.py --out DIR`` replay wrote: ``--gaussians DIR/gaussians.ply``). The views are exactly
 render-eval's. Every pixel gets one class (``activesplat.eval.render_error``): holes the trajectory never
-saw (the explorer's share), holes it saw (the mapper's), translucent gaps, depth in front / behind by
-more than 10 cm, depth edges, floor, ceiling and the rest. The table gives each class's share of the
+saw (the explorer's share), holes it saw only edge-on (more than 70 degrees off the surface normal),
+holes it saw (the mapper's), translucent gaps, depth in front / behind by more than 10 cm, depth edges,
+floor, ceiling and the rest. The table gives each class's share of the
 pixels and of the squared colour error, how much the split's PSNR would rise were the class's error
 halved (at most 3.01 dB), and its part of the depth L1 (cm; the parts add up to render-eval's depth
 L1). With several episodes, a last table averages them.

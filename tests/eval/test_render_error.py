@@ -12,7 +12,7 @@ from activesplat.eval.render_error import (
     ErrorBudgetConfig,
     classify_pixels,
     error_budget,
-    observed_by,
+    observation_angle,
     squared_error,
     view_budget,
 )
@@ -56,16 +56,40 @@ def test_view_budget_depth_parts_add_up_to_the_depth_l1():
     assert sum(v["depth_l1_part_cm"].values()) == pytest.approx(v["depth_l1_cm"])
 
 
-def test_observed_by_checks_image_front_and_depth():
+def test_observation_angle_checks_image_front_and_depth():
     K = intrinsics(8, 8, 90.0)
     pose = np.eye(4)  # camera at the origin looking along +z
     points = np.array([[0.0, 0.0, 2.0],     # seen: on the surface at depth 2
                        [0.0, 0.0, 3.0],     # behind the surface
                        [0.0, 0.0, -2.0],    # behind the camera
                        [10.0, 0.0, 2.0]])   # outside the image
-    seen = observed_by(points, [pose], lambda p: np.full((8, 8), 2.0), K, 8, 8, 0.05)
-    assert seen.tolist() == [True, False, False, False]
-    assert observed_by(points[:0], [pose], None, K, 8, 8, 0.05).shape == (0,)
+    angle = observation_angle(points, [pose], lambda p: np.full((8, 8), 2.0), K, 8, 8, 0.05)
+    assert angle.tolist() == [0.0, math.inf, math.inf, math.inf]
+    assert observation_angle(points[:0], [pose], None, K, 8, 8, 0.05).shape == (0,)
+
+
+def test_observation_angle_is_the_least_oblique_sighting():
+    """A point on a floor (normal +y, either sign) seen from straight ahead and from above: the angle of the
+    less oblique camera; a pose that misses it changes nothing."""
+    K = intrinsics(8, 8, 90.0)
+    point, normal = np.array([[0.0, 0.0, 2.0]]), np.array([[0.0, -1.0, 0.0]])
+    level = np.eye(4)  # the point straight ahead, on the optical axis: 90 deg off the floor's normal
+    above = np.eye(4)  # 2 m off the floor and 2 m back, looking at the point 45 deg off its normal
+    c, sn = math.cos(math.radians(45)), math.sin(math.radians(45))
+    above[:3, :3] = np.array([[1, 0, 0], [0, c, sn], [0, -sn, c]])  # its optical axis through the point
+    above[:3, 3] = [0.0, -2.0, 0.0]  # 2 m off the floor's plane, 2 m back
+    dist = math.hypot(2.0, 2.0)
+
+    def depth(pose):
+        return np.full((8, 8), 2.0 if pose is level else dist)
+
+    one = observation_angle(point, [level], depth, K, 8, 8, 0.05, normal)
+    assert one[0] == pytest.approx(90.0)
+    both = observation_angle(point, [level, above], depth, K, 8, 8, 0.05, -normal)
+    assert both[0] == pytest.approx(45.0)
+    # with the enough-angle at 90 the first sighting settles it
+    assert observation_angle(point, [level, above], depth, K, 8, 8, 0.05, normal, 90.0)[0] == \
+        pytest.approx(90.0)
 
 
 def test_classify_pixels_order():
@@ -83,10 +107,13 @@ def test_classify_pixels_order():
     depth[1, 0] = 0.8 * 2.0
     depth[2, 2] = 1.5  # in front by 0.5 m
     depth[3, 3] = 2.5  # behind by 0.5 m
-    observed = lambda pts: np.array([p[0] > 0.05 for p in pts])  # noqa: E731 - (0, 0) never seen
+    alpha[0, 2] = 0.1
+    # (0, 0) never seen, (0, 1) seen 30 deg off its normal, (0, 2) only 80 deg off it
+    seen_at = {0.0: math.inf, 0.1: 30.0, 0.2: 80.0}
+    observed = lambda pts, nrm: np.array([seen_at[round(p[0], 1)] for p in pts])  # noqa: E731
     label = classify_pixels(alpha, depth, gt_depth, points, np.array([0.3, 1.25, 0.3]), 0.0, observed, cfg)
     name = np.asarray(PIXEL_CLASSES)[label]
-    assert name[0, 0] == "hole_unobserved" and name[0, 1] == "hole_observed"
+    assert name[0, 0] == "hole_unobserved" and name[0, 1] == "hole_observed" and name[0, 2] == "hole_grazing"
     assert name[1, 0] == "translucent"
     assert name[2, 2] == "depth_front" and name[3, 3] == "depth_behind"
     assert name[4, 4] == "floor"
