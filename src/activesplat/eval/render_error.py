@@ -12,7 +12,7 @@ The views, ground truth and renders are exactly those of :func:`activesplat.eval
    frame that saw it looked at the surface more than ``grazing_deg`` (70) off its normal. Such a surface
    is a strip a few pixels wide in those frames, and the mapper's per-pixel Gaussians, each about a
    pixel's footprint across the ray, cover a sixth of it along the slant at 80 degrees: seen face-on
-   it is mostly gaps. The counter end or the door jamb the robot only ever walked past.
+   it is mostly gaps: the top of a counter a little below the camera's height.
 3. ``hole_observed``: a hole whose surface point some frame saw less obliquely: the mapper's own failure.
 4. ``translucent``: opacity in [0.5, 0.95): the background shows through gaps between Gaussians.
 5. ``depth_front`` / ``depth_behind``: the rendered depth (sum w_i z_i / O) is more than 10 cm in front of
