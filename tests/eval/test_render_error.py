@@ -87,6 +87,8 @@ def test_observation_angle_is_the_least_oblique_sighting():
     assert one[0] == pytest.approx(90.0)
     both = observation_angle(point, [level, above], depth, K, 8, 8, 0.05, -normal)
     assert both[0] == pytest.approx(45.0)
+    # a point without a normal counts as seen head-on
+    assert observation_angle(point, [level], depth, K, 8, 8, 0.05, np.zeros((1, 3)))[0] == 0.0
     # with the enough-angle at 90 the first sighting settles it
     assert observation_angle(point, [level, above], depth, K, 8, 8, 0.05, normal, 90.0)[0] == \
         pytest.approx(90.0)

@@ -11,8 +11,8 @@ The views, ground truth and renders are exactly those of :func:`activesplat.eval
 2. ``hole_grazing``: a hole whose surface point the trajectory saw, but only at a grazing angle: every
    frame that saw it looked at the surface more than ``grazing_deg`` (70) off its normal. Such a surface
    is a strip a few pixels wide in those frames, and the mapper's per-pixel Gaussians, each about a
-   pixel's footprint across the ray, cover a sixth of it along the slant at 80 degrees: seen face-on
-   it is mostly gaps: the top of a counter a little below the camera's height.
+   pixel's footprint across the ray, cover a sixth of it along the slant at 80 degrees, so seen face-on
+   it is mostly gaps (the top of a counter a little below the camera's height).
 3. ``hole_observed``: a hole whose surface point some frame saw less obliquely: the mapper's own failure.
 4. ``translucent``: opacity in [0.5, 0.95): the background shows through gaps between Gaussians.
 5. ``depth_front`` / ``depth_behind``: the rendered depth (sum w_i z_i / O) is more than 10 cm in front of
@@ -112,9 +112,9 @@ def observation_angle(points: np.ndarray, poses, depth_of, K: np.ndarray, width:
     """(N,) the smallest angle (degrees) between each world point's surface normal and the ray to a
     camera-to-world pose of ``poses`` that saw it: it projects inside the image, in front of the camera,
     within ``tol_m`` of that camera's ground-truth depth ``depth_of(pose)``. inf where no pose saw it;
-    0 for every seen point when ``normals`` is None (the sign of a normal does not matter). A point whose
-    angle is already at most ``enough_deg`` is not looked at again (0: the first sighting with normals
-    None, every pose otherwise)."""
+    0 for every seen point when ``normals`` is None or a point's normal is zero (the sign of a normal does
+    not matter). A point whose angle is already at most ``enough_deg`` is not looked at again (0: the
+    first sighting with normals None, every pose otherwise)."""
     angle = np.full(len(points), np.inf)
     for pose in poses:
         todo = np.nonzero(angle > enough_deg)[0]
@@ -139,6 +139,8 @@ def observation_angle(points: np.ndarray, poses, depth_of, K: np.ndarray, width:
             continue
         ray = pose[:3, 3] - points[hit]
         cos = np.abs(np.sum(ray * normals[hit], axis=1)) / np.maximum(np.linalg.norm(ray, axis=1), 1e-12)
+        # a point without a normal (zero: no neighbours to take it from) counts as seen head-on
+        cos = np.where(np.linalg.norm(normals[hit], axis=1) > 0.5, cos, 1.0)
         angle[hit] = np.minimum(angle[hit], np.degrees(np.arccos(np.clip(cos, 0.0, 1.0))))
     return angle
 
