@@ -146,7 +146,7 @@ def test_vectorisable_exp_matches_numpy():
 
 def test_depth_order_is_the_stable_argsort_of_the_candidates():
     """The radix sort equals numpy's stable argsort: ties (a third of the depths repeat) keep the
-    candidates' order, and depths spanning every exponent byte sort as floats."""
+    candidates' order, and depths over five decades sort as floats (their bit patterns)."""
     from activesplat.splat.raster import numba_tiles as tiles
 
     rng = np.random.default_rng(5)

@@ -122,7 +122,8 @@ def stable_depth_order(candidates, depths):
     """``candidates`` sorted by depth (all > 0), stable: LSD radix sort on the float32 bit patterns
     (order-preserving for positive floats), 3 passes of 11 bits; equals np.argsort(kind="stable").
     Each key travels with its candidate, so the passes read sequentially instead of looking the key up
-    in ``depths`` at a random place (a panorama camera's 290k candidates: 22.6 -> 16.3 ms)."""
+    in ``depths`` at a random place (one thread, 20 views of an 866k-Gaussian medium-house map, 120 x 150
+    panorama camera: 30.4 -> 20.0 ms with the whole map handed over, 16.8 -> 13.5 ms with its own rows)."""
     n = candidates.shape[0]
     bits = depths.view(np.uint32)
     keys = np.empty(n, np.uint32)
