@@ -147,18 +147,19 @@ def observation_angle(points: np.ndarray, poses, depth_of, K: np.ndarray, width:
 
 def classify_pixels(alpha: np.ndarray, depth: np.ndarray, gt_depth: np.ndarray, points: np.ndarray,
                     camera: np.ndarray, floor_y: float, observed=None,
-                    cfg: ErrorBudgetConfig | None = None) -> np.ndarray:
+                    cfg: ErrorBudgetConfig | None = None, normals: np.ndarray | None = None) -> np.ndarray:
     """(H, W) index into PIXEL_CLASSES of every pixel of one view (module docstring).
 
     ``alpha`` / ``depth``: the render's opacity and un-normalised depth sum w_i z_i; ``points``: (H, W, 3)
     world points of the ground-truth depth; ``camera``: the view's position; ``observed(points (N, 3),
     normals (N, 3))`` -> (N,) the smallest angle (degrees) off the normal at which the trajectory saw each
     point, inf where it never did (:func:`observation_angle`; only asked for holes; None: every hole stays
-    ``hole_observed``, for the caller to split)."""
+    ``hole_observed``, for the caller to split); ``normals``: :func:`surface_normals` of ``points`` when the
+    caller has them already."""
     cfg = cfg or ErrorBudgetConfig()
     valid = gt_depth > 0
     shown = np.where(alpha > 1e-6, depth / np.maximum(alpha, 1e-6), 0.0)
-    normals = surface_normals(points)
+    normals = surface_normals(points) if normals is None else normals
     up = normals[..., 1]
     # orient the normals toward the camera so that "faces up" means what the camera sees faces up
     toward = np.sum(normals * (camera[None, None, :] - points), axis=-1) < 0
@@ -311,10 +312,11 @@ def error_budget(episode_dir: str | Path, gaussians_path: str | Path | None = No
             valid = gt_depth > 0
             points = backproject(np.where(valid, gt_depth, 1.0), pose, K, rows.ravel(), cols.ravel())
             points = points.reshape(H, W, 3)
+            normals = surface_normals(points)
             label = classify_pixels(alpha, depth, gt_depth, points, pose[:3, 3], setup.floor_height,
-                                    cfg=cfg)
+                                    cfg=cfg, normals=normals)
             r, c = np.nonzero((label == _HOLE_OBSERVED) & valid)
-            holes.append((split, i, r, c, points[r, c], surface_normals(points)[r, c]))
+            holes.append((split, i, r, c, points[r, c], normals[r, c]))
             views[split].append((squared_error(rgb, gt_rgb).astype(np.float32), label.astype(np.int8),
                                  depth_error(depth, gt_depth).astype(np.float32)))
             if figure is not None and split == splits[-1]:
