@@ -89,9 +89,10 @@ class ActiveSplatExplorer(Explorer):
         def no_path_travel(pos: np.ndarray) -> np.ndarray:  # `neck_travel`; timed as position selection
             return graph_travel(grown_floor(Timers()).graph, here, pos)
 
-        goal_order = self.timers.time("position_selection", rank_goals, plan, here,
-                                      snapshot_render(self.world), self.floor_height, self.visited,
-                                      self.failed, cfg.planning, cfg.workspace, rules, self.rng,
+        pano = cfg.planning.panorama  # scoring panoramas: a snapshot, coarser with score_lod_voxel_m
+        render = snapshot_render(self.world, pano.score_lod_voxel_m, pano.score_lod_inflate)
+        goal_order = self.timers.time("position_selection", rank_goals, plan, here, render, self.floor_height,
+                                      self.visited, self.failed, cfg.planning, cfg.workspace, rules, self.rng,
                                       self.observed, self.promises, self.commitment, self.route_memory,
                                       no_path_travel if cfg.neck_travel else None)
 

@@ -55,12 +55,14 @@ class WorldModel(Protocol):
         (`planning.panorama.render_panorama`)."""
 
 
-def snapshot_render(world: WorldModel) -> Any:
+def snapshot_render(world: WorldModel, lod_voxel_m: float | None = None, lod_inflate: float = 1.3) -> Any:
     """The world's render for many views of a map that does not change meanwhile (a replan's panoramas):
     its ``snapshot()`` where it has one (`Mapper.snapshot`: the same images, the per-Gaussian work done
-    once), else its ``render``."""
+    once; with ``lod_voxel_m`` of a coarser copy of the map), else its ``render``."""
     snapshot = getattr(world, "snapshot", None)
-    return snapshot() if callable(snapshot) else world.render
+    if not callable(snapshot):
+        return world.render
+    return snapshot() if lod_voxel_m is None else snapshot(lod_voxel_m=lod_voxel_m, lod_inflate=lod_inflate)
 
 
 @dataclass(frozen=True)

@@ -181,10 +181,11 @@ class Mapper:
         return rasterize(*active, viewmat, Kt, width, height, backend=self.backend,
                          planar_depth=self.config.planar_depth)
 
-    def snapshot(self) -> MapSnapshot:
+    def snapshot(self, lod_voxel_m: float | None = None, lod_inflate: float = 1.3) -> MapSnapshot:
         """A renderer of the map as it is now for many views in a row (a replan's panoramas): the same
-        images as :meth:`render`, with the per-Gaussian work done once (``splat.snapshot.MapSnapshot``)."""
-        return MapSnapshot(self)
+        images as :meth:`render`, with the per-Gaussian work done once (``splat.snapshot.MapSnapshot``);
+        with ``lod_voxel_m``, of a coarser copy of the map (``splat.lod.voxel_lod``)."""
+        return MapSnapshot(self, lod_voxel_m, lod_inflate)
 
     def _view_rows(self, pose: np.ndarray, K: np.ndarray, width: int, height: int,
                    depth: torch.Tensor | None = None, candidates: torch.Tensor | None = None) -> torch.Tensor:

@@ -7,8 +7,9 @@ from typing import TYPE_CHECKING
 
 import torch
 
-from activesplat.splat.gaussians import activate, is_flat, seen_from_behind
+from activesplat.splat.gaussians import activate, frustum_rows, is_flat, seen_from_behind
 from activesplat.splat.kernels import quat_normal
+from activesplat.splat.lod import voxel_lod
 
 if TYPE_CHECKING:
     from activesplat.splat.mapper import Mapper
@@ -21,13 +22,20 @@ class MapSnapshot:
     here that is done once for every Gaussian, on first use, and each view selects its frustum's rows of
     the result. The images are bit-identical to :meth:`Mapper.render`'s (the same per-row arithmetic;
     ``tests/splat/test_mapper.py``). Valid until the map changes: a call after ``add_frame`` (or after
-    the map's size changed) raises RuntimeError."""
+    the map's size changed) raises RuntimeError.
 
-    def __init__(self, mapper: Mapper):
+    With ``lod_voxel_m`` the views are rendered from a coarser copy of the map instead, its Gaussians
+    merged per voxel of that size (``splat.lod.voxel_lod``, ``lod_inflate``; the replan's scoring
+    panoramas, ``PanoramaConfig.score_lod_voxel_m``): not the same images, about as many fewer Gaussians
+    to draw as the merge removes."""
+
+    def __init__(self, mapper: Mapper, lod_voxel_m: float | None = None, lod_inflate: float = 1.3):
         self._mapper = mapper
         self._state = (mapper.received, len(mapper.gaussians))
         self._active: tuple[torch.Tensor, ...] | None = None
         self._facing: tuple[torch.Tensor, torch.Tensor] | None = None
+        self._lod = None if lod_voxel_m is None else (float(lod_voxel_m), float(lod_inflate))
+        self._params: dict[str, torch.Tensor] | None = None
 
     def __call__(self, pose, K=None, width: int | None = None, height: int | None = None,
                  front_alpha: bool = False, behind_margin_deg: float = 0.0, behind_in_window: bool = False):
@@ -37,15 +45,20 @@ class MapSnapshot:
             raise RuntimeError("MapSnapshot: the map changed since the snapshot was taken; take a new one")
         pose, K, width, height = m._camera(pose, K, width, height)
         with torch.no_grad():
+            if self._params is None:
+                self._params = {name: t.detach() for name, t in m.gaussians.params.items()}
+                if self._lod is not None:
+                    self._params = voxel_lod(self._params, *self._lod)
+            p = self._params
             if self._active is None:
-                self._active = activate({name: t.detach() for name, t in m.gaussians.params.items()})
-            rows = m._view_rows(pose, K, width, height)
+                self._active = activate(p)
+            rows = frustum_rows(p["means"], p["log_scales"], pose, K, width, height, None,
+                                m.config.cull_occluded_margin_m or 0.0, m.config.cull_window_px)
             active = [t.index_select(0, rows) for t in self._active]
             if not front_alpha:
                 return m._draw(pose, K, width, height, tuple(active))
             if self._facing is None:
-                p = m.gaussians.params
-                self._facing = (is_flat(p["log_scales"].detach()), quat_normal(p["quats"].detach()))
+                self._facing = (is_flat(p["log_scales"]), quat_normal(p["quats"]))
             flat, normal = (t.index_select(0, rows) for t in self._facing)
             behind = seen_from_behind(flat, normal, active[0], pose[:3, 3], behind_margin_deg)
             return m._draw_front(pose, K, width, height, tuple(active), behind, behind_in_window)
