@@ -2,9 +2,12 @@
 they are, a covered surface still covered."""
 
 import numpy as np
+import pytest
 import torch
 from _synthetic import intrinsics, pose
 
+from activesplat.errors import InvalidInputError
+from activesplat.planning.config import PanoramaConfig
 from activesplat.planning.explorer import snapshot_render
 from activesplat.splat import GaussianMap, Mapper, MapperConfig
 from activesplat.splat.gaussians import activate
@@ -75,3 +78,12 @@ def test_a_covered_wall_stays_covered_with_fewer_gaussians():
     mapper.gaussians = GaussianMap(_wall(0.01, 0.008, z=1.0, half=1.2))
     assert torch.equal(snapshot_render(mapper)(pose()).alpha, full.alpha)
     assert torch.equal(snapshot_render(mapper, 0.05)(pose()).alpha, coarse.alpha)
+
+
+def test_an_empty_map_and_bad_options():
+    empty = voxel_lod(GaussianMap.empty().raw(), 0.05)
+    assert all(len(t) == 0 for t in empty.values())
+    for bad in ({"score_lod_voxel_m": 0.0}, {"score_lod_inflate": -1.0}):
+        with pytest.raises(InvalidInputError, match=f"PanoramaConfig.{next(iter(bad))}"):
+            PanoramaConfig(**bad)
+    assert PanoramaConfig(score_lod_voxel_m=None).score_lod_voxel_m is None

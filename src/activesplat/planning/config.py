@@ -69,9 +69,10 @@ class PanoramaConfig:
     Gaussian fit of a voxel's patch of surface leaves gaps between voxels that would read as unseen."""
 
     def __post_init__(self) -> None:
-        check_fields(self, positive=("hfov_deg", "vfov_deg"),
+        check_fields(self, positive=("hfov_deg", "vfov_deg", "score_lod_voxel_m", "score_lod_inflate"),
                      non_negative=("back_face_margin_deg", "scores_back_face_seen"),
-                     at_least_one=("n_cameras", "width_per_camera", "height"))
+                     at_least_one=("n_cameras", "width_per_camera", "height"),
+                     optional=("score_lod_voxel_m",))
         if self.scores_back_face_seen > 1.0:
             raise InvalidInputError(f"PanoramaConfig.scores_back_face_seen is a share in [0, 1], got "
                                     f"{self.scores_back_face_seen}")
