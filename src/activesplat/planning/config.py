@@ -62,7 +62,7 @@ class PanoramaConfig:
     merged per voxel of this size (ours; `splat.lod.voxel_lod`; None = the map itself, as the paper). A
     replan renders ~30 such panoramas of the whole map, and a final medium map's copy has ~3.4 times fewer
     Gaussians: position selection takes half the time (medium houses 111 -> 55 ms per step). Completion
-    -0.10 points over nine medium runs (standard error 0.10), -0.05 over four small ones; the on-arrival
+    -0.07 points over eleven medium runs (standard error 0.08), -0.05 over four small ones; the on-arrival
     panorama keeps the full map (docs/exploration.md "Coarser panoramas")."""
     score_lod_inflate: float = 1.3
     """With ``score_lod_voxel_m``, each merged Gaussian's covariance is scaled by this squared (ours): the
