@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 from activesplat.errors import InvalidInputError, check_fields
+from activesplat.splat.lod import LOD_INFLATE
 
 
 @dataclass(frozen=True)
@@ -64,7 +65,7 @@ class PanoramaConfig:
     Gaussians: position selection takes half the time (medium houses 111 -> 55 ms per step). Completion
     -0.07 points over eleven medium runs (standard error 0.08), -0.05 over four small ones; the on-arrival
     panorama keeps the full map (docs/exploration.md "Coarser panoramas")."""
-    score_lod_inflate: float = 1.3
+    score_lod_inflate: float = LOD_INFLATE
     """With ``score_lod_voxel_m``, each merged Gaussian's covariance is scaled by this squared (ours): the
     Gaussian fit of a voxel's patch of surface leaves gaps between voxels that would read as unseen."""
 

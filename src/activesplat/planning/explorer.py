@@ -34,6 +34,7 @@ from activesplat.planning.explorer_config import ExplorerConfig
 from activesplat.planning.observed import ObservedSurface
 from activesplat.planning.panorama import Panorama
 from activesplat.planning.viewpoints import HighLossTracker, RotationTarget
+from activesplat.splat.lod import LOD_INFLATE
 from activesplat.timing import Timers
 from activesplat.workspace.clean import Workspace, clearance_map
 from activesplat.workspace.paths import path_ahead_clear
@@ -55,7 +56,8 @@ class WorldModel(Protocol):
         (`planning.panorama.render_panorama`)."""
 
 
-def snapshot_render(world: WorldModel, lod_voxel_m: float | None = None, lod_inflate: float = 1.3) -> Any:
+def snapshot_render(world: WorldModel, lod_voxel_m: float | None = None,
+                    lod_inflate: float = LOD_INFLATE) -> Any:
     """The world's render for many views of a map that does not change meanwhile (a replan's panoramas):
     its ``snapshot()`` where it has one (`Mapper.snapshot`: the same images, the per-Gaussian work done
     once; with ``lod_voxel_m`` of a coarser copy of the map), else its ``render``."""

@@ -27,6 +27,9 @@ from activesplat.geometry import voxel_groups, voxel_keys
 from activesplat.splat.gaussians import activate, rgb_to_f_dc
 from activesplat.splat.kernels import quat_to_rotmat, rotmat_to_quat
 
+LOD_INFLATE = 1.3
+"""The default scale of a merged Gaussian's standard deviations (``PanoramaConfig.score_lod_inflate``)."""
+
 
 @njit(cache=True)
 def _group_moments(order, first, means, rot, scales, opac, colours):
@@ -73,7 +76,8 @@ def _group_moments(order, first, means, rot, scales, opac, colours):
     return count, mean, second, log_t, colour
 
 
-def voxel_lod(raw: dict[str, torch.Tensor], voxel_m: float, inflate: float = 1.3) -> dict[str, torch.Tensor]:
+def voxel_lod(raw: dict[str, torch.Tensor], voxel_m: float,
+              inflate: float = LOD_INFLATE) -> dict[str, torch.Tensor]:
     """Raw parameters of the map ``raw`` with the Gaussians of each ``voxel_m`` voxel merged into one
     (module docstring); rows in voxel order, on the device of ``raw``."""
     with torch.no_grad():

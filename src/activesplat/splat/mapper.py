@@ -57,6 +57,7 @@ from activesplat.splat.gaussians import (
     rgb_to_f_dc,
 )
 from activesplat.splat.keyframes import Keyframe, mapping_window
+from activesplat.splat.lod import LOD_INFLATE
 from activesplat.splat.losses import mapping_loss
 from activesplat.splat.merge import merge_alike
 from activesplat.splat.optim import RowAdam, nonzero_rows
@@ -181,18 +182,20 @@ class Mapper:
         return rasterize(*active, viewmat, Kt, width, height, backend=self.backend,
                          planar_depth=self.config.planar_depth)
 
-    def snapshot(self, lod_voxel_m: float | None = None, lod_inflate: float = 1.3) -> MapSnapshot:
+    def snapshot(self, lod_voxel_m: float | None = None, lod_inflate: float = LOD_INFLATE) -> MapSnapshot:
         """A renderer of the map as it is now for many views in a row (a replan's panoramas): the same
         images as :meth:`render`, with the per-Gaussian work done once (``splat.snapshot.MapSnapshot``);
         with ``lod_voxel_m``, of a coarser copy of the map (``splat.lod.voxel_lod``)."""
         return MapSnapshot(self, lod_voxel_m, lod_inflate)
 
     def _view_rows(self, pose: np.ndarray, K: np.ndarray, width: int, height: int,
-                   depth: torch.Tensor | None = None, candidates: torch.Tensor | None = None) -> torch.Tensor:
+                   depth: torch.Tensor | None = None, candidates: torch.Tensor | None = None,
+                   params: dict[str, torch.Tensor] | None = None) -> torch.Tensor:
         """The Gaussians a render of this view needs (:func:`frustum_rows`); with the view's observed
         ``depth`` ((height, width), 0 = invalid), not those it hides (``cull_occluded_margin_m``). With
-        ``candidates``, only those rows are tested (a superset of the answer: see :func:`frustum_rows`)."""
-        p, cfg = self.gaussians.params, self.config
+        ``candidates``, only those rows are tested (a superset of the answer: see :func:`frustum_rows`).
+        ``params``: other raw parameters than the map's (a snapshot's coarser copy)."""
+        p, cfg = self.gaussians.params if params is None else params, self.config
         if cfg.cull_occluded_margin_m is None:
             depth = None
         return frustum_rows(p["means"], p["log_scales"], pose, K, width, height, depth,

@@ -7,9 +7,9 @@ from typing import TYPE_CHECKING
 
 import torch
 
-from activesplat.splat.gaussians import activate, frustum_rows, is_flat, seen_from_behind
+from activesplat.splat.gaussians import activate, is_flat, seen_from_behind
 from activesplat.splat.kernels import quat_normal
-from activesplat.splat.lod import voxel_lod
+from activesplat.splat.lod import LOD_INFLATE, voxel_lod
 
 if TYPE_CHECKING:
     from activesplat.splat.mapper import Mapper
@@ -29,7 +29,7 @@ class MapSnapshot:
     panoramas, ``PanoramaConfig.score_lod_voxel_m``): not the same images, about as many fewer Gaussians
     to draw as the merge removes."""
 
-    def __init__(self, mapper: Mapper, lod_voxel_m: float | None = None, lod_inflate: float = 1.3):
+    def __init__(self, mapper: Mapper, lod_voxel_m: float | None = None, lod_inflate: float = LOD_INFLATE):
         self._mapper = mapper
         self._state = (mapper.received, len(mapper.gaussians))
         self._active: tuple[torch.Tensor, ...] | None = None
@@ -52,8 +52,7 @@ class MapSnapshot:
             p = self._params
             if self._active is None:
                 self._active = activate(p)
-            rows = frustum_rows(p["means"], p["log_scales"], pose, K, width, height, None,
-                                m.config.cull_occluded_margin_m or 0.0, m.config.cull_window_px)
+            rows = m._view_rows(pose, K, width, height, params=p)
             active = [t.index_select(0, rows) for t in self._active]
             if not front_alpha:
                 return m._draw(pose, K, width, height, tuple(active))
