@@ -25,6 +25,7 @@ from activesplat.planning.goals import (  # noqa: E402
     local_then_global,
     panorama_candidates,
     rank_goals,
+    reachable_first,
     sampled_surface_term,
     select_rotation_targets,
     tour_first,
@@ -478,16 +479,22 @@ def test_rotation_targets_lighter_than_a_share_of_their_sources_heaviest_are_ski
         dataclasses.replace(pcfg.rotation, min_relative_weight=1.5)
 
 
+def _plan_on_a_line(nodes: dict[str, tuple[float, float]]) -> tuple[Plan, list[int]]:
+    """A plan whose node k sits at (k, 0) with the (information part, travel m) of the k-th entry; and the
+    ranking order 0, 1, ..."""
+    plan = Plan()
+    for k, (info, travel) in enumerate(nodes.values()):
+        plan.graph.add_node(k, pos=np.array([float(k), 0.0]))
+        plan.info[k], plan.travel[k] = info, travel
+    return plan, list(range(len(nodes)))
+
+
 def test_a_node_on_its_last_call_goes_first_and_only_then():
     # nodes by (information, travel m): with 20 actions per metre, a node is on its last call when walking
     # there leaves between 60 and 300 of the steps left; the one that promises most goes first
     nodes = {"near": (28.0, 2.0), "far": (25.0, 12.0), "farther": (22.0, 21.0), "farthest": (30.0, 24.5),
              "little": (15.0, 12.0), "visited": (29.0, 12.0), "failed": (29.5, 13.0)}
-    plan = Plan()
-    for k, (info, travel) in enumerate(nodes.values()):
-        plan.graph.add_node(k, pos=np.array([float(k), 0.0]))
-        plan.info[k], plan.travel[k] = info, travel
-    order = list(range(len(nodes)))
+    plan, order = _plan_on_a_line(nodes)
     visited, failed = [np.array([5.0, 0.2])], [np.array([6.0, 0.0])]
 
     def first(steps_left):
@@ -500,3 +507,24 @@ def test_a_node_on_its_last_call_goes_first_and_only_then():
     assert first(600) == "farthest"  # 24.5 m leaves 110 and it promises most; 12 m would leave 360
     assert first(500) == "far"  # 24.5 m would leave 10; 12 m leaves 260, 21 m 80, and 12 m promises more
     assert first(250) == "near"  # 12 m would leave 10; 2 m leaves 210
+
+
+def test_a_goal_the_steps_left_cannot_reach_goes_behind_those_they_can():
+    # (information, travel m) in ranking order; 20 actions per metre; the local-score threshold 5
+    nodes = {"far": (30.0, 20.0), "visited": (29.0, 3.0), "mid": (18.0, 9.0), "near": (8.0, 2.0),
+             "nothing": (2.0, 1.0), "failed": (25.0, 4.0)}
+    plan, order = _plan_on_a_line(nodes)
+    visited, failed = [np.array([1.0, 0.2])], [np.array([5.0, 0.0])]
+
+    def ranked(steps_left):
+        out = reachable_first(order, plan, steps_left, visited, failed, 0.65, steps_per_m=20.0, threshold=5.0)
+        assert sorted(out) == order
+        return [list(nodes)[k] for k in out]
+
+    assert ranked(400) == list(nodes)  # everything within reach: the order as it was
+    # 20 m needs 400 actions: behind the open nodes that promise something and are within reach, in order
+    assert ranked(399) == ["mid", "near", "far", "visited", "nothing", "failed"]
+    assert ranked(100) == ["near", "far", "visited", "mid", "nothing", "failed"]  # 9 m needs 180
+    # nothing that promises something is within reach (a visited or failed node does not count, nor one
+    # that promises nothing): the order as it was
+    assert ranked(30) == list(nodes)

@@ -21,6 +21,7 @@ from activesplat.planning.goals import (
     closer_on_the_way,
     last_call_first,
     rank_goals,
+    reachable_first,
     select_rotation_targets,
     worth_a_detour,
     worth_a_visit,
@@ -100,6 +101,11 @@ class ActiveSplatExplorer(Explorer):
             goal_order = last_call_first(goal_order, plan, self.steps_left, self.visited, self.failed,
                                          cfg.planning.score.unvisited_radius_m, cfg.last_call_steps,
                                          cfg.last_call_min_info, cfg.last_call_steps_per_m)
+
+        if cfg.out_of_reach_last and self.steps_left is not None and plan.stage:
+            goal_order = reachable_first(goal_order, plan, self.steps_left, self.visited, self.failed,
+                                         cfg.planning.score.unvisited_radius_m, cfg.last_call_steps_per_m,
+                                         cfg.local_score_threshold)
 
         def find_path(goal: np.ndarray, on: Plan = plan) -> np.ndarray | None:
             return self.timers.time("planner", plan_safe_path, on.graph, on.workspace, here, goal,

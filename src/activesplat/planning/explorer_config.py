@@ -210,6 +210,15 @@ class ExplorerConfig:
     """Actions per metre of travel for the last call's estimate (`last_call_steps`): 15.4 forward moves of
     0.065 m and the turns on the way (paths in the medium houses take about 1.3 actions per forward move,
     stops on the way included; ours)."""
+    out_of_reach_last: bool = False
+    """A goal the steps left cannot reach goes behind those they can (ours; off = the paper, which has no
+    step budget): once an open node's travel times `last_call_steps_per_m` exceeds the steps left, it
+    moves behind every node that promises something to see and is within reach, keeping the ranking's
+    order otherwise. Without it, a global replan late in the run can send the agent toward a node across
+    the house that it cannot reach before the budget ends, past nearer nodes with less to show (medium-179
+    seed 0: at step 1776, a node 19.5 m away with 224 steps left). On 17 medium runs (medium-0..3 seeds 0
+    and 1, medium-179..187 seed 0) +0.014 points (paired standard error 0.013), 14 runs with the same
+    actions, so off (docs/benchmark.md, "A goal the steps left cannot reach")."""
     keep_promise_m: float | None = None
     """Remember what each node outside the agent's subregion promised (its information part) across
     replans, by floor position within this many metres, and rank it by at least that until the agent has

@@ -203,6 +203,30 @@ def last_call_first(order: list[int], plan: Plan, steps_left: int, visited: Sequ
     return [best] + [n for n in order if n != best]
 
 
+def reachable_first(order: list[int], plan: Plan, steps_left: int, visited: Sequence[np.ndarray],
+                    failed: Sequence[np.ndarray], radius: float, steps_per_m: float,
+                    threshold: float) -> list[int]:
+    """`order` with the open nodes that promise something to see (`worth_a_visit` at `threshold`) and that
+    the `steps_left` can reach (travel x `steps_per_m`) first, in their order; then the rest, in theirs
+    (`ExplorerConfig.out_of_reach_last`). `order` itself when no such node is out of reach, or none is
+    within it."""
+    worth = worth_a_visit(np.array([plan.info.get(n, 0.0) for n in order]), True, threshold)
+    reachable = np.array([plan.travel.get(n, np.inf) * steps_per_m <= steps_left for n in order], bool)
+    if not (worth & ~reachable).any():
+        return order  # (the usual case: the open-state test below is the costly part)
+    rows = np.flatnonzero(worth)
+    pos = np.array([plan.graph.nodes[order[k]]["pos"] for k in rows], float).reshape(-1, 2)
+    for places in (visited[-VISIT_MEMORY:], failed):  # node_state's two tests, for all these nodes at once
+        if len(places):
+            gap = np.hypot(*(pos[:, None, :] - np.asarray(places, float)[None, :, :]).transpose(2, 0, 1))
+            worth[rows[(gap <= radius).any(axis=1)]] = False
+    first = worth & reachable
+    if not first.any() or not (worth & ~reachable).any():
+        return order
+    return [n for n, f in zip(order, first, strict=True) if f] + [n for n, f in zip(order, first, strict=True)
+                                                                   if not f]
+
+
 def sampled_surface_term(poor: np.ndarray, cfg: ScoreConfig) -> np.ndarray:
     """The w_q information term of the candidates from their poorly sampled shares (`ScoreConfig.w_q`):
     relative to the largest share, or on the absolute scale of `ScoreConfig.quality_reference`."""
@@ -441,5 +465,6 @@ def select_rotation_targets(targets: Sequence[RotationTarget], yaw: float, pcfg:
 
 
 __all__ = ["GoalRules", "closer_on_the_way", "distance_to_polyline", "goal_candidates", "last_call_first",
-           "local_then_global", "node_state", "panorama_candidates", "rank_goals", "sampled_surface_term",
+           "local_then_global", "node_state", "panorama_candidates", "rank_goals", "reachable_first",
+           "sampled_surface_term",
            "select_rotation_targets", "tour_first", "worth_a_detour", "worth_a_visit"]
