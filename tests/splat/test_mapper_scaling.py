@@ -256,3 +256,27 @@ def test_culled_eq8_render_leaves_out_the_hidden_wall_and_still_densifies_the_ne
         added[culled] = len(new_z)
     assert drawn[False] - drawn[True] >= 50  # the wall behind the middle of the box is not drawn
     assert added[False] > 50 and abs(added[True] - added[False]) <= 0.1 * added[False]  # the box is mapped
+
+
+def test_the_map_appends_into_spare_rows_and_earlier_views_stay_as_they_were():
+    """Appends (into spare capacity and with reallocation) and prunes give the parameters that concatenating
+    and masking give; each parameter stays a contiguous leaf; and a view of the map taken before (as a
+    replan's snapshot holds) is not changed by them."""
+    gmap = _cloud(10, seed=7)
+    ref = {name: t.detach().clone() for name, t in gmap.params.items()}
+    g = torch.Generator().manual_seed(8)
+    for m, drop in ((5, 0), (1, 3), (40, 0), (0, 7), (2, 1), (100, 20)):
+        before = {name: t.detach() for name, t in gmap.params.items()}  # views, as MapSnapshot keeps them
+        frozen = {name: t.clone() for name, t in before.items()}
+        if m:
+            extra = _cloud(m, seed=m).params
+            gmap.append(extra)
+            ref = {name: torch.cat([t, extra[name].detach()]) for name, t in ref.items()}
+        keep = torch.ones(len(gmap), dtype=torch.bool)
+        keep[torch.randperm(len(gmap), generator=g)[:drop]] = False
+        gmap.keep(keep)
+        ref = {name: t[keep] for name, t in ref.items()}
+        for name, t in gmap.params.items():
+            assert torch.equal(t.detach(), ref[name])
+            assert t.is_leaf and t.requires_grad and t.is_contiguous()
+            assert torch.equal(before[name], frozen[name])

@@ -53,11 +53,20 @@ def _check_raw(raw: dict[str, torch.Tensor]) -> int:
 class GaussianMap:
     """A set of 3D Gaussians (paper eq. 1) held as leaf tensors that Adam optimises."""
 
+    GROWTH = 1.25
+    """Capacity factor when :meth:`append` outgrows the storage (the spare rows cost at most a quarter)."""
+
     def __init__(self, raw: dict[str, torch.Tensor]):
         _check_raw(raw)
-        self.params: dict[str, torch.Tensor] = {
-            name: raw[name].detach().to(torch.float32).clone().requires_grad_(True) for name in PARAM_NAMES
-        }
+        # each parameter is a leaf view of the first rows of a larger buffer, so that appending m rows
+        # writes m rows instead of copying the whole map (torch.cat at every mapped frame)
+        self._buffers = {name: raw[name].detach().to(torch.float32).clone() for name in PARAM_NAMES}
+        self.params: dict[str, torch.Tensor] = {name: self._leaf(name, len(buf))
+                                                for name, buf in self._buffers.items()}
+
+    def _leaf(self, name: str, n: int) -> torch.Tensor:
+        """A leaf tensor (requires grad) on the first ``n`` rows of buffer ``name``, sharing its storage."""
+        return self._buffers[name][:n].detach().requires_grad_(True)
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -173,9 +182,15 @@ class GaussianMap:
         m = _check_raw(raw)
         if m == 0:
             return 0
+        n = len(self)
         for name in PARAM_NAMES:
-            extra = raw[name].detach().to(self.device, torch.float32)
-            self._replace(name, torch.cat([self.params[name].detach(), extra]), optimizer,
+            buf = self._buffers[name]
+            if n + m > buf.shape[0]:  # grown geometrically: O(m) amortised per append
+                grown = buf.new_empty((max(n + m, int(self.GROWTH * buf.shape[0])), *buf.shape[1:]))
+                grown[:n] = buf[:n]
+                buf = self._buffers[name] = grown
+            buf[n:n + m] = raw[name].detach().to(self.device, torch.float32)
+            self._replace(name, self._leaf(name, n + m), optimizer,
                           lambda s, m=m: torch.cat([s, s.new_zeros((m, *s.shape[1:]))]))
         return m
 
@@ -188,9 +203,9 @@ class GaussianMap:
         if removed == 0:
             return 0
         index = torch.nonzero(mask, as_tuple=True)[0]  # index_select: several times faster than a bool mask
-        for name in PARAM_NAMES:
-            self._replace(name, self.params[name].detach().index_select(0, index), optimizer,
-                          lambda s: s.index_select(0, index))
+        for name in PARAM_NAMES:  # into new storage: views of the map as it was (a snapshot) stay valid
+            self._buffers[name] = self.params[name].detach().index_select(0, index)
+            self._replace(name, self._leaf(name, len(index)), optimizer, lambda s: s.index_select(0, index))
         return removed
 
 
