@@ -62,9 +62,13 @@ def node_state(node_pos: np.ndarray, visited: Sequence[np.ndarray], failed: Sequ
                radius: float) -> tuple[bool, bool]:
     """(unvisited, failed) of a node: no recent position within `radius` of it (eq. 12's s_u), and a failed
     goal within `radius` of it."""
-    unvisited = not any(np.hypot(*(node_pos - p)) <= radius for p in visited[-VISIT_MEMORY:])
-    is_failed = any(np.hypot(*(node_pos - p)) <= radius for p in failed)
-    return unvisited, is_failed
+    return not _any_within(node_pos, visited[-VISIT_MEMORY:], radius), _any_within(node_pos, failed, radius)
+
+
+def _any_within(node_pos: np.ndarray, places: Sequence[np.ndarray], radius: float) -> bool:
+    """Whether a floor position of `places` lies within `radius` of `node_pos` (one vectorised pass)."""
+    gap = np.asarray(node_pos, float) - np.asarray(places, float).reshape(-1, 2)
+    return bool((np.hypot(gap[:, 0], gap[:, 1]) <= radius).any())
 
 
 def worth_a_visit(info: np.ndarray | float, open_: np.ndarray | bool, threshold: float) -> np.ndarray:
@@ -213,13 +217,11 @@ def reachable_first(order: list[int], plan: Plan, steps_left: int, visited: Sequ
     worth = worth_a_visit(np.array([plan.info.get(n, 0.0) for n in order]), True, threshold)
     reachable = np.array([plan.travel.get(n, np.inf) * steps_per_m <= steps_left for n in order], bool)
     if not (worth & ~reachable).any():
-        return order  # (the usual case: the open-state test below is the costly part)
-    rows = np.flatnonzero(worth)
-    pos = np.array([plan.graph.nodes[order[k]]["pos"] for k in rows], float).reshape(-1, 2)
-    for places in (visited[-VISIT_MEMORY:], failed):  # node_state's two tests, for all these nodes at once
-        if len(places):
-            gap = np.hypot(*(pos[:, None, :] - np.asarray(places, float)[None, :, :]).transpose(2, 0, 1))
-            worth[rows[(gap <= radius).any(axis=1)]] = False
+        return order
+    for k in np.flatnonzero(worth):
+        unvisited, is_failed = node_state(np.asarray(plan.graph.nodes[order[k]]["pos"], float), visited,
+                                          failed, radius)
+        worth[k] = unvisited and not is_failed
     first = worth & reachable
     if not first.any() or not (worth & ~reachable).any():
         return order
