@@ -241,6 +241,9 @@ class RefineCommand:
     (3.0); None: the mesh's only storey (an error lists the storeys when there are several)."""
     progress: bool = True
     """Show a progress bar."""
+    lpips: bool = True
+    """Measure LPIPS in the evaluation after training (--no-lpips: leave it out, for a machine without its
+    AlexNet weights; checked before training starts)."""
     refine: RefineGroup = field(default_factory=RefineConfig)
 
 

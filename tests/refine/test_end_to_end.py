@@ -73,6 +73,24 @@ def test_cli_runs_resumes_and_restarts(episode, tmp_path, capsys, monkeypatch):
     assert "refined 3dgs: 3 iterations" in capsys.readouterr().out
 
 
+def test_without_the_lpips_weights_refine_says_so_before_training_or_leaves_lpips_out(
+        episode, tmp_path, capsys, monkeypatch):
+    import activesplat.refine.trainer as trainer
+
+    ep = shutil.copytree(episode, tmp_path / "ep", ignore=shutil.ignore_patterns("refined_*"))
+    monkeypatch.setenv("ACTIVESPLAT_LPIPS_WEIGHTS", str(tmp_path / "absent.ckpt"))
+    asked = []
+    monkeypatch.setattr(trainer.Refiner, "evaluate", lambda self, ply, **kw: asked.append(kw))
+    argv = ["refine", str(ep), "--iters", "2", "--no-progress", "--backend", "numba"]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert "absent.ckpt is not a file" in err and "\n" not in err
+    assert not (ep / "refined_3dgs").exists()  # nothing was trained
+    assert main([*argv, "--no-lpips"]) == 0
+    assert "refined 3dgs: 2 iterations" in capsys.readouterr().out
+    assert asked == [{"lpips": False}]
+
+
 def test_image_size_renders_the_keyframes_again(episode, tmp_path, capsys):
     """--image-size: the keyframes are rendered again by the simulator at that size from their poses (the
     paper refines at 512 x 512 what it explored at 256 x 256), and the evaluation uses that size too."""

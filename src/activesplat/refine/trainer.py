@@ -393,10 +393,15 @@ def refine(episode_dir: str | Path, method: str = "3dgs", iters: int = 2000, *,
 
 def refine_from_command(cmd) -> int:
     """``activesplat refine DIR [--method 3dgs|2dgs] [--iters N] [--seed S] [--restart] [--backend B]
-    [--image-size PX] [--refine.FIELD VALUE ...]`` (an `activesplat.config.RefineCommand`)."""
+    [--image-size PX] [--no-lpips] [--refine.FIELD VALUE ...]`` (an `activesplat.config.RefineCommand`)."""
     check_arguments(cmd.dir, cmd.method, cmd.iters)
+    if cmd.lpips:  # the evaluation after training needs the weights: say so before training, not after
+        from activesplat.eval.lpips import find_weights
+
+        find_weights()
     res = refine(cmd.dir, cmd.method, cmd.iters, config=cmd.refine, seed=cmd.seed, backend=cmd.backend,
-                 restart=cmd.restart, progress=cmd.progress, image_size=cmd.image_size)
+                 restart=cmd.restart, progress=cmd.progress, image_size=cmd.image_size,
+                 eval_kwargs={"lpips": cmd.lpips})
     rate = res.iterations / res.train_seconds if res.train_seconds else float("nan")
     print(f"refined {res.method}: {res.iterations} iterations ({rate:.2f} it/s), "
           f"{res.n_gaussians_initial} -> {res.n_gaussians} Gaussians "
