@@ -71,6 +71,19 @@ def voxel_keys(pts: np.ndarray, size: float) -> np.ndarray:
     return (v[:, 0] << 42) | (v[:, 1] << 21) | v[:, 2]
 
 
+def unique_first(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``np.unique(keys, return_index=True)`` of a 1-D array (the sorted unique keys and the index of each
+    one's first occurrence), with a plain sort and a minimum per run instead of np.unique's stable sort:
+    about half the time on a batch of 800k voxel keys."""
+    keys = np.asarray(keys)
+    order = np.argsort(keys)
+    sorted_keys = keys[order]
+    if not len(keys):
+        return sorted_keys, order
+    starts = np.flatnonzero(np.r_[True, sorted_keys[1:] != sorted_keys[:-1]])
+    return sorted_keys[starts], np.minimum.reduceat(order, starts)
+
+
 def voxel_groups(keys: np.ndarray, tiebreak: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Group items by voxel key: (order, first), with `order` the indices of `keys` sorted by key, then by
     `tiebreak` (optional, ascending), then by index; `first` (bool, per position of `order`) marks the first

@@ -58,6 +58,36 @@ def test_running_minimum_is_order_and_batch_independent():
         assert r["completion_ratio_pct"] == results[0]["completion_ratio_pct"]
 
 
+def test_running_minimum_is_the_exact_nearest_distance_below_the_cap():
+    """The batches search each GT point only as far as could lower its running minimum (up to the threshold
+    once it is completed, else up to the cap): the minimum is still the nearest observed point's distance
+    wherever that is under the cap, and inf elsewhere."""
+    from scipy.spatial import cKDTree
+
+    from activesplat.geometry import backproject
+
+    rng = np.random.default_rng(3)
+    gt = rng.uniform(-3, 3, (3000, 3))
+    K = intrinsics(40, 40, 90.0)
+    frames = [(rng.uniform(1, 4, (40, 40)).astype(np.float32), camera_pose(rng.uniform(-1, 1, 3), y, 0.1))
+              for y in np.linspace(0, 6, 10)]
+    cfg = CoverageConfig(batch_frames=2, threshold_m=0.2, cap_m=0.6)
+    acc = CoverageAccumulator(gt, cfg)
+    for d, p in frames:
+        acc.add_frame(d, p, K)
+    acc.flush()
+    true, _ = cKDTree(np.concatenate([backproject(d, p, K) for d, p in frames])).query(gt)
+    assert 0.2 < np.mean(true < cfg.threshold_m) < 0.8 and np.any(true > cfg.cap_m)  # all three cases occur
+    np.testing.assert_array_equal(acc.min_dist, np.where(true < cfg.cap_m, true, np.inf))
+    # and the first frame that came within the threshold of each GT point, frame by frame
+    first = np.full(len(gt), -1)
+    for f, (d, p) in enumerate(frames):
+        near, _ = cKDTree(backproject(d, p, K)).query(gt)
+        first[(first < 0) & (near < cfg.threshold_m)] = f
+    assert len(np.unique(first)) == len(frames) + 1  # every frame completed some points first
+    np.testing.assert_array_equal(acc.first_frame, first)
+
+
 def test_first_frame_of_each_point_is_batch_independent_and_sums_to_the_ratio():
     rng = np.random.default_rng(2)
     gt = rng.uniform(-3, 3, (3000, 3))
@@ -87,3 +117,15 @@ def test_invalid_depth_is_ignored():
     K = intrinsics(16, 16, 90.0)
     acc.add_frame(np.zeros((16, 16), np.float32), np.eye(4), K)
     assert acc.metrics()["completion_cm"] == pytest.approx(100.0)
+
+
+def test_unique_first_is_numpy_unique_with_first_indices():
+    from activesplat.geometry import unique_first
+
+    rng = np.random.default_rng(4)
+    for keys in (np.zeros(0, np.int64), np.array([7]), np.array([3, 1, 3, 2, 1, 1]),
+                 rng.integers(0, 60, 5000), rng.integers(-2**62, 2**62, 3000)):
+        expected = np.unique(keys, return_index=True)
+        got = unique_first(keys)
+        np.testing.assert_array_equal(got[0], expected[0])
+        np.testing.assert_array_equal(got[1], expected[1])

@@ -9,13 +9,14 @@ the true minimum distance (None until anything has been observed).
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial import cKDTree
 
 from activesplat.errors import check_fields
-from activesplat.geometry import backproject, merge_sorted, voxel_keys
+from activesplat.geometry import backproject, merge_sorted, unique_first, voxel_keys
 
 
 @dataclass(frozen=True)
@@ -103,11 +104,13 @@ class CoverageAccumulator:
         # Exact within the cap: only GT points within the cap of the batch's bounding box can get closer
         # than the cap, and a bounded search returns inf beyond it.
         cap = self.cfg.cap_m
-        lo, hi = pts.min(axis=0) - cap, pts.max(axis=0) + cap
+        columns = pts.T  # column by column: a reduction over axis 0 of (N, 3) is several times slower
+        lo = np.array([c.min() for c in columns]) - cap
+        hi = np.array([c.max() for c in columns]) + cap
         near = np.flatnonzero(np.all((self.gt >= lo) & (self.gt <= hi), axis=1))
         if len(near):
             tree = _tree(pts)
-            dist, idx = tree.query(self.gt[near], k=1, distance_upper_bound=cap, workers=-1)
+            dist, idx = self._bounded_query(tree, near)
             thr = self.cfg.threshold_m
             is_fresh = (dist < thr) & ~(self.min_dist[near] < thr)
             self.min_dist[near] = np.minimum(self.min_dist[near], dist)
@@ -115,19 +118,41 @@ class CoverageAccumulator:
                 self._first_frames(tree, owner, near[is_fresh], owner[idx[is_fresh]])
         self._keep_thinned(pts)
 
+    def _bounded_query(self, tree: cKDTree, near: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Nearest batch point of each GT point in `near`, searched only as far as could lower its running
+        minimum: points already within the threshold up to the threshold, the others up to the cap (a
+        search bounded by B returns inf beyond B, and min(m, inf) = m for any running minimum m <= B). The
+        same minima, fresh points and their nearest points as one search up to the cap; most GT points
+        near a batch are already completed late in a run, and their short searches end at once."""
+        thr, cap = self.cfg.threshold_m, self.cfg.cap_m
+        dist = np.full(len(near), np.inf)
+        idx = np.zeros(len(near), np.int64)
+        done = self.min_dist[near] < thr
+        for group, bound in ((done, thr), (~done, cap)):
+            if group.any():
+                dist[group], idx[group] = tree.query(self.gt[near[group]], k=1, distance_upper_bound=bound,
+                                                     workers=-1)
+        return dist, idx
+
     def _first_frames(self, tree: cKDTree, owner: np.ndarray, fresh: np.ndarray, nearest: np.ndarray) -> None:
         """Record which frame of the batch first came within the threshold of the `fresh` GT points (those
         completed by this batch): the earliest frame owning a batch point that close (`nearest`: the frame
-        of each one's nearest point, which is that close by definition)."""
+        of each one's nearest point, which is that close by definition). Batch points are in frame order,
+        so the earliest frame is the owner of the lowest point index within the threshold."""
         hits = tree.query_ball_point(self.gt[fresh], r=np.nextafter(self.cfg.threshold_m, 0.0), workers=-1)
-        first = np.array([owner[h].min() if len(h) else n for h, n in zip(hits, nearest, strict=True)],
-                         np.int64)
+        counts = np.fromiter(map(len, hits), np.int64, len(hits))
+        flat = np.fromiter(itertools.chain.from_iterable(hits), np.int64, int(counts.sum()))
+        first = nearest.copy()
+        some = counts > 0
+        if some.any():
+            starts = np.concatenate(([0], np.cumsum(counts)[:-1]))[some]
+            first[some] = owner[np.minimum.reduceat(flat, starts)]
         self.first_frame[fresh] = np.minimum(first, nearest)
 
     def _keep_thinned(self, pts: np.ndarray) -> None:
         """One observed point per 2 cm voxel, for the uncapped distances beyond the cap."""
         keys = voxel_keys(pts, self.cfg.far_voxel_m)
-        keys, first = np.unique(keys, return_index=True)
+        keys, first = unique_first(keys)
         self._voxels, fresh = merge_sorted(self._voxels, keys)
         if fresh.any():
             self._thinned.append(pts[first[fresh]])
