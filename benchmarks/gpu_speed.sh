@@ -8,7 +8,8 @@
 #   bash benchmarks/gpu_speed.sh [OUT]          # about 7 minutes on one H100
 #
 # STEPS_SMALL / STEPS_MEDIUM shorten the two long runs; THREADS="16 4" sets the thread counts compared;
-# BACKEND=numba times the CPU path the same way.
+# BACKEND=numba times the CPU path the same way; EXTRA adds explore options to every timed run (e.g.
+# EXTRA="--coverage.background False").
 set -uo pipefail
 cd "$(dirname "$0")/.."
 OUT=${1:-runs/gpu-speed}
@@ -19,7 +20,7 @@ say() { echo "[$(( $(date +%s) - T0 )) s] $*" | tee -a "$LOG"; }
 explore() {  # explore THREADS SCENE STEPS NAME
     say "explore $2 ($3 steps, $1 CPU threads)"
     NUMBA_NUM_THREADS=$1 OMP_NUM_THREADS=$1 python3 -m activesplat explore --scene "$2" --steps "$3" --seed 0 \
-        --backend "${BACKEND:-gsplat}" --out "$OUT/$4" --overwrite --no-progress 2>&1 | tail -7 | tee -a "$LOG"
+        --backend "${BACKEND:-gsplat}" --out "$OUT/$4" --overwrite --no-progress ${EXTRA:-} 2>&1 | tail -7 | tee -a "$LOG"
     cp "$OUT/$4/metrics.json" "$OUT/$4.json" 2>/dev/null
     python3 -c "import json; m = json.load(open('$OUT/$4.json')); print('mapper phases (ms/step)', \
 {k: round(v, 1) for k, v in m.get('mapper_phases_ms', {}).items()}, \
@@ -44,5 +45,5 @@ for threads in ${THREADS:-16 4}; do
 done
 say "faster thread count: $best ($best_ms ms/step over 300 steps)"
 explore "$best" small-0 "${STEPS_SMALL:-1000}" small-0
-explore "$best" medium-0 "${STEPS_MEDIUM:-2000}" medium-0
+[ "${STEPS_MEDIUM:-2000}" != 0 ] && explore "$best" medium-0 "${STEPS_MEDIUM:-2000}" medium-0  # 0: no medium run
 say "done"
