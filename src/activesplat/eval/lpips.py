@@ -59,7 +59,7 @@ def find_weights() -> Path:
     if env:
         path = Path(env)
         if not path.is_file():
-            raise LPIPSWeightsError(f"{WEIGHTS_ENV}={env} is not a file")
+            raise LPIPSWeightsError(f"{WEIGHTS_ENV}={env} is not a file (or leave LPIPS out with --no-lpips)")
         return path
     spec = importlib.util.find_spec(LPIPS_PACKAGE)  # locates the package without running its __init__
     for folder in (spec.submodule_search_locations or []) if spec is not None else []:
