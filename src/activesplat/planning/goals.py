@@ -225,8 +225,8 @@ def reachable_first(order: list[int], plan: Plan, steps_left: int, visited: Sequ
     first = worth & reachable
     if not first.any() or not (worth & ~reachable).any():
         return order
-    return [n for n, f in zip(order, first, strict=True) if f] + [n for n, f in zip(order, first, strict=True)
-                                                                   if not f]
+    ahead = [n for n, f in zip(order, first, strict=True) if f]
+    return ahead + [n for n, f in zip(order, first, strict=True) if not f]
 
 
 def sampled_surface_term(poor: np.ndarray, cfg: ScoreConfig) -> np.ndarray:
@@ -468,5 +468,4 @@ def select_rotation_targets(targets: Sequence[RotationTarget], yaw: float, pcfg:
 
 __all__ = ["GoalRules", "closer_on_the_way", "distance_to_polyline", "goal_candidates", "last_call_first",
            "local_then_global", "node_state", "panorama_candidates", "rank_goals", "reachable_first",
-           "sampled_surface_term",
-           "select_rotation_targets", "tour_first", "worth_a_detour", "worth_a_visit"]
+           "sampled_surface_term", "select_rotation_targets", "tour_first", "worth_a_detour", "worth_a_visit"]
