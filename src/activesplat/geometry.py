@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 
 WORLD_UP = np.array([0.0, 1.0, 0.0])
 
@@ -66,9 +67,28 @@ def backproject(depth: np.ndarray, pose: np.ndarray, K: np.ndarray, v: np.ndarra
 
 
 def voxel_keys(pts: np.ndarray, size: float) -> np.ndarray:
-    """One int64 per voxel of `size` metres holding each point (M, 3) (21 bits per axis: +-10 km at 1 cm)."""
-    v = np.floor(np.asarray(pts, np.float64) / size).astype(np.int64) + (1 << 20)
-    return (v[:, 0] << 42) | (v[:, 1] << 21) | v[:, 2]
+    """One int64 per voxel of `size` metres holding each point (M, 3) (21 bits per axis: +-10 km at 1 cm):
+    floor(x / size) + 2^20 per axis, x in float64, packed x << 42 | y << 21 | z. One compiled pass with no
+    temporaries: the numpy expression made four (M, 3) arrays, and on the live evaluation's batches of
+    819k points their first touch of fresh memory cost 50-490 ms instead of 12."""
+    pts = np.asarray(pts)
+    if pts.dtype not in (np.float32, np.float64):
+        pts = pts.astype(np.float64)
+    if pts.ndim != 2 or pts.shape[1] != 3:
+        raise ValueError(f"voxel_keys: expected (M, 3) points, got shape {pts.shape}")
+    return _voxel_keys(pts, float(size))
+
+
+@njit(cache=True, nogil=True)
+def _voxel_keys(pts, size):
+    out = np.empty(pts.shape[0], np.int64)
+    offset = np.int64(1 << 20)
+    for i in range(pts.shape[0]):
+        x = np.int64(np.floor(np.float64(pts[i, 0]) / size)) + offset
+        y = np.int64(np.floor(np.float64(pts[i, 1]) / size)) + offset
+        z = np.int64(np.floor(np.float64(pts[i, 2]) / size)) + offset
+        out[i] = (x << 42) | (y << 21) | z
+    return out
 
 
 def unique_first(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -129,3 +129,26 @@ def test_unique_first_is_numpy_unique_with_first_indices():
         got = unique_first(keys)
         np.testing.assert_array_equal(got[0], expected[0])
         np.testing.assert_array_equal(got[1], expected[1])
+
+
+def test_voxel_keys_is_the_numpy_formula():
+    """The compiled voxel keys are floor(x / size) + 2^20 per axis in float64, packed by 21 bits, as the
+    numpy expression gives them, for float32 and float64 points, on voxel boundaries and strided input."""
+    from activesplat.geometry import voxel_keys
+
+    def formula(pts, size):
+        v = np.floor(np.asarray(pts, np.float64) / size).astype(np.int64) + (1 << 20)
+        return (v[:, 0] << 42) | (v[:, 1] << 21) | v[:, 2]
+
+    rng = np.random.default_rng(5)
+    for dtype in (np.float64, np.float32):
+        pts = ((rng.random((4000, 3)) - 0.5) * 60).astype(dtype)
+        pts[:500] = (np.round(pts[:500] / 0.02) * 0.02).astype(dtype)  # on (or next to) voxel boundaries
+        for size in (0.02, 0.05, 0.013, 1.0):
+            np.testing.assert_array_equal(voxel_keys(pts, size), formula(pts, size))
+        np.testing.assert_array_equal(voxel_keys(pts[::3], 0.05), formula(pts[::3], 0.05))
+    ints = np.array([[1, -2, 3]])  # integer input is taken as float64
+    np.testing.assert_array_equal(voxel_keys(ints, 0.5), formula(ints, 0.5))
+    assert voxel_keys(np.zeros((0, 3)), 0.1).shape == (0,)
+    with pytest.raises(ValueError, match="M, 3"):
+        voxel_keys(np.zeros(3), 0.1)

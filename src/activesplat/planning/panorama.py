@@ -87,14 +87,16 @@ def render_panorama(render: RenderFn, origin, cfg: PanoramaConfig | None = None,
     as `back_face_seen` seen (`PanoramaConfig.scores_back_face_seen`; > 0 renders every camera twice)."""
     cfg = cfg or PanoramaConfig()
     origin = np.asarray(origin, dtype=np.float64)
-    K, cam_rays = _camera_rays(cfg)
-    inv, med, rays = [], [], []
+    poses = panorama_poses(origin, cfg)
+    geometry = _geometry(cfg, poses)
+    inv, med = [], []
     # a world model that cannot tell faces apart (no ``front_alpha`` parameter) gives the plain opacity
     front = ({"front_alpha": True, "behind_margin_deg": cfg.back_face_margin_deg}
              if front_faces and _takes(render, "front_alpha") else {})
     if front and cfg.back_faces_in_window and _takes(render, "behind_in_window"):
         front["behind_in_window"] = True
-    for pose in panorama_poses(origin, cfg):
+    K = geometry.K
+    for pose in poses:
         out = render(pose, K=K, width=cfg.width_per_camera, height=cfg.height, **front)
         seen = _np(out.alpha)
         if front and back_face_seen > 0.0:
@@ -102,18 +104,53 @@ def render_panorama(render: RenderFn, origin, cfg: PanoramaConfig | None = None,
             seen = seen + back_face_seen * np.maximum(every - seen, 0.0)
         inv.append(1.0 - seen)
         med.append(_np(out.median_depth))
-        rays.append(cam_rays @ pose[:3, :3].T)
-    rays_all = np.concatenate(rays, axis=1).astype(np.float32)
-    horiz = np.hypot(rays_all[..., 0], rays_all[..., 2])
     return Panorama(
         origin=origin,
         invisibility=np.clip(np.concatenate(inv, axis=1), 0.0, 1.0).astype(np.float32),
         median_depth=np.concatenate(med, axis=1).astype(np.float32),
-        rays=rays_all,
-        solid_angle=np.tile(_pixel_solid_angle(K, cam_rays), (1, cfg.n_cameras)).astype(np.float32),
-        yaw=np.arctan2(rays_all[..., 0], rays_all[..., 2]).astype(np.float32),
-        pitch=np.arctan2(rays_all[..., 1], horiz).astype(np.float32),
+        rays=geometry.rays,
+        solid_angle=geometry.solid_angle,
+        yaw=geometry.yaw,
+        pitch=geometry.pitch,
     )
+
+
+@dataclass(frozen=True)
+class _Geometry:
+    """What a panorama's pixels are, whatever is rendered into them: the cameras' K, and each pixel's world
+    ray, yaw, pitch and solid angle (read-only arrays, shared by every panorama with these cameras)."""
+
+    K: np.ndarray
+    rays: np.ndarray
+    yaw: np.ndarray
+    pitch: np.ndarray
+    solid_angle: np.ndarray
+
+
+_GEOMETRY: dict[tuple, _Geometry] = {}
+"""The pixel geometry per (config, camera rotations): the panorama cameras turn with their index only, so
+every node of every replan shares one entry."""
+
+
+def _geometry(cfg: PanoramaConfig, poses: list[np.ndarray]) -> _Geometry:
+    """The :class:`_Geometry` of cameras ``poses`` (computed once per config and rotations)."""
+    key = (cfg, np.stack([pose[:3, :3] for pose in poses]).tobytes())
+    found = _GEOMETRY.get(key)
+    if found is not None:
+        return found
+    K, cam_rays = _camera_rays(cfg)
+    rays = np.concatenate([cam_rays @ pose[:3, :3].T for pose in poses], axis=1).astype(np.float32)
+    horiz = np.hypot(rays[..., 0], rays[..., 2])
+    arrays = (rays, np.arctan2(rays[..., 1], horiz).astype(np.float32),
+              np.arctan2(rays[..., 0], rays[..., 2]).astype(np.float32),
+              np.tile(_pixel_solid_angle(K, cam_rays), (1, cfg.n_cameras)).astype(np.float32))
+    for a in (K, *arrays):
+        a.setflags(write=False)
+    rays, pitch, yaw, solid = arrays
+    if len(_GEOMETRY) >= 16:  # a few configs per process at most; never grow without bound
+        _GEOMETRY.clear()
+    _GEOMETRY[key] = found = _Geometry(K, rays, yaw, pitch, solid)
+    return found
 
 
 def _takes(fn, name: str) -> bool:

@@ -9,9 +9,9 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 from scipy.spatial import ConvexHull, QhullError
-from sklearn.cluster import DBSCAN
 
 from activesplat.geometry import yaw_pitch_of
+from activesplat.planning.clusters import grid_dbscan
 from activesplat.planning.config import (
     HighLossConfig,
     HullConfig,
@@ -47,11 +47,12 @@ def _seam_shift(mask: np.ndarray) -> int:
 
 
 def _clusters(mask: np.ndarray, eps: float, min_samples: int) -> list[np.ndarray]:
-    """DBSCAN over the (row, col) pixels of a boolean image; a list of (k, 2) pixel arrays."""
+    """DBSCAN over the (row, col) pixels of a boolean image (:func:`grid_dbscan`, scikit-learn's labels);
+    a list of (k, 2) pixel arrays, one per cluster."""
     pix = np.argwhere(mask)
     if len(pix) < min_samples:
         return []
-    labels = DBSCAN(eps=eps, min_samples=min_samples).fit(pix).labels_
+    labels = grid_dbscan(mask, eps, min_samples)
     return [pix[labels == lab] for lab in range(labels.max() + 1)]
 
 
