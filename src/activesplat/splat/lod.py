@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 import torch
-from numba import njit
+from numba import njit, prange
 
 from activesplat.geometry import voxel_groups, voxel_keys
 from activesplat.splat.gaussians import activate, rgb_to_f_dc
@@ -31,40 +31,40 @@ LOD_INFLATE = 1.3
 """The default scale of a merged Gaussian's standard deviations (``PanoramaConfig.score_lod_inflate``)."""
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
 def _group_moments(order, first, means, rot, scales, opac, colours):
     """Per voxel group (``order`` sorted by voxel, ``first`` marking each group's start): member count,
     weighted mean, weighted second moment about the origin (covariance + outer product), log(1 - o) sum
-    and weighted mean colour."""
-    g_count = 0
-    for i in range(first.shape[0]):
-        if first[i]:
-            g_count += 1
+    and weighted mean colour. Groups in parallel, each summed over its members in order (the same sums
+    as one pass over all of them)."""
+    starts = np.flatnonzero(first)
+    g_count = starts.shape[0]
+    ends = np.empty(g_count, np.int64)
+    ends[:-1] = starts[1:]
+    if g_count:
+        ends[-1] = order.shape[0]
     count = np.zeros(g_count, np.int64)
     mean = np.zeros((g_count, 3))
     second = np.zeros((g_count, 3, 3))
     log_t = np.zeros(g_count)
     colour = np.zeros((g_count, 3))
-    weight = np.zeros(g_count)
-    g = -1
-    for i in range(order.shape[0]):
-        if first[i]:
-            g += 1
-        n = order[i]
-        s0, s1, s2 = scales[n, 0] ** 2, scales[n, 1] ** 2, scales[n, 2] ** 2
-        w = opac[n] * np.sqrt(s0 * s1 + s1 * s2 + s0 * s2)
-        count[g] += 1
-        weight[g] += w
-        log_t[g] += np.log1p(-min(opac[n], 0.999999))
-        for a in range(3):
-            mean[g, a] += w * means[n, a]
-            colour[g, a] += w * colours[n, a]
-            for b in range(3):
-                cov = (rot[n, a, 0] * s0 * rot[n, b, 0] + rot[n, a, 1] * s1 * rot[n, b, 1]
-                       + rot[n, a, 2] * s2 * rot[n, b, 2])
-                second[g, a, b] += w * (cov + means[n, a] * means[n, b])
-    for g in range(g_count):
-        w = max(weight[g], 1e-30)
+    for g in prange(g_count):
+        weight = 0.0
+        for i in range(starts[g], ends[g]):
+            n = order[i]
+            s0, s1, s2 = scales[n, 0] ** 2, scales[n, 1] ** 2, scales[n, 2] ** 2
+            w = opac[n] * np.sqrt(s0 * s1 + s1 * s2 + s0 * s2)
+            count[g] += 1
+            weight += w
+            log_t[g] += np.log1p(-min(opac[n], 0.999999))
+            for a in range(3):
+                mean[g, a] += w * means[n, a]
+                colour[g, a] += w * colours[n, a]
+                for b in range(3):
+                    cov = (rot[n, a, 0] * s0 * rot[n, b, 0] + rot[n, a, 1] * s1 * rot[n, b, 1]
+                           + rot[n, a, 2] * s2 * rot[n, b, 2])
+                    second[g, a, b] += w * (cov + means[n, a] * means[n, b])
+        w = max(weight, 1e-30)
         for a in range(3):
             mean[g, a] /= w
             colour[g, a] /= w
