@@ -52,18 +52,23 @@ def _group_moments(order, first, means, rot, scales, opac, colours):
         weight = 0.0
         for i in range(starts[g], ends[g]):
             n = order[i]
-            s0, s1, s2 = scales[n, 0] ** 2, scales[n, 1] ** 2, scales[n, 2] ** 2
-            w = opac[n] * np.sqrt(s0 * s1 + s1 * s2 + s0 * s2)
+            # float64 from here on, whatever the inputs' precision (the same values as float64 inputs)
+            x = (np.float64(means[n, 0]), np.float64(means[n, 1]), np.float64(means[n, 2]))
+            o = np.float64(opac[n])
+            s0, s1, s2 = np.float64(scales[n, 0]) ** 2, np.float64(scales[n, 1]) ** 2, \
+                np.float64(scales[n, 2]) ** 2
+            w = o * np.sqrt(s0 * s1 + s1 * s2 + s0 * s2)
             count[g] += 1
             weight += w
-            log_t[g] += np.log1p(-min(opac[n], 0.999999))
+            log_t[g] += np.log1p(-min(o, 0.999999))
             for a in range(3):
-                mean[g, a] += w * means[n, a]
-                colour[g, a] += w * colours[n, a]
+                mean[g, a] += w * x[a]
+                colour[g, a] += w * np.float64(colours[n, a])
+                ra = (np.float64(rot[n, a, 0]), np.float64(rot[n, a, 1]), np.float64(rot[n, a, 2]))
                 for b in range(3):
-                    cov = (rot[n, a, 0] * s0 * rot[n, b, 0] + rot[n, a, 1] * s1 * rot[n, b, 1]
-                           + rot[n, a, 2] * s2 * rot[n, b, 2])
-                    second[g, a, b] += w * (cov + means[n, a] * means[n, b])
+                    cov = (ra[0] * s0 * np.float64(rot[n, b, 0]) + ra[1] * s1 * np.float64(rot[n, b, 1])
+                           + ra[2] * s2 * np.float64(rot[n, b, 2]))
+                    second[g, a, b] += w * (cov + x[a] * x[b])
         w = max(weight, 1e-30)
         for a in range(3):
             mean[g, a] /= w
@@ -82,11 +87,11 @@ def voxel_lod(raw: dict[str, torch.Tensor], voxel_m: float,
     (module docstring); rows in voxel order, on the device of ``raw``."""
     with torch.no_grad():
         means, quats, scales, opac, rgb = (t.detach().cpu() for t in activate(raw))
-        x = means.double().numpy()
+        x = means.numpy()  # float32: voxel_keys and the moments work in float64 (no float64 copies)
         order, first = voxel_groups(voxel_keys(x, voxel_m))
-        rot = quat_to_rotmat(quats).double().numpy()
-        count, mean, cov, log_t, colour = _group_moments(order, first, x, rot, scales.double().numpy(),
-                                                         opac.double().numpy(), rgb.double().numpy())
+        rot = quat_to_rotmat(quats).numpy()
+        count, mean, cov, log_t, colour = _group_moments(order, first, x, rot, scales.numpy(), opac.numpy(),
+                                                         rgb.numpy())
         multi = count > 1
         cov[multi] *= inflate * inflate
         ev, vec = np.linalg.eigh(cov[multi])
