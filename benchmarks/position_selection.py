@@ -35,7 +35,6 @@ KERNELS = {  # cProfile function name -> row label
     "stable_depth_order": "depth sort",
     "project_forward": "projection",
     "index_select": "row gathers",
-    "seen_from_behind": "back-face test",
 }
 
 
