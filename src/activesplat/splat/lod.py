@@ -43,7 +43,7 @@ def _group_moments(order, first, means, rot, scales, opac, colours):
     ends[:-1] = starts[1:]
     if g_count:
         ends[-1] = order.shape[0]
-    count = np.zeros(g_count, np.int64)
+    count = ends - starts
     mean = np.zeros((g_count, 3))
     second = np.zeros((g_count, 3, 3))
     log_t = np.zeros(g_count)
@@ -58,7 +58,6 @@ def _group_moments(order, first, means, rot, scales, opac, colours):
             s0, s1, s2 = np.float64(scales[n, 0]) ** 2, np.float64(scales[n, 1]) ** 2, \
                 np.float64(scales[n, 2]) ** 2
             w = o * np.sqrt(s0 * s1 + s1 * s2 + s0 * s2)
-            count[g] += 1
             weight += w
             log_t[g] += np.log1p(-min(o, 0.999999))
             for a in range(3):
