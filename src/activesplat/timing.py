@@ -27,6 +27,22 @@ class Timers:
         return {k: v / max(steps, 1) for k, v in self.total_ms.items()}
 
 
+class LapClock:
+    """Phases of one pass, timed in a row: each :meth:`lap` adds the wall time since the previous lap (ms)
+    to ``timings[name]``. ``sync`` (e.g. ``torch.cuda.synchronize``) is called first at every lap, so that
+    a phase's GPU kernels count for that phase and not for the next one that waits on them."""
+
+    def __init__(self, timings: dict[str, float], sync: Callable[[], None] | None = None):
+        self.timings, self.sync, self.t = timings, sync, time.perf_counter()
+
+    def lap(self, name: str) -> None:
+        if self.sync is not None:
+            self.sync()
+        now = time.perf_counter()
+        self.timings[name] = self.timings.get(name, 0.0) + 1000.0 * (now - self.t)
+        self.t = now
+
+
 def peak_rss_mb() -> float | None:
     """Peak resident memory of this process so far, in MB (None where the OS does not report it)."""
     try:
@@ -37,4 +53,4 @@ def peak_rss_mb() -> float | None:
     return peak / 1024.0 ** (2 if sys.platform == "darwin" else 1)
 
 
-__all__ = ["Timers", "peak_rss_mb"]
+__all__ = ["LapClock", "Timers", "peak_rss_mb"]

@@ -17,21 +17,21 @@ Per accepted frame (``add_frame``), following the schedule of :class:`MapperConf
 Input checks (:mod:`activesplat.splat.frames`): wrong shapes/dtypes, non-finite poses or colours raise
 InvalidInputError and leave the map untouched; NaN/inf/negative depth pixels are treated as invalid (set
 to 0); a frame without any valid depth is skipped with a warning.
+
+On disk (``save`` / ``load``): :mod:`activesplat.splat.persistence`.
 """
 
 from __future__ import annotations
 
-import json
 import time
 import warnings
 from collections import deque
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import torch
 
-from activesplat.episode import write_npz
 from activesplat.errors import InvalidInputError
 from activesplat.geometry import voxel_keys
 from activesplat.splat.config import MapperConfig, Schedule
@@ -61,9 +61,10 @@ from activesplat.splat.lod import LOD_INFLATE
 from activesplat.splat.losses import mapping_loss
 from activesplat.splat.merge import merge_alike
 from activesplat.splat.optim import RowAdam, nonzero_rows
-from activesplat.splat.ply import load_ply, save_ply
+from activesplat.splat.persistence import load_mapper, save_mapper
 from activesplat.splat.raster import backend_device
 from activesplat.splat.snapshot import MapSnapshot
+from activesplat.timing import LapClock
 
 
 @dataclass
@@ -250,7 +251,7 @@ class Mapper:
 
     def _map_frame(self, rgb: np.ndarray, depth: np.ndarray, pose: np.ndarray, step: int, schedule: Schedule,
                    stats: FrameStats) -> None:
-        clock = _Clock(stats.timings, cuda=self.device.type == "cuda")
+        clock = LapClock(stats.timings, sync=torch.cuda.synchronize if self.device.type == "cuda" else None)
         cfg = self.config
         obs_rgb = torch.from_numpy(rgb).to(self.device, torch.float32) / 255.0
         obs_depth = torch.from_numpy(depth).to(self.device)
@@ -484,58 +485,11 @@ class Mapper:
     # ------------------------------------------------------------------ persistence
     def save(self, directory: str | Path) -> Path:
         """Write ``gaussians.ply``, ``keyframes.npz`` and ``mapper.json`` (intrinsics, config) into
-        ``directory``. The Adam state is not saved."""
-        directory = Path(directory)
-        directory.mkdir(parents=True, exist_ok=True)
-        save_ply(self.gaussians, directory / "gaussians.ply")
-        kfs = self.keyframes
-        h, w = self.height, self.width
-        write_npz(
-            directory / "keyframes.npz",
-            rgb=np.stack([k.rgb for k in kfs]) if kfs else np.zeros((0, h, w, 3), np.uint8),
-            depth=np.stack([k.depth for k in kfs]) if kfs else np.zeros((0, h, w), np.float32),
-            pose=np.stack([k.pose for k in kfs]) if kfs else np.zeros((0, 4, 4)),
-            step=np.array([k.step for k in kfs], dtype=np.int64),
-        )
-        meta = {"K": self.K.tolist(), "width": w, "height": h, "frames": self.frames,
-                "backend": self.backend, "config": asdict(self.config), "recent_sizes": list(self._sizes)}
-        (directory / "mapper.json").write_text(json.dumps(meta, indent=1))
-        return directory
+        ``directory`` (:mod:`activesplat.splat.persistence`). The Adam state is not saved."""
+        return save_mapper(self, directory)
 
     @classmethod
     def load(cls, directory: str | Path, backend: str | None = None,
              device: str | torch.device | None = None) -> Mapper:
         """Read a folder written by :meth:`save` (fresh Adam state)."""
-        directory = Path(directory)
-        meta_path = directory / "mapper.json"
-        if not meta_path.is_file():
-            raise InvalidInputError(f"{directory}: not a mapper folder (no mapper.json)")
-        meta = json.loads(meta_path.read_text())
-        mapper = cls(meta["K"], meta["width"], meta["height"], MapperConfig.from_dict(meta["config"]),
-                     backend or meta["backend"], device)
-        mapper.gaussians = load_ply(directory / "gaussians.ply", mapper.device)
-        mapper.optimizer = mapper._make_optimizer()
-        mapper.peak_gaussians = len(mapper.gaussians)
-        with np.load(directory / "keyframes.npz") as data:  # each data[key] decompresses: read once
-            rgb, depth, pose, step = data["rgb"], data["depth"], data["pose"], data["step"]
-        mapper.keyframes = [Keyframe(rgb[i], depth[i], pose[i], int(step[i])) for i in range(len(step))]
-        mapper.frames = int(meta["frames"])
-        # the map's size over the last frames (the age rule); a folder without it: every row counts as old
-        mapper._sizes.extend(meta.get("recent_sizes", [len(mapper.gaussians)] * mapper._sizes.maxlen))
-        return mapper
-
-
-class _Clock:
-    """Adds the wall time since the previous lap (ms) to ``timings[name]``. With ``cuda`` each lap waits for
-    the GPU first, so that a phase's kernels count for that phase and not for the next one that syncs."""
-
-    def __init__(self, timings: dict[str, float], cuda: bool = False):
-        self.timings, self.cuda, self.t = timings, cuda, time.perf_counter()
-
-    def lap(self, name: str) -> None:
-        if self.cuda:
-            torch.cuda.synchronize()
-        now = time.perf_counter()
-        self.timings[name] = self.timings.get(name, 0.0) + 1000.0 * (now - self.t)
-        self.t = now
-
+        return load_mapper(cls, directory, backend, device)
