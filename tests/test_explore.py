@@ -215,6 +215,7 @@ def _cli(capsys, *argv):
     (["explore", "--steps", "-3"], "--steps must be a positive"),
     (["explore", "--scene", "/does/not/exist.glb", "--steps", "5"], "/does/not/exist.glb"),
     (["explore", "--scene", "huge-3", "--steps", "5"], "huge-3"),
+    (["explore", "--seed", "-1", "--steps", "5"], "--seed must be an integer >= 0"),
 ])
 def test_explore_bad_input_is_one_line_error(capsys, tmp_path, argv, needle):
     out = tmp_path / "never"
@@ -265,3 +266,64 @@ def test_write_npz_reads_back_bit_for_bit_and_leaves_no_temporary(tmp_path):
             assert data[name].dtype == value.dtype
             np.testing.assert_array_equal(data[name], value)
     assert (tmp_path / "keyframes.npz").stat().st_size < arrays["depth"].nbytes // 4  # zeros compress
+
+
+def test_a_curve_point_counts_the_frame_after_its_action(episode):
+    """The point of step k holds the frames up to the one after action k: a replay of the first k actions
+    gives its completion, and the last point is the episode's result."""
+    from activesplat.episode import Episode
+
+    out, metrics = episode
+    curve = metrics["curve"]
+    assert [p["step"] for p in curve] == list(range(10, 91, 10))  # every batch_frames actions and the last
+    assert curve[-1]["completion_ratio_pct"] == pytest.approx(metrics["completion_ratio_pct"], abs=1e-9)
+    ep = read_episode(out)
+    for k in (30, 80):
+        cut = Episode(ep.dir, ep.meta, ep.actions[:k], ep.poses[: k + 1], False)
+        point = next(p for p in curve if p["step"] == k)
+        assert replay_episode(cut)["completion_ratio_pct"] == pytest.approx(point["completion_ratio_pct"],
+                                                                             abs=1e-9)
+
+
+def test_the_last_observation_reaches_the_mapper(episode):
+    out, _ = episode  # 90 actions: the reset's frame and the 90 after them
+    assert json.loads((out / "mapper.json").read_text())["frames"] == 91
+
+
+def test_a_mesh_given_by_a_relative_path_is_recorded_by_its_absolute_path(tmp_path, monkeypatch):
+    import trimesh
+
+    room = tmp_path / "meshes"
+    room.mkdir()
+    box = trimesh.creation.box(extents=(4.0, 2.5, 4.0))  # a closed room, seen from inside
+    box.invert()
+    box.apply_translation((2.0, 1.25, 2.0))
+    box.export(room / "room.ply")
+    monkeypatch.chdir(room)
+    out = tmp_path / "ep"
+    run_exploration("room.ply", steps=3, seed=0, out=out, **TINY)
+    assert json.loads((out / "episode.json").read_text())["scene"] == str(room / "room.ply")
+    monkeypatch.chdir(tmp_path)  # elsewhere: the episode still finds its scene
+    assert evaluate_episode(out, write=False)["steps"] == 3
+
+
+def test_backend_gsplat_without_a_gpu_is_one_line_error_and_touches_no_folder(capsys, tmp_path):
+    from activesplat.splat.raster import gsplat_available
+
+    if gsplat_available():
+        pytest.skip("this machine runs gsplat")
+    out = tmp_path / "never"
+    code, err = _cli(capsys, "explore", "--steps", "5", "--backend", "gsplat", "--out", str(out))
+    assert code == 2 and "needs an NVIDIA GPU and gsplat" in err and len(err.strip().splitlines()) == 1
+    assert not out.exists()
+
+
+def test_evaluate_with_a_corrupt_metrics_file_is_one_line_error(capsys, episode, tmp_path):
+    import shutil
+
+    out = tmp_path / "copy"
+    shutil.copytree(episode[0], out)
+    (out / "metrics.json").write_text('{"completion')
+    code, err = _cli(capsys, "evaluate", str(out))
+    assert code == 2 and "metrics.json is unreadable" in err and len(err.strip().splitlines()) == 1
+    assert (out / "metrics.json").read_text() == '{"completion'  # left for the user to look at

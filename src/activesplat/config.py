@@ -125,6 +125,8 @@ class RunConfig:
                 raise InvalidInputError(f"RunConfig.floor must be a storey index (1) or a floor height in "
                                         f"metres (3.0), got {self.floor!r}") from None
             object.__setattr__(self, "floor", floor)
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
+            raise InvalidInputError(f"RunConfig.seed must be an integer >= 0, got {self.seed!r}")
         if self.steps is not None and (isinstance(self.steps, bool) or self.steps <= 0):
             raise InvalidInputError(f"RunConfig.steps must be a positive number of actions, got {self.steps}")
         derived = self

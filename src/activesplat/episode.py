@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -20,7 +21,13 @@ import numpy as np
 from activesplat.errors import EpisodeError
 
 EPISODE_FILES = ("episode.json", "actions.txt", "poses.txt", "metrics.json", "gaussians.ply", "topdown.png",
-                 "completion.png", "keyframes.npz", "mapper.json", "stops.json")
+                 "completion.png", "keyframes.npz", "mapper.json", "stops.json", "trajectory.png",
+                 "coverage.npz", "render_metrics.json", "render_grid.png", "render_budget.json",
+                 "render_budget.png")
+"""What an exploration and the commands run on its folder afterwards (``render-eval``, ``refine``: the
+``refined_*`` folders, :data:`DERIVED_DIRS`) write there: replacing an episode removes them all, so that
+nothing of the previous run is left beside the new one."""
+DERIVED_DIRS = "refined_*"
 
 
 def write_json_atomic(path: Path, data: dict) -> None:
@@ -45,6 +52,24 @@ def write_npz(path: Path, compresslevel: int = 1, **arrays: np.ndarray) -> None:
     os.replace(tmp, path)
 
 
+def _held_episode(d: Path) -> str:
+    """What episode ``d`` holds, in words ("a complete episode", "a partial episode (N actions)"), or ""
+    when it holds none."""
+    metrics = d / "metrics.json"
+    if metrics.exists():
+        try:
+            complete = json.loads(metrics.read_text()).get("complete", True) is not False
+        except (ValueError, AttributeError):
+            complete = False
+        if complete:
+            return "a complete episode"
+    actions = d / "actions.txt"
+    if actions.exists() or metrics.exists():
+        n = sum(1 for line in actions.read_text().splitlines() if line.strip()) if actions.exists() else 0
+        return f"a partial episode ({n} actions)"
+    return ""
+
+
 def _pose_line(step: int, pose: np.ndarray) -> str:
     return f"{step} " + " ".join(f"{v:.9g}" for v in np.asarray(pose, dtype=np.float64).reshape(16)) + "\n"
 
@@ -56,11 +81,16 @@ class EpisodeWriter:
         self.dir = Path(out_dir)
         if self.dir.exists() and not self.dir.is_dir():
             raise EpisodeError(f"output path {self.dir} exists and is not a folder")
-        if (self.dir / "metrics.json").exists() and not overwrite:
-            raise EpisodeError(f"{self.dir} already holds a complete episode; pass --overwrite to replace it")
+        if not overwrite:
+            held = _held_episode(self.dir)
+            if held:
+                raise EpisodeError(f"{self.dir} already holds {held}; pass --overwrite to replace it")
         self.dir.mkdir(parents=True, exist_ok=True)
         for name in EPISODE_FILES:
             (self.dir / name).unlink(missing_ok=True)
+        for derived in self.dir.glob(DERIVED_DIRS):
+            if derived.is_dir():
+                shutil.rmtree(derived)
         self._actions = None
         self._poses = None
 
@@ -113,29 +143,51 @@ def read_episode(path: str | Path) -> Episode:
     meta_path = d / "episode.json"
     recorded = meta_path.exists() and '"source": "recording"' in meta_path.read_text()
     if recorded and not (d / "actions.txt").exists():
-        raise EpisodeError(f"{d} is a map of a recording (activesplat map): it has no actions to replay "
-                           f"(render-eval, refine and export take it)")
+        raise EpisodeError(f"{d} is a map of a recording (activesplat map), not a simulated episode: this "
+                           f"needs the simulator's ground truth and actions to replay (`activesplat explore` "
+                           f"folder). A recorded map takes render-eval (its held-out views), refine and "
+                           f"export without the options that need a simulator")
     if not meta_path.exists() or not (d / "actions.txt").exists():
         raise EpisodeError(f"{d} is not an episode folder (no episode.json / actions.txt)")
     try:
         meta = json.loads(meta_path.read_text())
-        start = np.asarray(meta["start_pose"], dtype=np.float64).reshape(4, 4)
+        np.asarray(meta["start_pose"], dtype=np.float64).reshape(4, 4)  # a 4x4 pose, or unreadable
     except (ValueError, KeyError, TypeError) as exc:
         raise EpisodeError(f"{meta_path} is unreadable: {exc}") from exc
     text = (d / "actions.txt").read_text()
     lines = text.split("\n")
     actions = [a.strip() for a in (lines if text.endswith("\n") else lines[:-1]) if a.strip()]
-    poses = [start]
-    if (d / "poses.txt").exists():
-        poses = []
-        for line in (d / "poses.txt").read_text().splitlines():
-            parts = line.split()
-            if len(parts) != 17:
-                break  # a line cut by a crash
-            try:
-                poses.append(np.array([float(v) for v in parts[1:]]).reshape(4, 4))
-            except ValueError:
-                break
-        poses = poses or [start]
+    poses = _read_poses(d / "poses.txt")
+    complete = _held_episode(d) == "a complete episode"
+    # poses.txt holds the reset and one pose per action; an interrupted run may lack the last action's pose
+    short = len(actions) + 1 - len(poses)
+    if short < 0 or short > (0 if complete else 1):
+        expected = f"{len(actions) + 1}: the reset and one per action" + ("" if complete else ", or 1 fewer")
+        raise EpisodeError(f"{d}: poses.txt has {len(poses)} readable poses for {len(actions)} actions "
+                           f"(expected {expected})")
     n = min(len(actions), len(poses) - 1)
-    return Episode(d, meta, actions[:n], np.stack(poses[: n + 1]), (d / "metrics.json").exists())
+    return Episode(d, meta, actions[:n], np.stack(poses[: n + 1]), complete)
+
+
+def _read_poses(path: Path) -> list[np.ndarray]:
+    """The poses of ``poses.txt``, one per line. A crash can cut only the last line, which is dropped;
+    a line that cannot be read anywhere else is corruption, and an EpisodeError names it."""
+    if not path.exists():
+        raise EpisodeError(f"{path.parent} has no poses.txt (one line per observation, README \"The episode "
+                           f"folder\"): the episode cannot be replayed or checked without it")
+    lines = path.read_text().splitlines()
+    poses = []
+    for i, line in enumerate(lines):
+        parts = line.split()
+        try:
+            if len(parts) != 17:
+                raise ValueError(f"{len(parts)} numbers instead of 17")
+            poses.append(np.array([float(v) for v in parts[1:]]).reshape(4, 4))
+        except ValueError as exc:
+            if i == len(lines) - 1 and i > 0:
+                break  # the last line, cut by a crash
+            raise EpisodeError(f"{path}, line {i + 1}: not a pose line (step index and 16 numbers): "
+                               f"{exc}") from None
+    if not poses:
+        raise EpisodeError(f"{path} holds no pose (the first line is the reset pose)")
+    return poses

@@ -66,10 +66,14 @@ def explore_episode(run, out: str | Path | None = None, overwrite: bool = False,
     measured on the fly from its ground truth."""
     from activesplat.eval.coverage import CoverageAccumulator
     from activesplat.sim import Simulator, load_scene
+    from activesplat.sim.scene import BUILTIN_PATTERN
 
     scene_obj = scene if scene is not None else load_scene(run.scene, z_up=run.z_up, floor=run.floor)
     steps = int(run.steps or scene_obj.default_steps)
     run = run.replace(steps=steps)
+    if scene is None and not BUILTIN_PATTERN.match(str(run.scene)) and Path(run.scene).is_file():
+        # a mesh file by its absolute path: evaluate, render-eval and --config work from any folder
+        run = run.replace(scene=str(Path(run.scene).resolve()))
     sim = Simulator(scene_obj, seed=run.seed, config=run.sim)
     out_dir = Path(out) if out is not None else _default_out(run.scene, run.policy, run.seed)
     cov_cfg = run.coverage
@@ -99,13 +103,14 @@ def explore_environment(env, run, out: str | Path, overwrite: bool = False, prog
     from activesplat.errors import InvalidInputError
     from activesplat.planning.policies import make_policy
     from activesplat.splat import Mapper
-    from activesplat.splat.raster import prepare_backend
+    from activesplat.splat.raster import prepare_backend, resolve_backend
     from activesplat.timing import Timers, peak_rss_mb
 
     if not isinstance(run.steps, int) or run.steps <= 0:
         raise InvalidInputError(f"an environment needs a step budget > 0 (run.steps), got {run.steps}")
     steps, seed, policy = run.steps, run.seed, run.policy
     out_dir = Path(out)
+    resolve_backend(run.backend)  # a backend this machine cannot run fails before the folder is touched
     writer = EpisodeWriter(out_dir, overwrite=overwrite)
     torch.manual_seed(seed)
     obs = env.reset()
@@ -135,16 +140,18 @@ def explore_environment(env, run, out: str | Path, overwrite: bool = False, prog
     setup_s = prepare_backend(mapper.backend, planar_depth=run.mapper.planar_depth)
     t_start = time.perf_counter()
     bar = _progress(steps, name, policy, progress)
-    step = 0
+    def add_frame() -> None:
+        frame = timers.time("mapper", mapper.add_frame, obs.rgb, obs.depth, obs.pose,
+                            dense=explorer.dense_mapping)
+        for phase, ms in frame.timings.items():
+            mapper_phases[phase] = mapper_phases.get(phase, 0.0) + ms
+
+    if evaluator is not None:  # the reset's frame (poses.txt holds steps + 1 frames)
+        timers.time("evaluation", evaluator.observe, obs.pose)
     try:
         for step in range(1, steps + 1):
-            frame = timers.time("mapper", mapper.add_frame, obs.rgb, obs.depth, obs.pose,
-                                dense=explorer.dense_mapping)
-            for phase, ms in frame.timings.items():
-                mapper_phases[phase] = mapper_phases.get(phase, 0.0) + ms
+            add_frame()
             explorer.observe_mapping(obs, env.K)
-            if evaluator is not None:
-                timers.time("evaluation", evaluator.observe, obs.pose)
             explorer.steps_left = steps - step + 1
             action = explorer.act(obs)
             if hasattr(env, "waypoint"):  # a base with its own controller: the planner's next waypoint
@@ -154,6 +161,8 @@ def explore_environment(env, run, out: str | Path, overwrite: bool = False, prog
             actions.append(action)
             causes.append(getattr(explorer, "last_cause", "") or "policy")
             writer.record(step, action, obs.pose)
+            if evaluator is not None:  # the frame after action `step`: counted in the curve's point at `step`
+                timers.time("evaluation", evaluator.observe, obs.pose)
             if viewer is not None:
                 viewer.update(step, obs, mapper, explorer, final=step == steps)
             if evaluator is not None and evaluator.curve_due(step, steps):
@@ -167,8 +176,8 @@ def explore_environment(env, run, out: str | Path, overwrite: bool = False, prog
                 done = f"completion {point['completion_ratio_pct']:.1f}% | " if point else ""
                 bar.set_postfix_str(f"{done}{1000 * elapsed / step:.0f} ms/step | "
                                     f"{len(mapper.gaussians)} gaussians")
-        if evaluator is not None:  # the last observation counts too (poses.txt holds steps + 1 frames)
-            timers.time("evaluation", evaluator.observe, obs.pose)
+        add_frame()  # the last observation is mapped too, as every other one (the map's train views)
+        if evaluator is not None:
             curve = timers.time("evaluation", evaluator.finish)
     except KeyboardInterrupt:
         writer.close()
@@ -177,7 +186,7 @@ def explore_environment(env, run, out: str | Path, overwrite: bool = False, prog
         if bar is not None:
             bar.close()
         _save_map(mapper, explorer, out_dir, floor_height)
-        print(f"\ninterrupted after {step - 1} steps: partial episode in {out_dir} "
+        print(f"\ninterrupted after {len(actions)} steps: partial episode in {out_dir} "
               f"(evaluate it with: activesplat evaluate {out_dir})", file=sys.stderr)
         raise
     if bar is not None:
@@ -254,7 +263,6 @@ class _Completion:
         self.worker_ms = 0.0
         """Milliseconds spent on the renders and KD-tree updates, wherever they ran."""
         self._pending: list[np.ndarray] = []
-        self._observed = 0
         background = self.cfg.background
         if background is None:  # only where the map is on a GPU: see CoverageConfig.background
             import numba
@@ -272,11 +280,11 @@ class _Completion:
 
     def observe(self, pose) -> None:
         self._pending.append(np.array(pose, dtype=np.float64))
-        self._observed += 1
         self.positions.append((float(pose[0, 3]), float(pose[2, 3])))
 
     def curve_due(self, step: int, steps: int) -> bool:
-        return self._observed % self.cfg.batch_frames == 0 or step == steps
+        """A curve point every ``batch_frames`` actions and at the last one."""
+        return step % self.cfg.batch_frames == 0 or step == steps
 
     def curve_point(self, step: int, at_step: dict) -> None:
         """Fold the poses observed so far in, then add the curve point of `step` (`curve`): its completion

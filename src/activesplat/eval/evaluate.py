@@ -62,7 +62,16 @@ def evaluate_episode(path: str | Path, write: bool = True) -> dict:
     episode = read_episode(path)
     result = replay_episode(episode)
     metrics_path = episode.dir / "metrics.json"
-    metrics = json.loads(metrics_path.read_text()) if metrics_path.exists() else {"complete": False}
+    metrics = {"complete": False}
+    if metrics_path.exists():
+        try:
+            metrics = json.loads(metrics_path.read_text())
+        except ValueError as exc:
+            raise EpisodeError(f"{metrics_path} is unreadable ({exc}); move it away to evaluate the episode "
+                               f"anew") from None
+        if not isinstance(metrics, dict):
+            raise EpisodeError(f"{metrics_path} does not hold a JSON object; move it away to evaluate the "
+                               f"episode anew")
     metrics.update({k: result[k] for k in COMPLETION_KEYS})
     if write:
         write_json_atomic(metrics_path, metrics)

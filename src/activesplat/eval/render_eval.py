@@ -450,8 +450,8 @@ def _progress(total: int, enabled: bool):
 
 def format_table(result: dict, out: Path) -> str:
     """A short text table of both splits."""
-    def fmt(v, spec):
-        return "n/a" if v is None else format(v, spec)
+    def fmt(v, spec):  # "n/a" right-aligned in the column's width, as the numbers are
+        return format("n/a", f">{spec.split('.')[0]}") if v is None else format(v, spec)
 
     lines = [f"{'split':6} {'views':>5} {'PSNR dB':>8} {'SSIM':>6} {'MS-SSIM':>7} {'LPIPS':>6} "
              f"{'depth L1 cm':>11} {'(D/O) cm':>8} {'unmapped %':>10}"]

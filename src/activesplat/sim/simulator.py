@@ -49,6 +49,8 @@ class Simulator:
     def __init__(self, scene: Scene, seed: int = 0, start: np.ndarray | None = None,
                  config: SimConfig | None = None):
         self.scene = scene
+        if isinstance(seed, bool) or int(seed) != seed or seed < 0:
+            raise InvalidInputError(f"Simulator seed must be an integer >= 0, got {seed!r}")
         self.seed = int(seed)
         self.config = config = config or SimConfig()
         self.width, self.height = int(config.width), int(config.height)

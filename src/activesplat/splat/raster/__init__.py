@@ -118,6 +118,11 @@ def resolve_backend(backend: str) -> str:
         raise InvalidInputError(f"unknown rasterizer backend {backend!r}; expected one of {BACKENDS}")
     if backend == "auto":
         return "gsplat" if gsplat_available() else "numba"
+    if backend == "gsplat" and not gsplat_available():
+        why = ("the gsplat package is not installed (pip install activesplat[cuda])"
+               if torch.cuda.is_available() else "this torch has no CUDA device")
+        raise InvalidInputError(f"the rasterizer backend 'gsplat' needs an NVIDIA GPU and gsplat: {why}; "
+                                f"use --backend numba (or auto, which picks gsplat where it can)")
     return backend
 
 
