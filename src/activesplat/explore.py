@@ -163,8 +163,8 @@ def explore_environment(env, run, out: str | Path, overwrite: bool = False, prog
             writer.record(step, action, obs.pose)
             if evaluator is not None:  # the frame after action `step`: counted in the curve's point at `step`
                 timers.time("evaluation", evaluator.observe, obs.pose)
-            if viewer is not None:
-                viewer.update(step, obs, mapper, explorer, final=step == steps)
+            if viewer is not None and step < steps:  # the last update follows the last frame's mapping
+                viewer.update(step, obs, mapper, explorer, final=False)
             if evaluator is not None and evaluator.curve_due(step, steps):
                 at_step = {"path_length_m": forward * run.sim.forward_step,
                            "n_gaussians": len(mapper.gaussians)}
@@ -177,6 +177,8 @@ def explore_environment(env, run, out: str | Path, overwrite: bool = False, prog
                 bar.set_postfix_str(f"{done}{1000 * elapsed / step:.0f} ms/step | "
                                     f"{len(mapper.gaussians)} gaussians")
         add_frame()  # the last observation is mapped too, as every other one (the map's train views)
+        if viewer is not None:
+            viewer.update(steps, obs, mapper, explorer, final=True)
         if evaluator is not None:
             curve = timers.time("evaluation", evaluator.finish)
     except KeyboardInterrupt:
@@ -185,7 +187,7 @@ def explore_environment(env, run, out: str | Path, overwrite: bool = False, prog
             evaluator.close()
         if bar is not None:
             bar.close()
-        _save_map(mapper, explorer, out_dir, floor_height)
+        _save_map(mapper, explorer, out_dir, floor_height, scene=name, step=len(actions))
         print(f"\ninterrupted after {len(actions)} steps: partial episode in {out_dir} "
               f"(evaluate it with: activesplat evaluate {out_dir})", file=sys.stderr)
         raise
@@ -217,7 +219,7 @@ def explore_environment(env, run, out: str | Path, overwrite: bool = False, prog
         metrics["evaluation_background"] = evaluator.background
         cov = evaluator.coverage
         metrics["completion_gain"] = completion_gain(cov.gain_by_frame(), actions, causes, len(cov.gt))
-    _save_map(mapper, explorer, out_dir, floor_height)
+    _save_map(mapper, explorer, out_dir, floor_height, scene=name, step=steps)
     if curve:
         from activesplat.viz.plots import draw_completion
 
@@ -370,7 +372,8 @@ def _curve_point(step: int, coverage, at_step: dict) -> dict:
             "completion_cm": m["completion_cm"], **at_step}
 
 
-def _save_map(mapper, explorer, out_dir: Path, floor_height: float) -> None:
+def _save_map(mapper, explorer, out_dir: Path, floor_height: float, scene: str | None = None,
+              step: int | None = None) -> None:
     """gaussians.ply (+ keyframes) and topdown.png of the map as it is now."""
     from activesplat.planning.controller import floor_xz
     from activesplat.workspace.draw import draw_topdown
@@ -388,7 +391,7 @@ def _save_map(mapper, explorer, out_dir: Path, floor_height: float) -> None:
     plan = build_plan(mapper.gaussians, floor_height, here, explorer.cfg.workspace)
     path = explorer.plan.path if explorer.follower is not None else None
     draw_topdown(out_dir / "topdown.png", plan.grids, plan.workspace, plan.graph, path=path, trajectory=traj,
-                 title=f"{explorer.name}: map, Voronoi graph (subregions), trajectory")
+                 scene=scene, step=step, policy=explorer.name)
 
 
 def _worker(metrics: dict) -> str:

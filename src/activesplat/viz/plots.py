@@ -34,6 +34,13 @@ def _as_runs(curves: Curve | Sequence[Curve]) -> list[Curve]:
     return [list(curves)] if isinstance(curves[0], dict) else [list(c) for c in curves]
 
 
+def curve_markers(n_points: int) -> dict:
+    """Marker keywords of a curve of `n_points` points: a line alone would draw nothing for one point and
+    hide how few points a short run has, so points are always marked (larger when there are few, and
+    about 25 of them at most on a long curve)."""
+    return {"marker": "o", "ms": 5.0 if n_points <= 3 else 3.0, "markevery": max(1, n_points // 25)}
+
+
 def draw_completion(out_png: str | Path, curves: dict[str, Curve | Sequence[Curve]], title: str = "") -> Path:
     """Completion ratio and path length against steps (like the paper's Fig. 6), one line per label.
 
@@ -48,9 +55,11 @@ def draw_completion(out_png: str | Path, curves: dict[str, Curve | Sequence[Curv
         name = label if len(runs) == 1 else f"{label} (n={len(runs)})"
         for ax, key in ((ax_c, "completion_ratio_pct"), (ax_p, "path_length_m")):
             steps, mean, std = mean_curve(runs, key)
-            (line,) = ax.plot(steps, mean, label=name, lw=1.6)
-            if len(runs) > 1:
+            (line,) = ax.plot(steps, mean, label=name, lw=1.6, **curve_markers(len(steps)))
+            if len(runs) > 1 and len(steps) > 1:
                 ax.fill_between(steps, mean - std, mean + std, color=line.get_color(), alpha=0.2, lw=0)
+            elif len(runs) > 1:  # one point: a band has no width, an error bar shows the spread
+                ax.errorbar(steps, mean, yerr=std, color=line.get_color(), capsize=3, lw=1.0, ls="")
     ax_c.set(xlabel="step", ylabel="completion ratio (%)", ylim=(0, 100), title="completion ratio")
     ax_p.set(xlabel="step", ylabel="path length (m)", title="path length")
     for ax in (ax_c, ax_p):

@@ -33,7 +33,9 @@ def trajectory_figure(navmap, positions_xz: np.ndarray, house=None, room_labels:
     xz = np.asarray(positions_xz, np.float64).reshape(-1, 2)
     extent = navmap_extent(navmap)
     width, depth = extent[1] - extent[0], extent[3] - extent[2]
-    fig = Figure(figsize=(min(16.0, 2.0 + 0.55 * width), min(14.0, 1.2 + 0.55 * depth)), dpi=110)
+    # constrained layout keeps the legend outside the axes (below them), so it never hides the plan
+    fig = Figure(figsize=(min(16.0, 2.0 + 0.55 * width), min(14.0, 1.6 + 0.55 * depth)), dpi=110,
+                 layout="constrained")
     ax = fig.add_subplot(1, 1, 1)
     draw_navigable(ax, navmap)
     if house is not None:
@@ -52,9 +54,9 @@ def trajectory_figure(navmap, positions_xz: np.ndarray, house=None, room_labels:
             ax.scatter(stay[:, 0], stay[:, 1], s=8 + 1.5 * stay[:, 2], c=stay[:, 3], cmap="viridis",
                        vmin=0, vmax=len(xz) - 1, alpha=0.55, edgecolors="none", zorder=3)
     if len(xz):
-        ax.plot(*xz[0], marker="o", ms=9, mfc="none", mec="red", mew=2, zorder=4, label="start")
-        ax.plot(*xz[-1], marker="x", ms=9, color="red", mew=2, zorder=4, label="end")
-        ax.legend(loc="upper right", fontsize=8)
+        ax.plot(*xz[0], marker="o", ms=9, ls="", mfc="none", mec="red", mew=2, zorder=4, label="start")
+        ax.plot(*xz[-1], marker="x", ms=9, ls="", color="red", mew=2, zorder=4, label="end")
+        fig.legend(loc="outside lower center", ncol=2, fontsize=8, frameon=False)
     ax.set_xlim(extent[0], extent[1])
     ax.set_ylim(extent[3], extent[2])  # z down: the plan seen from above (y up), as topdown.png draws it
     ax.set_aspect("equal")
@@ -62,7 +64,6 @@ def trajectory_figure(navmap, positions_xz: np.ndarray, house=None, room_labels:
     ax.set_ylabel("world z (m)")
     if title:
         ax.set_title(title, fontsize=10)
-    fig.tight_layout()
     return fig
 
 
@@ -107,10 +108,38 @@ def largest_part(house, name: str):
     return max((r for r in house.rooms if r.name == name), key=lambda r: r.area)
 
 
+def room_outline(rects) -> np.ndarray:
+    """(K, 2, 2) segments [(x, z), (x, z)] of the outline of the union of axis-aligned rectangles (objects
+    with x0, z0, x1, z1): the rectangles' edges less the parts shared by two of them, so an L-shaped room
+    drawn from two rectangles has no boundary between them."""
+    rects = list(rects)
+    eps = 1e-6
+    segments = []
+    for i, r in enumerate(rects):
+        others = [o for j, o in enumerate(rects) if j != i]
+        # each edge: fixed coordinate, span along the edge, outward direction, and whether it runs along x
+        for along_x, fixed, lo, hi, out in ((True, r.z0, r.x0, r.x1, -1), (True, r.z1, r.x0, r.x1, 1),
+                                            (False, r.x0, r.z0, r.z1, -1), (False, r.x1, r.z0, r.z1, 1)):
+            cuts = {lo, hi}
+            for o in others:
+                cuts.update(v for v in ((o.x0, o.x1) if along_x else (o.z0, o.z1)) if lo < v < hi)
+            cuts = sorted(cuts)
+            for a, b in zip(cuts[:-1], cuts[1:], strict=False):
+                mid, past = 0.5 * (a + b), fixed + out * eps
+                x, z = (mid, past) if along_x else (past, mid)
+                if any(o.x0 <= x <= o.x1 and o.z0 <= z <= o.z1 for o in others):
+                    continue  # the other side is the same room: an internal boundary
+                segments.append(((a, fixed), (b, fixed)) if along_x else ((fixed, a), (fixed, b)))
+    return np.array(segments, np.float64).reshape(-1, 2, 2)
+
+
 def _draw_rooms(ax, house, labels: dict[str, str]) -> None:
-    for room in house.rooms:
-        ax.add_patch(_rect(room, edgecolor="#1f4e79", facecolor="none", linewidth=0.8, linestyle="--"))
+    """Each room's outline (one outline for a room of several rectangles) and its label in its largest
+    rectangle."""
     for name in house.room_names:
+        outline = room_outline(r for r in house.rooms if r.name == name)
+        ax.add_collection(LineCollection(outline, colors="#1f4e79", linewidths=0.8, linestyles="--",
+                                         zorder=2))
         big = largest_part(house, name)
         text = name + (f"\n{labels[name]}" if name in labels else "")
         ax.text(0.5 * (big.x0 + big.x1), 0.5 * (big.z0 + big.z1), text, ha="center", va="center",
@@ -118,11 +147,5 @@ def _draw_rooms(ax, house, labels: dict[str, str]) -> None:
                 bbox={"boxstyle": "round,pad=0.2", "fc": "white", "ec": "none", "alpha": 0.7})
 
 
-def _rect(room, **kw):
-    from matplotlib.patches import Rectangle
-
-    return Rectangle((room.x0, room.z0), room.x1 - room.x0, room.z1 - room.z0, **kw)
-
-
 __all__ = ["draw_navigable", "draw_trajectory", "largest_part", "navmap_extent", "room_labels",
-           "trajectory_figure"]
+           "room_outline", "trajectory_figure"]
