@@ -32,3 +32,52 @@ def test_a_full_disk_gets_a_message_not_a_traceback(monkeypatch, capsys):
     err = capsys.readouterr().err
     assert "cannot write: runs/b/curves_average.png (No space left on device)" in err
     assert "run the same command again" in err
+
+
+def _closed_pipe_run(*argv):
+    """`activesplat ARGV` with its stdout a pipe whose reader has already gone (`... | head -1`)."""
+    import os
+
+    read, write = os.pipe()
+    os.close(read)
+    try:
+        return subprocess.run([sys.executable, "-m", "activesplat", *argv], stdout=write,
+                              stderr=subprocess.PIPE, text=True, timeout=120)
+    finally:
+        os.close(write)
+
+
+def test_a_closed_pipe_ends_quietly():
+    from activesplat.cli import EXIT_BROKEN_PIPE
+
+    res = _closed_pipe_run("refine", "--help")  # tyro's help: more than a pipe's buffer
+    assert res.returncode == EXIT_BROKEN_PIPE and res.stderr == "", res.stderr
+    res = _closed_pipe_run("scenes", "list")
+    assert res.returncode == EXIT_BROKEN_PIPE and res.stderr == "", res.stderr
+
+
+def test_a_broken_pipe_that_is_not_stdout_still_raises():
+    code = ("import sys\nfrom activesplat import cli\n"
+            "def boom(args):\n    raise BrokenPipeError(32, 'Broken pipe')\n"
+            "cli._cmd_view = boom\nsys.exit(cli.main(['view', 'x']))")
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert res.returncode == 1 and "BrokenPipeError" in res.stderr
+
+
+def test_map_backend_defaults_to_one_the_mapper_takes():
+    import numpy as np
+
+    from activesplat.cli import build_parser
+    from activesplat.splat import Mapper
+
+    args = build_parser().parse_args(["map", "recording"])
+    assert args.backend == "auto"
+    Mapper(np.array([[8.0, 0, 4], [0, 8, 4], [0, 0, 1]]), 8, 8, backend=args.backend)
+
+
+def test_scene_export_to_an_impossible_path_is_one_line(capsys, tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    assert main(["scenes", "export", "small-0", str(blocker / "x.glb")]) == 2  # before the scene is built
+    err = capsys.readouterr().err
+    assert err == f"activesplat: error: cannot write {blocker / 'x.glb'}: {blocker} is a file, not a folder\n"

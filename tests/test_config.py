@@ -88,10 +88,57 @@ def test_help_documents_each_field_with_its_default_and_source(capsys, monkeypat
     assert not undocumented, undocumented
 
 
+def _help(capsys, *argv) -> str:
+    with pytest.raises(SystemExit) as exc:
+        main([*argv, "--help"])
+    assert exc.value.code == 0
+    return capsys.readouterr().out
+
+
+def _needless_breaks(text: str) -> list[str]:
+    """Help lines broken before a word that would have fitted on them: a docstring's line break kept in the
+    help. Lines are padded to the help's width, with a margin of one space (inside tyro's box, if drawn)."""
+    rows = [line[1:-1] if line.startswith("│") and line.endswith("│") else line for line in text.splitlines()]
+    bad = []
+    for line, after in zip(rows, rows[1:], strict=False):
+        if not (line.startswith(" " * 6) and after.startswith(" " * 6) and line.strip() and after.strip()):
+            continue  # not two lines of one option's help
+        if len(line.rstrip()) + 1 + len(after.split()[0]) <= len(line) - 1:
+            bad.append(f"{line.strip()} / {after.strip()}")
+    return bad
+
+
+def _flat(text: str) -> str:
+    return " ".join(text.replace("│", " ").split())
+
+
+def test_help_reads_as_sentences_with_one_default(capsys, monkeypatch):
+    monkeypatch.setenv("COLUMNS", "80")
+    text = _help(capsys, "explore")
+    assert not _needless_breaks(text), _needless_breaks(text)[:3]
+    flat = _flat(text)
+    assert "or a mesh file (.glb/.gltf/.ply/.obj). (default: small-0)" in flat
+    assert "--out {None}|PATH Episode folder (default: runs/SCENE-POLICY-sSEED). --overwrite" in flat
+    assert "--config {None}|PATH Rerun the configuration" in flat and "override it. (default: None)" in flat
+    text = _help(capsys, "refine")
+    assert not _needless_breaks(text), _needless_breaks(text)[:3]
+    assert "3DGS and 2DGS train 30000). (default: 2000)" in _flat(text)
+    kept = "\n".join(line.ljust(40) for line in ("        a line", "        broken (here)"))
+    assert _needless_breaks(kept) == ["a line / broken (here)"]  # the check finds a kept break
+
+
 @pytest.mark.parametrize("argv, needle", [
     (["--mapper.pixel-strid", "3"], "--mapper.pixel-strid (did you mean --mapper.pixel-stride?)"),
     (["--mapper.pixel-stride", "two"], "--mapper.pixel-stride expects INT"),
     (["--mapper.pixel-stride", "0"], "--mapper.pixel-stride must be >= 1, got 0"),
+    (["--mapper.pixel-stride", "-1"], "--mapper.pixel-stride must be >= 1, got -1"),
+    (["--mapper.refresh-coarse-factor", "-2"], "--mapper.refresh-coarse-factor must be > 1"),
+    (["--explorer.bootstrap-pitch-deg", "200"], "--explorer.bootstrap-pitch-deg must be in [0, 90] degrees"),
+    (["--explorer.bootstrap-pitch-deg", "-10"], "--explorer.bootstrap-pitch-deg must be in [0, 90] degrees"),
+    (["--explorer.controller.max-pitch-deg", "200"], "--explorer.controller.max-pitch-deg must be in [0, 90"),
+    (["--explorer.planning.high-loss.drop-within-deg", "270"], "drop-within-deg must be in [0, 180] degrees"),
+    (["--explorer.planning.rotation.min-offset-deg", "-5"], "min-offset-deg must be in [0, 180] degrees"),
+    (["--explorer.planning.panorama.back-face-margin-deg", "90"], "must be in [0, 90) degrees"),
     (["--sim.width", "-5"], "--sim.width must be > 0"),
     (["--mapper.init-opacity", "1.5"], "--mapper.init-opacity must be in (0, 1)"),
     (["--explorer.planning.score.preset", "best"], "--explorer.planning.score.preset: unknown value 'best'"),

@@ -4,8 +4,8 @@
 :mod:`activesplat.config` (every run-configuration field is an option ``--GROUP.FIELD VALUE``); the other
 subcommands by argparse. Every subcommand turns bad input (an :class:`~activesplat.errors.ActiveSplatError`,
 or a tyro parse failure) into a one-line ``activesplat: error: ...`` message on stderr and exit code 2,
-never a traceback. Heavy modules are imported inside the command functions so that ``activesplat --help``
-stays fast.
+never a traceback; output into a pipe whose reader has gone (``| head -1``) ends quietly (exit code 141).
+Heavy modules are imported inside the command functions so that ``activesplat --help`` stays fast.
 """
 
 from __future__ import annotations
@@ -13,6 +13,9 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import errno
+import functools
+import os
+import re
 import sys
 from collections.abc import Callable, Sequence
 
@@ -51,10 +54,28 @@ def _cmd_scenes_export(args: argparse.Namespace) -> int:
 
     if Path(args.file).suffix.lower() != ".glb":  # checked before the (slow) scene build
         raise InvalidInputError(f"export file must end in .glb: {args.file}")
+    check_output_path(args.file)
     scene = load_scene(args.name, z_up=args.z_up, floor=args.floor)
     path = scene.export(args.file)
     print(f"wrote {path}")
     return 0
+
+
+def check_output_path(path) -> None:
+    """Fail early, in one line, when `path` cannot be a file to write: it is a folder, or a file stands where
+    one of the folders above it would be."""
+    from pathlib import Path
+
+    from activesplat.errors import InvalidInputError
+
+    path = Path(path)
+    if path.is_dir():
+        raise InvalidInputError(f"cannot write {path}: it is a folder")
+    for parent in path.parents:
+        if parent.exists():
+            if not parent.is_dir():
+                raise InvalidInputError(f"cannot write {path}: {parent} is a file, not a folder")
+            return
 
 
 # --------------------------------------------------------------------------- explore / benchmark (tyro)
@@ -72,25 +93,71 @@ def _config_path(argv: Sequence[str]) -> str | None:
     return None
 
 
+def help_text(text: str | None) -> str | None:
+    """A docstring as one help paragraph: tyro keeps a docstring's line breaks before a line that starts with
+    anything but a letter (``(3.0)``, ``and``, after its indentation), which split sentences mid-line; and it
+    wraps a long word at a comma, which splits a number such as 30,000. Paragraphs (blank lines) stay."""
+    if not text:
+        return text
+    paragraphs = [" ".join(p.split()) for p in re.split(r"\n\s*\n", text)]
+    return "\n\n".join(re.sub(r"(?<=\d),(?=\d{3}(?!\d))", "", p) for p in paragraphs if p)
+
+
+def _field_help(helptext, struct_type=None) -> str | None:
+    """help_text of a (possibly lazy) tyro field help; for a nested group without its own docstring, of the
+    group's class docstring (tyro's fallback, evaluated here so that it is cleaned too)."""
+    from tyro import _docstrings
+
+    text = helptext() if callable(helptext) else helptext
+    if text is None and struct_type is not None:
+        text = _docstrings.get_callable_description(struct_type)
+    return help_text(text)
+
+
+def _default_hint(helptext, label: str) -> str:
+    """tyro's "(default: X)" after a field's help, left out when the help says its default itself (a None
+    that means "runs/SCENE-POLICY-sSEED" would read "(default: None)" twice)."""
+    return "" if "(default" in (_field_help(helptext) or "") else f"(default: {label})"
+
+
 def _registry(hidden: dict):
-    """tyro constructors that leave out the fields derived from others (and those a command sets itself)."""
+    """tyro constructors that leave out the fields derived from others (and those a command sets itself), and
+    that clean every field's help (`help_text`)."""
     import tyro
     from tyro.constructors import ConstructorRegistry
     from tyro.constructors._struct_spec_dataclass import dataclass_rule
 
+    from activesplat.config import strip_annotated
+
     registry = ConstructorRegistry()
 
+    def field(f, names):
+        if f.name in names:
+            return dataclasses.replace(f, type=tyro.conf.Suppress[f.type])
+        nested = strip_annotated(f.type)
+        nested = nested if dataclasses.is_dataclass(nested) else None
+        f = dataclasses.replace(f, helptext=functools.partial(_field_help, f.helptext, nested))
+        if f.default is None:
+            hint = tyro.conf.arg(help_behavior_hint=functools.partial(_default_hint, f.helptext))
+            f = dataclasses.replace(f, type=_annotated(f.type, hint))
+        return f
+
     @registry.struct_rule
-    def hide(info):
-        names = hidden.get(info.type)
-        if not names:
-            return None
+    def rule(info):
         spec = dataclass_rule(info)
-        return dataclasses.replace(spec, fields=tuple(
-            dataclasses.replace(f, type=tyro.conf.Suppress[f.type]) if f.name in names else f
-            for f in spec.fields))
+        if spec is None:
+            return None
+        names = hidden.get(info.type, ())
+        return dataclasses.replace(spec, fields=tuple(field(f, names) for f in spec.fields))
 
     return registry
+
+
+def _annotated(tp, *metadata):
+    """``Annotated[tp, *metadata]`` (a helper: the subscript takes a tuple)."""
+    from typing import Annotated
+
+    return Annotated[(tp, *metadata)]
 
 
 def _hidden_fields(own: Sequence[str] = ()) -> dict:
@@ -225,9 +292,35 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
 
 
 # --------------------------------------------------------------------------- render-eval / refine
+def recorded_map(folder) -> bool:
+    """Whether `folder` (or the episode folder holding it, for a refined_<method> folder) is a map of a
+    recording made by `activesplat map` rather than a simulated episode."""
+    import json
+    from pathlib import Path
+
+    for d in (Path(folder), Path(folder).parent):
+        meta = d / "episode.json"
+        if meta.is_file():
+            try:
+                return json.loads(meta.read_text()).get("source") == "recording"
+            except (OSError, ValueError, AttributeError):
+                return False  # unreadable: the command itself says so
+    return False
+
+
+def _needs_simulated_episode(folder, option: str, why: str) -> None:
+    from activesplat.errors import EpisodeError
+
+    if recorded_map(folder):
+        raise EpisodeError(f"{option} needs a simulated episode ({why}); {folder} is a map of a recording "
+                           f"(activesplat map): leave {option} out")
+
+
 def _cmd_render_eval(args: argparse.Namespace) -> int:
     from activesplat.refine.maps import render_eval_from_args
 
+    if args.budget:  # checked before the (slow) evaluation
+        _needs_simulated_episode(args.dir, "--budget", "ground truth rendered from the scene mesh")
     return render_eval_from_args(args)
 
 
@@ -237,6 +330,9 @@ def _cmd_refine(argv: Sequence[str]) -> int:
     from activesplat.refine import refine_from_command
 
     cmd = parse_command(RefineCommand, argv, "activesplat refine")
+    if cmd.image_size is not None:
+        _needs_simulated_episode(cmd.dir, "--image-size", "the simulator renders the keyframes again at that "
+                                                          "size")
     recorded = recorded_refine_config(cmd.dir)
     if recorded is not None:  # parsed again: the options override the recorded settings
         cmd = parse_command(RefineCommand, argv, "activesplat refine",
@@ -378,8 +474,8 @@ def build_parser() -> argparse.ArgumentParser:
                                                                    "failing")
     p_map.add_argument("--out", help="output map folder (default runs/<recording>-map)")
     p_map.add_argument("--overwrite", action="store_true", help="replace an existing map folder")
-    p_map.add_argument("--backend", default=None, choices=("numba", "torch", "gsplat"),
-                       help="rasterizer backend")
+    p_map.add_argument("--backend", default="auto", choices=("auto", "numba", "torch", "gsplat"),
+                       help="rasterizer backend (auto: gsplat with CUDA, else numba)")
     p_map.add_argument("--no-progress", action="store_true", help="no progress bar")
     p_map.set_defaults(func=_cmd_map)
 
@@ -389,14 +485,15 @@ def build_parser() -> argparse.ArgumentParser:
     p_export_mcap.add_argument("dir", help="episode folder or recorded-map folder")
     p_export_mcap.add_argument("--mcap", required=True, help="output file (.mcap)")
     p_export_mcap.add_argument("--max-points", type=int, default=None,
-                               help="at most this many map points (the most opaque Gaussians)")
+                               help="at most this many map points (the most opaque Gaussians; default: all)")
     p_export_mcap.add_argument("--overwrite", action="store_true", help="replace an existing file")
     p_export_mcap.set_defaults(func=_cmd_export)
 
     # robot: a live robot over rosbridge
     p_robot = sub.add_parser("robot", help="explore a live robot through rosbridge (ws://ROBOT:9090) and "
                                            "write an episode folder")
-    p_robot.add_argument("url", help="rosbridge websocket, e.g. ws://robot.local:9090")
+    p_robot.add_argument("url", help="rosbridge websocket, ws://HOST:PORT or wss://HOST:PORT, e.g. "
+                                     "ws://robot.local:9090")
     p_robot.add_argument("--rgb-topic", default="/camera/color/image_raw")
     p_robot.add_argument("--depth-topic", default="/camera/depth/image_raw",
                          help="depth registered to colour (16UC1 mm or 32FC1 m)")
@@ -437,6 +534,42 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    try:
+        try:
+            return _main(argv)
+        finally:
+            sys.stdout.flush()  # a reader that has gone shows here, not at the interpreter's exit
+    except BrokenPipeError:
+        if not _stdout_gone():
+            raise  # another pipe or socket: a real error
+        # the reader of the output left (`activesplat ... | head -1`): end quietly, as Unix tools do
+        # (the Python docs' "Note on SIGPIPE"); what is left buffered goes to devnull
+        try:
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())
+        except (OSError, ValueError):  # no file descriptor behind sys.stdout (an embedding, a test)
+            pass
+        return EXIT_BROKEN_PIPE
+
+
+EXIT_BROKEN_PIPE = 128 + 13
+"""Exit code when the output's reader has gone: the shell's code of a process killed by SIGPIPE."""
+
+
+def _stdout_gone() -> bool:
+    """Whether stdout is a pipe without a reader (poll reports an error on it); True where that cannot be
+    told (no poll, no file descriptor), as a broken pipe is then most likely stdout's."""
+    import select
+
+    try:
+        poll = select.poll()
+        poll.register(sys.stdout.fileno(), select.POLLOUT)
+        return any(events & select.POLLERR for _, events in poll.poll(0))
+    except (AttributeError, OSError, ValueError):
+        return True
+
+
+def _main(argv: Sequence[str] | None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     try:
         if argv and argv[0] in TYRO_COMMANDS:

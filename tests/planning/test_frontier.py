@@ -89,3 +89,10 @@ def test_fbe_forgets_its_failed_goals_when_no_frontier_is_reachable(monkeypatch)
     p.replan(np.eye(4))
     assert not p.failed and not p.reached
     assert p.queue_causes[0] == "escape" and p.queue_causes[-1] == "idle"
+
+
+def test_the_frontier_policy_is_named_where_topdown_png_draws_its_frontiers():
+    from activesplat.planning.frontier import FrontierExplorer
+    from activesplat.workspace.draw import FRONTIER_POLICIES
+
+    assert FrontierExplorer.name in FRONTIER_POLICIES

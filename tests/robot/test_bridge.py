@@ -57,6 +57,41 @@ def test_no_robot_is_one_line():
         RosbridgeEnvironment("ws://127.0.0.1:9", *TOPICS, timeout_s=2)
 
 
+def test_a_url_that_is_not_a_websocket_is_one_line(tmp_path, capsys):
+    from activesplat.cli import main
+
+    for url in ("http://x", "notaurl", "ws://"):
+        with pytest.raises(InvalidInputError, match=f"rosbridge URL {url!r}: expected a websocket address"):
+            RosbridgeEnvironment(url, *TOPICS, timeout_s=2)
+        assert main(["robot", url, "--steps", "3", "--out", str(tmp_path / "r")]) == 2
+        err = capsys.readouterr().err
+        assert err == (f"activesplat: error: rosbridge URL {url!r}: expected a websocket address "
+                       f"ws://HOST:PORT (or wss://HOST:PORT), e.g. ws://robot.local:9090 "
+                       f"(rosbridge_websocket's port)\n")
+    assert not (tmp_path / "r").exists()
+
+
+def test_a_server_that_is_not_rosbridge_is_one_line():
+    import socket
+    import threading
+
+    server = socket.create_server(("127.0.0.1", 0))
+
+    def answer():  # an HTTP server, not a websocket
+        conn, _ = server.accept()
+        conn.recv(4096)
+        conn.sendall(b"HTTP/1.1 200 OK\r\nContent-Length: 2\r\n\r\nhi")
+        conn.close()
+
+    threading.Thread(target=answer, daemon=True).start()
+    url = f"ws://127.0.0.1:{server.getsockname()[1]}"
+    try:
+        with pytest.raises(InvalidInputError, match=f"rosbridge {url}: cannot connect"):
+            RosbridgeEnvironment(url, *TOPICS, timeout_s=5)
+    finally:
+        server.close()
+
+
 def test_robot_command_over_loopback(tmp_path, capsys):
     from activesplat.cli import main
 

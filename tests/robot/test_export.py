@@ -63,3 +63,25 @@ def test_export_writes_foxglove_channels(map_folder, tmp_path, capsys):
     assert main(["export", str(map_folder), "--mcap", str(out)]) == 2  # exists: needs --overwrite
     assert main(["export", str(tmp_path), "--mcap", str(tmp_path / "x.mcap")]) == 2
     assert "not an episode or map folder" in capsys.readouterr().err
+
+
+def test_export_refuses_bad_point_counts_and_paths(map_folder, tmp_path, capsys):
+    out = tmp_path / "e.mcap"
+    for n in ("0", "-1"):
+        assert main(["export", str(map_folder), "--mcap", str(out), "--max-points", n]) == 2
+        assert capsys.readouterr().err == (f"activesplat: error: --max-points must be >= 1 (leave it out for "
+                                           f"every map point), got {n}\n")
+    assert not out.exists()
+    assert main(["export", str(map_folder), "--mcap", str(out), "--max-points", "1"]) == 0
+    capsys.readouterr()
+    with open(out, "rb") as f:
+        messages = mcap_reader.make_reader(f).iter_messages()
+        clouds = [json.loads(m.data) for _, c, m in messages if c.topic == "/map"]
+    assert len(base64.b64decode(clouds[0]["data"])) == 16  # one point
+    inside = out / "e1.mcap"  # out is a file
+    assert main(["export", str(map_folder), "--mcap", str(inside)]) == 2
+    assert capsys.readouterr().err == (f"activesplat: error: --mcap {inside}: cannot write it, {out} is a "
+                                       f"file, not a folder\n")
+    nested = tmp_path / "new" / "sub" / "e.mcap"  # missing folders are made
+    assert main(["export", str(map_folder), "--mcap", str(nested)]) == 0 and nested.is_file()
+    assert not list(tmp_path.rglob("*.partial"))

@@ -208,5 +208,47 @@ def test_an_existing_map_needs_overwrite(frames, tmp_path, capsys):
 def test_commands_that_need_a_simulated_episode_say_so(frames, tmp_path, capsys):
     K, fr = frames
     bag = write_bag(tmp_path / "rec", K, fr[:3])
-    assert _map(bag, tmp_path / "map", "--holdout-every", "0") == 0
-    assert "is a map of a recording" in _err(capsys, ["evaluate", str(tmp_path / "map")])
+    folder = tmp_path / "map"
+    assert _map(bag, folder, "--holdout-every", "0") == 0
+    assert "is a map of a recording" in _err(capsys, ["evaluate", str(folder)])
+    assert _err(capsys, ["refine", str(folder), "--image-size", "64"]) == (
+        f"activesplat: error: --image-size needs a simulated episode (the simulator renders the keyframes "
+        f"again at that size); {folder} is a map of a recording (activesplat map): leave --image-size out")
+    assert _err(capsys, ["render-eval", str(folder), "--budget", "--no-progress"]) == (
+        f"activesplat: error: --budget needs a simulated episode (ground truth rendered from the scene "
+        f"mesh); {folder} is a map of a recording (activesplat map): leave --budget out")
+    assert not (folder / "render_metrics.json").exists()  # refused before the evaluation ran
+
+
+def test_map_without_backend_option(frames, tmp_path, capsys):
+    K, fr = frames
+    tum = write_tum(tmp_path / "tum", K, fr[:3])
+    out = tmp_path / "map"
+    argv = ["map", str(tum), "--intrinsics", *(str(v) for v in (K[0, 0], K[1, 1], K[0, 2], K[1, 2])),
+            "--holdout-every", "0", "--out", str(out), "--no-progress"]
+    assert main(argv) == 0, capsys.readouterr().err
+    assert json.loads((out / "episode.json").read_text())["backend"] == "auto"
+
+
+def test_what_is_not_a_recording_says_what_map_reads(frames, tmp_path, capsys):
+    from activesplat.robot.recording import RECORDINGS
+
+    K, fr = frames
+    bag = write_bag(tmp_path / "rec", K, fr[:3])
+    folder = tmp_path / "map"
+    assert _map(bag, folder, "--holdout-every", "0") == 0
+    exported = tmp_path / "e.mcap"
+    assert main(["export", str(folder), "--mcap", str(exported)]) == 0
+    capsys.readouterr()
+    assert _err(capsys, ["map", str(exported), *ARGS, "--pose-source", "tf:map"]) == (
+        f"activesplat: error: {exported}: an MCAP file of profile '' written by `activesplat export` for "
+        f"Foxglove (JSON messages), not a ROS bag; `map` reads {RECORDINGS}")
+    mesh = tmp_path / "s.glb"
+    mesh.write_bytes(b"glTF")
+    assert _err(capsys, ["map", str(mesh)]) == (
+        f"activesplat: error: {mesh}: a mesh, not a recording; `map` reads {RECORDINGS}. To explore the "
+        f"mesh, run `activesplat explore --scene {mesh}`")
+    assert f"{folder}: an episode or map folder, not a recording" in _err(capsys, ["map", str(folder)])
+    assert "neither a ROS 2 bag (no metadata.yaml) nor a TUM RGB-D folder" in _err(
+        capsys, ["map", str(tmp_path / "rec" / "..")])
+    assert "ROS 1 bag (.bag)" in RECORDINGS and "TUM RGB-D folder" in RECORDINGS

@@ -282,7 +282,7 @@ def run_local(specs: Sequence[RunSpec], options: dict, on_result: OnResult, work
             except Exception as exc:  # noqa: BLE001 - the worker process died (killed, out of memory)
                 result = RunResult("failed", 0.0, error=f"{type(exc).__name__}: worker process died: {exc}")
             on_result(futures[future], result)
-    except KeyboardInterrupt:
+    except BaseException:  # Ctrl-C, or on_result failing (e.g. its output pipe closed): stop the workers
         processes = list((getattr(pool, "_processes", None) or {}).values())
         pool.shutdown(wait=False, cancel_futures=True)
         for process in processes:

@@ -13,6 +13,14 @@ from activesplat.errors import InvalidInputError, check_fields
 from activesplat.splat.lod import LOD_INFLATE
 
 
+def _check_heading_angles(config, *names: str) -> None:
+    """Angles off the camera's heading lie in [0, 180] degrees."""
+    for name in names:
+        if not 0 <= getattr(config, name) <= 180:
+            raise InvalidInputError(f"{type(config).__name__}.{name} must be in [0, 180] degrees (an angle "
+                                    f"off the heading), got {getattr(config, name)}")
+
+
 @dataclass(frozen=True)
 class PanoramaConfig:
     """Panorama at a Voronoi node (paper sec. III-D2 "Panorama Rendering")."""
@@ -71,12 +79,16 @@ class PanoramaConfig:
 
     def __post_init__(self) -> None:
         check_fields(self, positive=("hfov_deg", "vfov_deg", "score_lod_voxel_m", "score_lod_inflate"),
-                     non_negative=("back_face_margin_deg", "scores_back_face_seen"),
+                     non_negative=("scores_back_face_seen",),
                      at_least_one=("n_cameras", "width_per_camera", "height"),
                      optional=("score_lod_voxel_m",))
         if self.scores_back_face_seen > 1.0:
             raise InvalidInputError(f"PanoramaConfig.scores_back_face_seen is a share in [0, 1], got "
                                     f"{self.scores_back_face_seen}")
+        if not 0 <= self.back_face_margin_deg < 90:
+            raise InvalidInputError(f"PanoramaConfig.back_face_margin_deg must be in [0, 90) degrees (the "
+                                    f"camera's angle behind a Gaussian's plane), got "
+                                    f"{self.back_face_margin_deg}")
         if not (self.hfov_deg < 180 and self.vfov_deg < 180):
             raise InvalidInputError(f"PanoramaConfig fields of view must be < 180 deg, got {self.hfov_deg} / "
                                     f"{self.vfov_deg}")
@@ -114,8 +126,9 @@ class RotationCandidateConfig:
 
     def __post_init__(self) -> None:
         check_fields(self, unit=("invisibility_threshold", "min_relative_weight"), positive=("dbscan_eps",),
-                     non_negative=("min_cluster_invisibility", "min_offset_deg"),
+                     non_negative=("min_cluster_invisibility",),
                      at_least_one=("downsample", "dbscan_min_samples"))
+        _check_heading_angles(self, "min_offset_deg")
         if self.max_cluster_yaw_deg is not None and not 0 < self.max_cluster_yaw_deg <= 360:
             raise InvalidInputError(f"RotationCandidateConfig.max_cluster_yaw_deg must be in (0, 360] or "
                                     f"None, got {self.max_cluster_yaw_deg}")
@@ -179,9 +192,9 @@ class HighLossConfig:
 
     def __post_init__(self) -> None:
         check_fields(self, positive=("dbscan_eps",), non_negative=("min_pixels", "min_cluster_sum",
-                                                                   "min_offset_deg", "drop_within_deg",
                                                                    "resolved_tolerance_m", "max_targets"),
                      at_least_one=("grid", "dbscan_min_samples", "max_samples"))
+        _check_heading_angles(self, "min_offset_deg", "drop_within_deg")
 
 
 @dataclass(frozen=True)

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from activesplat.errors import check_fields
+from activesplat.errors import InvalidInputError, check_fields
 from activesplat.geometry import pose_yaw_pitch, wrap_angle
 
 
@@ -38,7 +38,10 @@ class ControllerConfig:
 
     def __post_init__(self) -> None:
         check_fields(self, positive=("turn_deg", "look_deg", "forward_m", "heading_tolerance_deg",
-                                     "arrive_steps"), non_negative=("max_pitch_deg",))
+                                     "arrive_steps"))
+        if not 0 <= self.max_pitch_deg <= 90:
+            raise InvalidInputError(f"ControllerConfig.max_pitch_deg must be in [0, 90] degrees, got "
+                                    f"{self.max_pitch_deg}")
 
     @property
     def arrive_radius(self) -> float:

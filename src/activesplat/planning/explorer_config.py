@@ -375,7 +375,7 @@ class ExplorerConfig:
     controller: ControllerConfig = field(default_factory=ControllerConfig)
 
     def __post_init__(self) -> None:
-        check_fields(self, non_negative=("bootstrap_yaw_deg", "bootstrap_pitch_deg", "idle_yaw_deg",
+        check_fields(self, non_negative=("bootstrap_yaw_deg", "idle_yaw_deg",
                                          "max_rotation_views", "multi_stop_views", "rotation_skip_radii",
                                          "multi_stop_spacing_m",
                                          "multi_node_radius_m", "local_score_threshold",
@@ -395,6 +395,10 @@ class ExplorerConfig:
                                "postpone_once_m", "local_near_m", "neck_margin_m", "cut_off_look_m",
                                "way_back_m", "start_blocks", "collision_obstacle_m", "collision_arrive_m",
                                "last_call_steps", "flat_until_step"))
+        if not 0 <= self.bootstrap_pitch_deg <= 90:
+            raise InvalidInputError(f"ExplorerConfig.bootstrap_pitch_deg must be in [0, 90] degrees (the "
+                                    f"look-around tilts down to -this and back to level), got "
+                                    f"{self.bootstrap_pitch_deg}")
         if self.tilt_within_deg is not None and not 0 <= self.tilt_within_deg <= 90:
             raise InvalidInputError(f"ExplorerConfig.tilt_within_deg must be in [0, 90] (or None = off), got "
                                     f"{self.tilt_within_deg}")

@@ -19,7 +19,7 @@ from activesplat.workspace.clean import Workspace
 from activesplat.workspace.config import WorkspaceConfig
 from activesplat.workspace.paths import needed_clearance, shortcut
 from activesplat.workspace.plan import build_plan
-from activesplat.workspace.topdown import TopDownGrids
+from activesplat.workspace.topdown import TopDownGrids, frontier_cells
 
 _NEIGHBOURS = np.ones((3, 3), np.uint8)
 
@@ -41,12 +41,6 @@ class FrontierConfig:
     def __post_init__(self) -> None:
         check_fields(self, non_negative=("min_cluster_cells", "skip_radius_m", "start_disc_m",
                                          "look_around_deg"))
-
-
-def frontier_cells(free: np.ndarray, unknown: np.ndarray) -> np.ndarray:
-    """Free cells with an unknown 8-neighbour."""
-    near_unknown = cv2.dilate(unknown.astype(np.uint8), _NEIGHBOURS) > 0
-    return free & near_unknown
 
 
 def grid_distances(passable: np.ndarray, start_rc: tuple[int, int]) -> np.ndarray:

@@ -54,6 +54,22 @@ def _image(msg: dict) -> SimpleNamespace:
     )
 
 
+def check_url(url: str) -> str:
+    """`url` if it is a websocket address (ws://HOST[:PORT][/PATH] or wss://...); an InvalidInputError that
+    says what is expected otherwise."""
+    from urllib.parse import urlsplit
+
+    try:
+        parts = urlsplit(url)
+        ok = parts.scheme in ("ws", "wss") and bool(parts.hostname) and (parts.port is None or parts.port > 0)
+    except ValueError:  # a port that is not a number
+        ok = False
+    if not ok:
+        raise InvalidInputError(f"rosbridge URL {url!r}: expected a websocket address ws://HOST:PORT (or "
+                                f"wss://HOST:PORT), e.g. ws://robot.local:9090 (rosbridge_websocket's port)")
+    return url
+
+
 def _pose(msg: dict) -> np.ndarray:
     p = msg["pose"]["pose"] if "pose" in msg["pose"] else msg["pose"]
     t, q = p["position"], p["orientation"]
@@ -75,15 +91,17 @@ class RosbridgeEnvironment:
         forward_step: float = 0.065,
         timeout_s: float = 30.0,
     ):
+        from websockets.exceptions import WebSocketException
         from websockets.sync.client import connect
 
+        check_url(url)
         if world_up not in WORLD_UP:
             raise InvalidInputError(f"world_up must be one of {', '.join(WORLD_UP)}, got {world_up!r}")
         self.topics = {"rgb": rgb_topic, "depth": depth_topic, "info": camera_info_topic, "pose": pose_topic}
         self.W, self.forward_step, self.timeout_s = WORLD_UP[world_up], forward_step, timeout_s
         try:
             self.ws = connect(url, open_timeout=timeout_s, max_size=None)
-        except (OSError, TimeoutError) as exc:
+        except (OSError, TimeoutError, WebSocketException) as exc:  # refused, no such host, not a websocket
             raise InvalidInputError(f"rosbridge {url}: cannot connect ({exc})") from None
         self.inbox: queue.Queue = queue.Queue()
         self._reader = threading.Thread(target=self._read, daemon=True)
@@ -273,6 +291,7 @@ def robot_from_args(args) -> int:
 
     if args.steps <= 0:
         raise InvalidInputError(f"--steps must be > 0, got {args.steps}")
+    check_url(args.url)
     env = RosbridgeEnvironment(
         args.url,
         args.rgb_topic,

@@ -155,15 +155,21 @@ def export_mcap(
         raise EpisodeError(f"{folder}: not an episode or map folder (no gaussians.ply)")
     if out.suffix != ".mcap":
         raise InvalidInputError(f"--mcap file must end in .mcap: {out}")
+    if max_points is not None and (isinstance(max_points, bool) or max_points < 1):
+        raise InvalidInputError(f"--max-points must be >= 1 (leave it out for every map point), got "
+                                f"{max_points}")
+    if out.is_dir():
+        raise InvalidInputError(f"--mcap {out}: it is a folder, not a file")
     if out.exists() and not overwrite:
         raise EpisodeError(f"{out} exists; pass --overwrite to replace it")
+    _make_parent(out)
     steps, poses = _read_poses(folder)
     mapper = json.loads((folder / "mapper.json").read_text()) if (folder / "mapper.json").is_file() else None
     gmap = load_ply(folder / "gaussians.ply")
     counts = dict.fromkeys(TOPICS, 0)
     tmp = out.with_name(out.name + ".partial")
     try:
-        with open(tmp, "wb") as f:
+        with _open_for_writing(tmp, out) as f:
             writer = Writer(f)
             writer.start(profile="", library="activesplat")
             channels = {}
@@ -213,9 +219,41 @@ def export_mcap(
             writer.finish()
         os.replace(tmp, out)
     except BaseException:
-        tmp.unlink(missing_ok=True)
+        try:
+            tmp.unlink(missing_ok=True)
+        except OSError:  # never created (its folder is missing or not a folder)
+            pass
         raise
     return counts
+
+
+def _make_parent(out: Path) -> None:
+    """Create the folder of the file `out`; a one-line error when a file stands in its way."""
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise _cannot_write(out, exc) from None
+
+
+def _open_for_writing(tmp: Path, out: Path):
+    """`tmp` (out's temporary name) open for writing; a one-line error naming `out` when it cannot be."""
+    try:
+        return open(tmp, "wb")
+    except OSError as exc:
+        raise _cannot_write(out, exc) from None
+
+
+def _cannot_write(out: Path, exc: OSError) -> Exception:
+    """The one-line InvalidInputError of an --mcap path that cannot be written (a file where a folder
+    should be, a missing or read-only location); any other OSError (a full disk) as it is, for the command
+    line's own message."""
+    if not isinstance(exc, (FileExistsError, FileNotFoundError, NotADirectoryError, IsADirectoryError,
+                            PermissionError)):
+        return exc
+    blocker = next((p for p in out.parents if p.exists() and not p.is_dir()), None)
+    if blocker is not None:
+        return InvalidInputError(f"--mcap {out}: cannot write it, {blocker} is a file, not a folder")
+    return InvalidInputError(f"--mcap {out}: cannot write it ({exc.strerror or type(exc).__name__})")
 
 
 def _put_keyframe(put, step: int, rgb: np.ndarray, depth: np.ndarray, mapper: dict) -> None:

@@ -65,7 +65,7 @@ def map_recording(
     world_up: str = "z",
     mapper_config=None,
     workspace_config=None,
-    backend: str | None = None,
+    backend: str = "auto",
     stride: int = 1,
     overwrite: bool = False,
     progress: bool = True,

@@ -41,6 +41,12 @@ import numpy as np
 
 from activesplat.errors import RecordingError
 
+RECORDINGS = ("a ROS 1 bag (.bag), a ROS 2 bag (its folder, its .db3 file, or an .mcap file of profile ros2) "
+              "or a TUM RGB-D folder (rgb.txt, depth.txt, groundtruth.txt)")
+"""What `activesplat map` reads, for its messages."""
+MESH_SUFFIXES = (".glb", ".gltf", ".ply", ".obj")
+"""Mesh files (`activesplat.sim.scene.MESH_SUFFIXES`): scenes to explore, not recordings."""
+
 
 # --------------------------------------------------------------------------- the recording
 @dataclass
@@ -93,6 +99,7 @@ def open_recording(
 
     if p.is_dir() and (p / "rgb.txt").is_file():
         return open_tum(p, intrinsics, depth_scale, pose_source, max_dt, max_pose_gap, skip_unposed)
+    _check_recording(p)
     missing = [
         name
         for name, v in (
@@ -118,6 +125,55 @@ def open_recording(
     ).run()
 
 
+def _check_recording(p: Path) -> None:
+    """A RecordingError saying what `map` reads when `p` (not a TUM folder) cannot be a ROS bag: a mesh or
+    another file, a folder without a bag's metadata.yaml, an MCAP file that is not a ROS 2 bag."""
+    if p.is_dir():
+        if (p / "metadata.yaml").is_file():
+            return
+        what = ("an episode or map folder, not a recording" if (p / "episode.json").is_file() else
+                "a folder that is neither a ROS 2 bag (no metadata.yaml) nor a TUM RGB-D folder (no rgb.txt)")
+        raise RecordingError(f"{p}: {what}; `map` reads {RECORDINGS}")
+    if p.suffix.lower() in MESH_SUFFIXES:
+        raise RecordingError(f"{p}: a mesh, not a recording; `map` reads {RECORDINGS}. To explore the mesh, "
+                             f"run `activesplat explore --scene {p}`")
+    if p.suffix not in (".bag", ".db3", ".mcap"):
+        raise RecordingError(f"{p}: not a recording; `map` reads {RECORDINGS}")
+    header = mcap_header(p) if p.suffix == ".mcap" else None
+    if header is not None and header[0] != "ros2":
+        profile, library = header
+        if profile == "ros1":
+            raise RecordingError(f"{p}: an MCAP file of profile 'ros1' (ROS 1 messages); `map` reads ROS 1 "
+                                 f"recordings as .bag files and MCAP files of profile ros2 (ROS 2)")
+        if library.startswith("activesplat"):
+            by = " written by `activesplat export` for Foxglove (JSON messages)"
+        else:
+            by = f" (library {library!r})" if library else ""
+        raise RecordingError(f"{p}: an MCAP file of profile {profile!r}{by}, not a ROS bag; `map` reads "
+                             f"{RECORDINGS}")
+
+
+def mcap_header(path: Path) -> tuple[str, str] | None:
+    """(profile, library) of an MCAP file's header record; None when the file does not start like one (a
+    truncated or corrupt file, which the bag reader then reports)."""
+    import struct
+
+    try:
+        with open(path, "rb") as f:
+            head = f.read(8 + 1 + 8 + 4096)
+        if head[:8] != b"\x89MCAP0\r\n" or head[8] != 0x01:  # magic, then the Header record (op 0x01)
+            return None
+        at = 8 + 1 + 8
+        strings = []
+        for _ in range(2):  # profile, library: uint32 length + UTF-8
+            (n,) = struct.unpack_from("<I", head, at)
+            strings.append(head[at + 4: at + 4 + n].decode("utf-8", "replace"))
+            at += 4 + n
+        return strings[0], strings[1]
+    except (OSError, IndexError, struct.error):
+        return None
+
+
 def pair_nearest(rgb: list[tuple[int, int]], depth: list[tuple[int, int]], max_dt_ns: int):
     """[(stamp, rgb index, depth index)] pairing each colour image with the depth of the nearest stamp
     within ``max_dt_ns``; and the number of colour images left without depth."""
@@ -133,4 +189,4 @@ def pair_nearest(rgb: list[tuple[int, int]], depth: list[tuple[int, int]], max_d
     return pairs, dropped
 
 
-__all__ = ["Recording", "open_recording", "pair_nearest"]
+__all__ = ["RECORDINGS", "Recording", "mcap_header", "open_recording", "pair_nearest"]

@@ -336,6 +336,7 @@ class MapperConfig:
 
     # --- optimiser (release)
     lr: LearningRates = field(default_factory=LearningRates)
+    """Adam learning rate of each Gaussian parameter (release: SplaTAM's mapping rates)."""
     adam_eps: float = 1e-15  # release / SplaTAM
 
     # --- initialisation (docs/protocol.md §2)
@@ -429,8 +430,11 @@ class MapperConfig:
 
     # --- schedule (release): normal walking, and the denser look-around schedule
     schedule: Schedule = field(default_factory=lambda: Schedule(map_every=5, keyframe_every=5, iterations=2))
+    """Schedule while the agent follows a path (release: map and store a keyframe every 5th frame)."""
     dense_schedule: Schedule = field(default_factory=lambda: Schedule(map_every=2, keyframe_every=1,
                                                                        iterations=2))
+    """Denser schedule while the agent looks around on the spot (release: map every 2nd frame, a keyframe
+    every frame)."""
     window_overlap: int = 10  # release: keyframes chosen by overlap; window = these + last keyframe + current
     overlap_pixels: int = 1600  # release / SplaTAM: pixels sampled for the overlap test
     overlap_border_px: int = 20  # release / SplaTAM: projections this close to the border do not count
@@ -461,14 +465,13 @@ class MapperConfig:
     seed: int = 0  # ours: numpy generator for overlap sampling and window picks
 
     def __post_init__(self) -> None:
-        for f in fields(self):
-            value = getattr(self, f.name)
-            if isinstance(value, (int, float)) and not isinstance(value, bool) and value < 0:
-                raise InvalidInputError(f"MapperConfig.{f.name} must be >= 0, got {value}")
+        # the fields with a bound of their own first, so that a negative value gets the real bound (a
+        # pixel_stride of -1 "must be >= 1", as 0 does); every other number must be >= 0 (at the end)
         for name in ("schedule", "dense_schedule"):
             s = getattr(self, name)
             if s.map_every < 1 or s.keyframe_every < 1 or s.iterations < 0:
-                raise InvalidInputError(f"MapperConfig.{name} needs map_every, keyframe_every >= 1, got {s}")
+                raise InvalidInputError(f"MapperConfig.{name} needs map_every >= 1, keyframe_every >= 1 and "
+                                        f"iterations >= 0, got {s}")
         for name in ("pixel_stride", "mask_downscale", "train_downscale", "init_slant_fill"):
             if getattr(self, name) < 1:
                 raise InvalidInputError(f"MapperConfig.{name} must be >= 1, got {getattr(self, name)}")
@@ -487,6 +490,10 @@ class MapperConfig:
                                     f"[0, 1), got {self.merge_scale_ratio} and {self.merge_min_opacity}")
         if not 0.0 < self.init_opacity < 1.0:
             raise InvalidInputError(f"MapperConfig.init_opacity must be in (0, 1), got {self.init_opacity}")
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if isinstance(value, (int, float)) and not isinstance(value, bool) and value < 0:
+                raise InvalidInputError(f"MapperConfig.{f.name} must be >= 0, got {value}")
 
     @classmethod
     def from_dict(cls, d: dict) -> MapperConfig:

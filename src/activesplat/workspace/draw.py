@@ -15,7 +15,7 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
 from activesplat.workspace.clean import Workspace
-from activesplat.workspace.topdown import TopDownGrids
+from activesplat.workspace.topdown import TopDownGrids, frontier_cells
 from activesplat.workspace.voronoi import node_positions
 
 UNKNOWN_RGB = (0.55, 0.55, 0.58)
@@ -68,21 +68,19 @@ def draw_graph(ax: Axes, graph: nx.Graph) -> None:
                linewidths=1.0, zorder=5)
 
 
-def uses_frontiers(policy: str | None) -> bool:
-    """Whether the named exploration policy goes to frontiers instead of planning on the Voronoi graph
-    (the `fbe` baseline)."""
-    if policy is None:
-        return False
-    from activesplat.planning.frontier import FrontierExplorer
+FRONTIER_POLICIES = ("fbe",)
+"""Policies (by name: this layer knows nothing of planning) that go to frontiers instead of planning on the
+Voronoi graph: the frontier-based exploration baseline, planning/frontier.py."""
 
-    return policy == FrontierExplorer.name
+
+def uses_frontiers(policy: str | None) -> bool:
+    """Whether the named exploration policy goes to frontiers instead of planning on the Voronoi graph."""
+    return policy in FRONTIER_POLICIES
 
 
 def frontier_mask(grids: TopDownGrids, workspace: Workspace | None) -> np.ndarray:
     """(H, W) bool frontier cells as the frontier policy sees them: workspace (else free) cells next to
     unknown ones."""
-    from activesplat.planning.frontier import frontier_cells
-
     free = workspace.mask if workspace is not None else grids.free
     return frontier_cells(free, grids.unknown)
 

@@ -220,3 +220,9 @@ def with_obstacles(grids: TopDownGrids, points_xz: np.ndarray, radius_m: float) 
     hit = disc.astype(bool)
     return replace(grids, free=grids.free & ~hit, obstacle=grids.obstacle | hit, unknown=grids.unknown & ~hit)
 
+
+def frontier_cells(free: np.ndarray, unknown: np.ndarray) -> np.ndarray:
+    """Free cells with an unknown 8-neighbour: the frontiers of frontier-based exploration (the `fbe`
+    baseline's goals; drawn in topdown.png)."""
+    near_unknown = cv2.dilate(unknown.astype(np.uint8), np.ones((3, 3), np.uint8)) > 0
+    return free & near_unknown
