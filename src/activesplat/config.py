@@ -175,7 +175,8 @@ class ExploreCommand:
     out: Path | None = None
     """Episode folder (default: runs/SCENE-POLICY-sSEED)."""
     overwrite: bool = False
-    """Replace an existing complete episode in --out."""
+    """Replace an episode (complete or partial) in --out, with everything made from it (render-eval and
+    refine results)."""
     progress: bool = True
     """Show a progress bar."""
     viewer: bool = False
