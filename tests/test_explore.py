@@ -277,6 +277,7 @@ def test_a_curve_point_counts_the_frame_after_its_action(episode):
     curve = metrics["curve"]
     assert [p["step"] for p in curve] == list(range(10, 91, 10))  # every batch_frames actions and the last
     assert curve[-1]["completion_ratio_pct"] == pytest.approx(metrics["completion_ratio_pct"], abs=1e-9)
+    assert curve[-1]["n_gaussians"] == metrics["n_gaussians"]  # the final map, after the last frame
     ep = read_episode(out)
     for k in (30, 80):
         cut = Episode(ep.dir, ep.meta, ep.actions[:k], ep.poses[: k + 1], False)

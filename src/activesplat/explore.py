@@ -165,7 +165,7 @@ def explore_environment(env, run, out: str | Path, overwrite: bool = False, prog
                 timers.time("evaluation", evaluator.observe, obs.pose)
             if viewer is not None and step < steps:  # the last update follows the last frame's mapping
                 viewer.update(step, obs, mapper, explorer, final=False)
-            if evaluator is not None and evaluator.curve_due(step, steps):
+            if evaluator is not None and step < steps and evaluator.curve_due(step, steps):
                 at_step = {"path_length_m": forward * run.sim.forward_step,
                            "n_gaussians": len(mapper.gaussians)}
                 timers.time("evaluation", evaluator.curve_point, step, at_step)
@@ -179,7 +179,9 @@ def explore_environment(env, run, out: str | Path, overwrite: bool = False, prog
         add_frame()  # the last observation is mapped too, as every other one (the map's train views)
         if viewer is not None:
             viewer.update(steps, obs, mapper, explorer, final=True)
-        if evaluator is not None:
+        if evaluator is not None:  # the last curve point: the episode's result, with the final map's size
+            timers.time("evaluation", evaluator.curve_point, steps, {
+                "path_length_m": forward * run.sim.forward_step, "n_gaussians": len(mapper.gaussians)})
             curve = timers.time("evaluation", evaluator.finish)
     except KeyboardInterrupt:
         writer.close()

@@ -117,11 +117,21 @@ def test_bad_frames_are_rejected_or_skipped_without_touching_the_map():
         ((rgb, depth, np.eye(3)), "pose"),
         ((rgb, depth, np.full((4, 4), np.nan)), "pose"),
         ((rgb, depth, 2 * np.eye(4)), "rigid"),
+        ((rgb, depth, np.diag([-1.0, 1.0, 1.0, 1.0]) @ pose()), "proper rotation"),  # a mirror
         ((np.full(rgb.shape, np.nan), depth, pose()), "rgb"),
+        ((rgb.astype(np.float32), depth, pose()), "0-255 colours"),  # float colours not in [0, 1]
+        ((rgb, (depth * 1000).astype(np.uint16), pose()), "millimetres"),  # integer depth
+        ((rgb, depth * 1000, pose()), "millimetres"),  # float depth in millimetres
     ]
     for args, msg in bad_calls:
         with pytest.raises(InvalidInputError, match=f"mapper: frame 2: .*{msg}"):
             mapper.add_frame(*args)
+    with pytest.raises(InvalidInputError, match="2 NaN / inf entries"):  # the message says what is wrong
+        bad = pose()
+        bad[0, 3] = bad[1, 3] = np.nan
+        mapper.add_frame(rgb, depth, bad)
+    with pytest.raises(InvalidInputError, match="render size must be positive"):
+        mapper.render(pose(), width=0)
     assert mapper.frames == 1 and len(mapper.keyframes) == n_kf
     for k, v in mapper.gaussians.raw().items():
         assert torch.equal(v, snapshot[k])

@@ -82,6 +82,28 @@ def test_non_finite_parameters_raise(which, bad):
         _render(tuple(params))
 
 
+@pytest.mark.parametrize("backend", ["torch", "numba"])
+def test_values_outside_the_documented_ranges_raise(backend):
+    """Opacities in [0, 1], scales >= 0, quaternions that can be normalised, positive focal lengths: what
+    would otherwise render silently wrong (nothing, mirrored, or every Gaussian gone)."""
+    params = list(random_scene(4, seed=0))
+
+    def with_value(which, value):
+        changed = list(params)
+        changed[which] = changed[which].clone()
+        changed[which][0] = value
+        return tuple(changed)
+
+    for which, value, msg in [(3, 1.5, "opacities must be in"), (3, -0.5, "opacities must be in"),
+                              (2, -0.01, "scales must be >= 0"), (1, 0.0, "quats must have a non-zero")]:
+        with pytest.raises(InvalidInputError, match=msg):
+            _render(with_value(which, value), backend=backend)
+    K = intrinsics(W, H).clone()
+    K[0, 0] = 0.0
+    with pytest.raises(InvalidInputError, match="positive focal lengths"):
+        rasterize(*params, torch.eye(4), K, W, H, backend=backend)
+
+
 def test_wrong_shapes_and_backend_raise():
     params = list(random_scene(4, seed=0))
     with pytest.raises(InvalidInputError, match="scales"):

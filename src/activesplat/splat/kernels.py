@@ -68,6 +68,51 @@ def check_tensors(caller: str, shapes: dict[str, tuple[int | None, ...]],
     return out
 
 
+def check_ranges(caller: str, quats: Tensor, scales: Tensor, opacities: Tensor, K: Tensor) -> None:
+    """The documented ranges of a render's inputs (3DGS semantics): quaternions of non-zero norm (they are
+    normalised, which a zero one cannot be), scales >= 0, opacities in [0, 1], focal lengths > 0. Reductions
+    read back in one transfer (one sync on a GPU), no copies of the inputs; InvalidInputError naming the
+    argument."""
+    with torch.no_grad():
+        if opacities.shape[0]:
+            lo_o, hi_o, lo_s, fx, fy = torch.stack([opacities.min(), opacities.max(), scales.min(), K[0, 0],
+                                                    K[1, 1]]).tolist()
+            lo_q = _min_quat_norm(quats)
+        else:
+            lo_o, hi_o, lo_s, lo_q, (fx, fy) = 0.0, 0.0, 0.0, 1.0, K.diagonal()[:2].tolist()
+    if lo_o < 0.0 or hi_o > 1.0:
+        raise InvalidInputError(f"{caller}: opacities must be in [0, 1] (activated, not logits), got "
+                                f"[{lo_o:.4g}, {hi_o:.4g}]")
+    if lo_s < 0.0:
+        raise InvalidInputError(f"{caller}: scales must be >= 0 (linear, not log), got a minimum of "
+                                f"{lo_s:.4g}")
+    if lo_q == 0.0:
+        raise InvalidInputError(f"{caller}: quats must have a non-zero norm (wxyz, normalised inside); a "
+                                f"zero quaternion has no rotation")
+    if fx <= 0.0 or fy <= 0.0:
+        raise InvalidInputError(f"{caller}: K must have positive focal lengths, got fx {fx}, fy {fy}")
+
+
+def _min_quat_norm(quats: Tensor) -> float:
+    """The smallest squared norm of the (N, 4) quaternions: one compiled pass on the CPU (a torch norm
+    allocates N values and takes ~1 ms for 300k), torch on a GPU."""
+    if quats.device.type != "cpu":
+        return float((quats * quats).sum(dim=1).min())
+    q = quats.detach()
+    q = q.numpy() if q.is_contiguous() else np.ascontiguousarray(q.numpy())
+    return float(_min_sq_norm_rows(q))
+
+
+@njit(cache=True)
+def _min_sq_norm_rows(q):
+    best = np.inf
+    for i in range(q.shape[0]):
+        v = q[i, 0] * q[i, 0] + q[i, 1] * q[i, 1] + q[i, 2] * q[i, 2] + q[i, 3] * q[i, 3]
+        if v < best:
+            best = v
+    return best
+
+
 def to_numpy(t: Tensor) -> np.ndarray:
     """A contiguous float32 numpy copy of a tensor for the kernels."""
     return np.ascontiguousarray(t.detach().to("cpu", torch.float32).numpy())

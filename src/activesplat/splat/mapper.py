@@ -146,7 +146,11 @@ class Mapper:
                 height: int | None) -> tuple[np.ndarray, np.ndarray, int, int]:
         """Checked pose and intrinsics of a render, the sensor's where not given."""
         K = self.K if K is None else as_intrinsics(K)
-        return as_pose(pose), K, width or self.width, height or self.height
+        width = self.width if width is None else int(width)
+        height = self.height if height is None else int(height)
+        if width <= 0 or height <= 0:
+            raise InvalidInputError(f"render size must be positive, got {width}x{height}")
+        return as_pose(pose), K, width, height
 
     def _draw_front(self, pose: np.ndarray, K: np.ndarray, width: int, height: int,
                     active: tuple[torch.Tensor, ...], behind: torch.Tensor, in_window: bool = False):

@@ -28,7 +28,7 @@ import torch
 from torch import Tensor
 
 from activesplat.errors import InvalidInputError
-from activesplat.splat.kernels import check_size, check_tensors
+from activesplat.splat.kernels import check_ranges, check_size, check_tensors
 
 Backend = Literal["auto", "numba", "torch", "gsplat"]
 BACKENDS = ("auto", "numba", "torch", "gsplat")
@@ -192,6 +192,7 @@ def _check_tensors(means, quats, scales, opacities, colors, viewmat, K, backgrou
     values = {"means": means, "quats": quats, "scales": scales, "opacities": opacities, "colors": colors,
               "viewmat": viewmat, "K": K, "background": background}
     out = check_tensors("rasterize", _SHAPES, values)
+    check_ranges("rasterize", out[1], out[2], out[3], out[6])
     if mask is not None:
         mask = _check_mask(mask, out[0].shape[0], out[0].device)
     return (*out, mask)

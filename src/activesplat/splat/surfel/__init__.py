@@ -43,7 +43,7 @@ from typing import Literal
 from torch import Tensor
 
 from activesplat.errors import InvalidInputError
-from activesplat.splat.kernels import check_size, check_tensors
+from activesplat.splat.kernels import check_ranges, check_size, check_tensors
 from activesplat.splat.raster import RenderOutput
 
 SurfelBackend = Literal["auto", "numba", "torch"]
@@ -113,4 +113,6 @@ def _check_tensors(means, quats, scales, opacities, colors, viewmat, K, backgrou
     """Validate shapes and finiteness; return the tensors in one float dtype, background filled in."""
     values = {"means": means, "quats": quats, "scales": scales, "opacities": opacities, "colors": colors,
               "viewmat": viewmat, "K": K, "background": background}
-    return check_tensors("rasterize_surfels", _SHAPES, values)
+    out = check_tensors("rasterize_surfels", _SHAPES, values)
+    check_ranges("rasterize_surfels", out[1], out[2], out[3], out[6])
+    return out
