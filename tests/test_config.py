@@ -120,6 +120,7 @@ def test_help_reads_as_sentences_with_one_default(capsys, monkeypatch):
     assert "or a mesh file (.glb/.gltf/.ply/.obj). (default: small-0)" in flat
     assert "--out {None}|PATH Episode folder (default: runs/SCENE-POLICY-sSEED). --overwrite" in flat
     assert "--config {None}|PATH Rerun the configuration" in flat and "override it. (default: None)" in flat
+    assert "coarse refresh (project;" in flat and "--- coarse" not in flat  # section comments lose dashes
     text = _help(capsys, "refine")
     assert not _needless_breaks(text), _needless_breaks(text)[:3]
     assert "3DGS and 2DGS train 30000). (default: 2000)" in _flat(text)

@@ -99,7 +99,8 @@ def help_text(text: str | None) -> str | None:
     wraps a long word at a comma, which splits a number such as 30,000. Paragraphs (blank lines) stay."""
     if not text:
         return text
-    paragraphs = [" ".join(p.split()) for p in re.split(r"\n\s*\n", text)]
+    # a section comment above a field ("# --- schedule ...") is its help when it has no docstring: no dashes
+    paragraphs = [re.sub(r"^-{3,}\s*", "", " ".join(p.split())) for p in re.split(r"\n\s*\n", text)]
     return "\n\n".join(re.sub(r"(?<=\d),(?=\d{3}(?!\d))", "", p) for p in paragraphs if p)
 
 

@@ -310,3 +310,19 @@ def test_draw_completion_single_runs_and_trial_bands(tmp_path):
     bands = draw_completion(tmp_path / "bands.png", {"activesplat": [run, _metrics(80.0)["curve"]],
                                                      "fbe": [run], "none": []})
     assert one.stat().st_size > 0 and bands.stat().st_size > 0
+
+
+def test_a_tie_is_bold_nowhere_and_without_a_ceiling_its_columns_are_not_explained(tmp_path):
+    from activesplat.bench.tables import markdown_report
+
+    specs = plan_runs(["small-0"], ["activesplat", "fbe"], [0], None, tmp_path)
+    for spec in specs:  # the same completion (a short budget: both only did the bootstrap)
+        metrics = _metrics(39.11, cm=5.0 if spec.policy == "fbe" else 6.0)
+        metrics.update({"rotation_pct": 100.0, "rooms_entered": 1, "rooms_total": 3})
+        _write(spec, metrics)
+    md = markdown_report(collect(specs))
+    tab1 = md.split("## Tab. I:")[1].split("## Tab. III")[0]
+    assert "**39.11**" not in tab1 and "39.11" in tab1
+    assert "**5.00**" in tab1  # a difference is still bold
+    multi = md.split("## Multi-room behaviour")[1].split("##")[0]
+    assert "Sweep ceiling" not in multi and "steps to 90" not in multi and "rotations:" in multi

@@ -204,14 +204,17 @@ BETTER = {"completion_ratio_pct": max, "completion_cm": min}
 
 def _cell(res: Results, scene: str | None, policy: str, policies: Sequence[str], key: str, decimals: int,
           with_std: bool = True) -> str:
-    """The cell of a scene (None: the average over scenes), in bold when `policy` has the best mean of `key`
-    among at least two of `policies` with results."""
+    """The cell of a scene (None: the average over scenes), in bold when `policy` alone has the best mean of
+    `key` (at the printed decimals) among at least two of `policies` with results: a tie is bold nowhere."""
     if scene is None:
         text = res.average(policy, key, decimals, with_std)
     else:
         text = res.cell(scene, policy, key, decimals)
-    means = {p: m for p in policies if (m := res.mean(scene, p, key)) is not None}
-    best = key in BETTER and len(means) > 1 and BETTER[key](means, key=means.__getitem__) == policy
+    means = {p: round(m, decimals) for p in policies if (m := res.mean(scene, p, key)) is not None}
+    best = False
+    if key in BETTER and len(means) > 1 and policy in means:
+        top = BETTER[key](means.values())
+        best = means[policy] == top and sum(m == top for m in means.values()) == 1
     return f"**{text}**" if best else text
 
 
@@ -358,12 +361,17 @@ def markdown_report(records: Sequence[RunRecord], cfg: TableConfig | None = None
             "Each run's completion with a path of at most 25 / 50 / 75 / 100 % of its own final path length "
             "(curve points every 50 steps), averaged as above.", ""]
     if any(r.metrics and "rotation_pct" in r.metrics for r in res.records):
+        ceiling = any(r.metrics and "ceiling_pct" in r.metrics for r in res.records)
+        notes = ""
+        if ceiling:
+            notes = ("Sweep ceiling: what the exhaustive sweep (eval/sweep.py) observes; of ceiling: "
+                     "completion / ceiling; worst room: the lowest share of a room's own ceiling; ")
+        notes += ("rooms entered: rooms the agent stood 0.5 m inside (corridors not counted); rotations: "
+                  "share of turn / tilt actions; ")
+        notes += ("steps to 90 / 95 %: first curve step at that share of the ceiling (n/a: some trial never "
+                  "got there). " if ceiling else "without --ceiling the sweep's columns are left out. ")
         out += ["## Multi-room behaviour", "", *behaviour_table(res), "",
-                "Sweep ceiling: what the exhaustive sweep (eval/sweep.py) observes; of ceiling: completion / "
-                "ceiling; worst room: the lowest share of a room's own ceiling; rooms entered: rooms the "
-                "agent stood 0.5 m inside (corridors not counted); rotations: share of turn / tilt actions; "
-                "steps to 90 / 95 %: first curve step at that share of the ceiling (n/a: some trial never "
-                "got there). Means over trials; average rows: means over scenes.", ""]
+                notes + "Means over trials; average rows: means over scenes.", ""]
     if any(r.metrics and "completion_gain" in r.metrics for r in res.records):
         out += ["## Where the completion came from", "", *gain_table(res, "by_action"), "",
                 *gain_table(res, "by_cause"), "",
