@@ -55,8 +55,14 @@ def test_the_exploration_loop_runs_a_user_environment(tmp_path):
     assert poses.shape == (7, 17)
     meta = json.loads((tmp_path / "ep" / "episode.json").read_text())
     assert meta["scene"] == "turntable" and meta["config"]["steps"] == 6
+    assert meta["source"] == "environment" and meta["camera"]["width"] == 32  # the camera it saw
     for name in ("gaussians.ply", "keyframes.npz", "metrics.json"):
         assert (tmp_path / "ep" / name).is_file()
+    from activesplat.errors import EpisodeError
+    from activesplat.eval.evaluate import evaluate_episode
+
+    with pytest.raises(EpisodeError, match="without ground truth .*needs a simulated episode"):
+        evaluate_episode(tmp_path / "ep")  # no scene to replay: said so, not "unknown scene 'turntable'"
 
 
 def test_a_bad_observation_is_named(tmp_path):

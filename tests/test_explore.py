@@ -328,3 +328,8 @@ def test_evaluate_with_a_corrupt_metrics_file_is_one_line_error(capsys, episode,
     code, err = _cli(capsys, "evaluate", str(out))
     assert code == 2 and "metrics.json is unreadable" in err and len(err.strip().splitlines()) == 1
     assert (out / "metrics.json").read_text() == '{"completion'  # left for the user to look at
+
+
+def test_a_budget_inside_the_first_look_around_is_warned_about(tmp_path):
+    with pytest.warns(UserWarning, match="within the first look-around"):
+        run_exploration("small-0", steps=4, seed=0, out=tmp_path / "short", **TINY)

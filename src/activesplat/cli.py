@@ -534,7 +534,15 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _warning_line(message, category, filename, lineno, line=None) -> str:
+    """A warning on the command line: one line, no source excerpt (``warnings.formatwarning``)."""
+    return f"activesplat: warning: {message}\n"
+
+
 def main(argv: Sequence[str] | None = None) -> int:
+    import warnings
+
+    warnings.formatwarning = _warning_line
     try:
         try:
             return _main(argv)

@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 import sys
 import time
+import warnings
 from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 
@@ -101,6 +102,7 @@ def explore_environment(env, run, out: str | Path, overwrite: bool = False, prog
 
     from activesplat.env import check_observation
     from activesplat.errors import InvalidInputError
+    from activesplat.planning.explorer import bootstrap_actions
     from activesplat.planning.policies import make_policy
     from activesplat.splat import Mapper
     from activesplat.splat.raster import prepare_backend, resolve_backend
@@ -121,11 +123,19 @@ def explore_environment(env, run, out: str | Path, overwrite: bool = False, prog
     floor_height = float(obs.pose[1, 3] - run.sim.sensor_height)
     explorer = make_policy(policy, mapper, floor_height, cfg=run.explorer, timers=timers,
                            frontier=run.frontier)
+    look_around = len(bootstrap_actions(run.explorer))
+    if steps <= look_around:
+        warnings.warn(f"a budget of {steps} actions ends within the first look-around ({look_around} "
+                      f"actions, the same for every policy): no policy gets to choose anything", stacklevel=2)
     meta = {
         "scene": name, "scene_name": name, "seed": seed, "policy": policy, "steps": steps,
         "start_pose": np.asarray(obs.pose).tolist(), **(meta or {}), "floor_height": floor_height,
         "backend": mapper.backend, "config": run.to_dict(),
+        # the camera the run saw (run.sim describes the simulator's; a robot's may differ)
+        "camera": {"width": env.width, "height": env.height, "K": np.asarray(env.K).tolist()},
     }
+    if evaluator is None:  # no ground truth: evaluate and render-eval's scene checks say so
+        meta["source"] = "environment"
     writer.start(meta, obs.pose)
 
     curve: list[dict] = []

@@ -41,15 +41,26 @@ def _sim_config(meta: dict, overrides: dict | None = None):
     return SimConfig(**{**kwargs, **(overrides or {})})
 
 
+def simulated_scene(meta: dict, folder):
+    """The scene of a simulated episode's episode.json; EpisodeError for one explored in an environment
+    without ground truth (a robot, a user's own ``Environment``) or naming no scene."""
+    from activesplat.sim import load_scene
+
+    if meta.get("source") == "environment":
+        raise EpisodeError(f"{folder} was explored in an environment without ground truth "
+                           f"({meta.get('scene')}: a robot or a user's own Environment): this needs a "
+                           f"simulated episode")
+    if "scene" not in meta:
+        raise EpisodeError(f"{folder}/episode.json names no scene (not a simulated episode)")
+    return load_scene(meta["scene"], z_up=bool(meta.get("z_up", False)), floor=meta.get("floor"))
+
+
 def replay_episode(episode: Episode, **options) -> dict:
     """`replay_coverage` of an episode (`read_episode`) with the scene, coverage and simulator settings it
     was recorded with; `options` are replay_coverage's (``with_completed``, ``with_gain``)."""
-    from activesplat.sim import load_scene
 
     meta = episode.meta
-    if "scene" not in meta:
-        raise EpisodeError(f"{episode.dir}/episode.json names no scene")
-    scene = load_scene(meta["scene"], z_up=bool(meta.get("z_up", False)), floor=meta.get("floor"))
+    scene = simulated_scene(meta, episode.dir)
     cov = meta.get("config", {}).get("coverage", {})
     cfg = CoverageConfig(**{k: v for k, v in cov.items() if k in CoverageConfig.__dataclass_fields__})
     return replay_coverage(scene, episode.start_pose, episode.actions, cfg, expected_poses=episode.poses,

@@ -317,14 +317,12 @@ def _read_meta(episode_dir: Path) -> dict:
 def episode_simulator(episode_dir: str | Path, sim_overrides: dict | None = None):
     """(episode, simulator) of a simulated episode: its scene, start pose and SimConfig (with
     ``sim_overrides`` on top, e.g. another image size). EpisodeError when episode.json names no scene."""
-    from activesplat.eval.evaluate import _sim_config
-    from activesplat.sim import Simulator, load_scene
+    from activesplat.eval.evaluate import _sim_config, simulated_scene
+    from activesplat.sim import Simulator
 
     episode = read_episode(episode_dir)
     meta = episode.meta
-    if "scene" not in meta:
-        raise EpisodeError(f"{episode_dir}/episode.json names no scene (not a simulated episode)")
-    scene = load_scene(meta["scene"], z_up=bool(meta.get("z_up", False)), floor=meta.get("floor"))
+    scene = simulated_scene(meta, episode_dir)
     return episode, Simulator(scene, start=episode.start_pose, config=_sim_config(meta, sim_overrides))
 
 
