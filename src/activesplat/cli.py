@@ -425,8 +425,10 @@ def build_parser() -> argparse.ArgumentParser:
     p_reval = sub.add_parser("render-eval",
                              help="PSNR / SSIM / LPIPS / depth L1 of a map on train and test views")
     p_reval.add_argument("dir", help="episode folder (or a refined_<method> folder inside one)")
-    p_reval.add_argument("--n-train", type=int, default=50, help="train views, spread over the trajectory")
-    p_reval.add_argument("--n-test", type=int, default=50, help="test views, random poses in the free space")
+    p_reval.add_argument("--n-train", type=int, default=50,
+                         help="train views, spread over the trajectory (default: 50)")
+    p_reval.add_argument("--n-test", type=int, default=50,
+                         help="test views, random poses in the free space (default: 50)")
     p_reval.add_argument("--seed", type=int, default=0, help="seed of the test poses")
     p_reval.add_argument("--backend", default="auto", choices=("auto", "numba", "torch", "gsplat"),
                          help="rasterizer backend")

@@ -24,8 +24,8 @@ class CoverageConfig:
     """Evaluation protocol constants (docs/protocol.md §6)."""
 
     resolution: int = 128
-    """Replay depth is rendered at 128 x 128 (half the 256 x 256 sensor), same field of view (paper
-    protocol)."""
+    """Replay depth is rendered at this many pixels square, 128 (half the default 256 x 256 sensor), with the
+    sensor's field of view (paper protocol); it does not follow --sim.width."""
     n_gt_points: int = 200_000
     """Points sampled area-uniformly on the ground-truth mesh (paper protocol: 200,000)."""
     seed: int = 0

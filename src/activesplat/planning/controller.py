@@ -34,7 +34,8 @@ class ControllerConfig:
     arrive_steps: float = 1.5
     """A waypoint is reached within this many forward steps (~0.1 m, release)."""
     max_pitch_deg: float = 45.0
-    """On-the-spot rotations keep the pitch within +-45 deg (paper / release)."""
+    """The pitch the planner's on-the-spot rotations aim within, +-45 deg (paper / release); the simulator's
+    own limit (--sim.pitch-min-deg / --sim.pitch-max-deg) still bounds what a tilt does."""
 
     def __post_init__(self) -> None:
         check_fields(self, positive=("turn_deg", "look_deg", "forward_m", "heading_tolerance_deg",

@@ -20,7 +20,7 @@ class SimConfig:
     sensor_height: float = 1.25
     """Camera height above the floor in metres (docs/protocol.md §1)."""
     max_depth: float = 10.0
-    """Depth range 0-10 m; farther hits and misses read 0 (docs/protocol.md §1)."""
+    """Depth range in metres (paper: 10); farther hits and misses read 0 (docs/protocol.md §1)."""
     agent_radius: float = 0.1
     """Agent cylinder radius in metres (docs/protocol.md §1)."""
     agent_height: float = 1.5

@@ -34,7 +34,7 @@ class LearningRates:
     colors: float = 2.5e-3  # release: on plain RGB, converted to f_dc units by GaussianMap
     quats: float = 1e-3  # release
     opacities: float = 0.05  # release: on the opacity logit
-    scales: float = 1e-3  # release: on the log-scale (1e-2: MapperConfig "Scale learning rate")
+    scales: float = 1e-3  # release: on the log-scale (1e-2 measured as an option: MapperConfig docstring)
 
 
 @dataclass(frozen=True)
