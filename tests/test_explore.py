@@ -140,10 +140,10 @@ def test_live_evaluation_on_a_worker_thread_gives_the_same_numbers(episode, tmp_
     for key in ("completion_ratio_pct", "completion_cm", "completion_cm_uncapped", "curve", "rooms",
                 "completion_gain"):
         assert m[key] == metrics[key], key
-    assert len(m["curve"]) == 9  # a point every 10 frames, the last at step 90
+    assert len(m["curve"]) == 10  # the reset (step 0), then a point every 10 actions, the last at step 90
     # each curve point carries the map's size then; the last one is the final map
     assert m["curve"][-1]["n_gaussians"] == m["n_gaussians"] <= m["peak_gaussians"]
-    assert 0 < m["curve"][0]["n_gaussians"] and m["peak_rss_mb"] > 100
+    assert 0 < m["curve"][1]["n_gaussians"] and m["peak_rss_mb"] > 100
     assert m["evaluation_worker_ms_per_step"] > 0
 
 
@@ -275,11 +275,12 @@ def test_a_curve_point_counts_the_frame_after_its_action(episode):
 
     out, metrics = episode
     curve = metrics["curve"]
-    assert [p["step"] for p in curve] == list(range(10, 91, 10))  # every batch_frames actions and the last
+    assert [p["step"] for p in curve] == list(range(0, 91, 10))  # the reset, every batch_frames actions
+    assert curve[0]["path_length_m"] == 0 and curve[0]["n_gaussians"] == 0 < curve[0]["completion_ratio_pct"]
     assert curve[-1]["completion_ratio_pct"] == pytest.approx(metrics["completion_ratio_pct"], abs=1e-9)
     assert curve[-1]["n_gaussians"] == metrics["n_gaussians"]  # the final map, after the last frame
     ep = read_episode(out)
-    for k in (30, 80):
+    for k in (0, 30, 80):
         cut = Episode(ep.dir, ep.meta, ep.actions[:k], ep.poses[: k + 1], False)
         point = next(p for p in curve if p["step"] == k)
         assert replay_episode(cut)["completion_ratio_pct"] == pytest.approx(point["completion_ratio_pct"],

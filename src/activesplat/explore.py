@@ -156,8 +156,9 @@ def explore_environment(env, run, out: str | Path, overwrite: bool = False, prog
         for phase, ms in frame.timings.items():
             mapper_phases[phase] = mapper_phases.get(phase, 0.0) + ms
 
-    if evaluator is not None:  # the reset's frame (poses.txt holds steps + 1 frames)
+    if evaluator is not None:  # the reset's frame (poses.txt holds steps + 1 frames): the curve's step 0
         timers.time("evaluation", evaluator.observe, obs.pose)
+        timers.time("evaluation", evaluator.curve_point, 0, {"path_length_m": 0.0, "n_gaussians": 0})
     try:
         for step in range(1, steps + 1):
             add_frame()
