@@ -20,7 +20,8 @@ the house buys with the episode's actions. The per-view sets are cached (``--cac
 house, a few minutes to build each).
 
 Columns: share of the sweep ceiling at each of ``--at`` steps and at the end, rotations (turns and tilts)
-as a share of the actions, the walk in metres and the number of stops.
+as a share of the actions, the walk in metres, the number of stops, and the worst room: the lowest share
+of a room's own sweep ceiling at the end, as the benchmark ranks rooms (``relative_to_ceiling``).
 """
 
 from __future__ import annotations
@@ -36,6 +37,7 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra
 
+from activesplat.eval.behaviour import relative_to_ceiling, room_behaviour
 from activesplat.eval.coverage import CoverageAccumulator, CoverageConfig, _tree
 from activesplat.eval.sweep import SweepConfig, sweep_poses
 from activesplat.geometry import backproject, intrinsics, pose_yaw_pitch
@@ -395,7 +397,9 @@ class OracleRoute:
         for s in at:
             marks.setdefault(s, end if len(self.actions) <= s else self._completion_at(s))
         rotations = sum(a != "move_forward" for a in self.actions)
+        self.cov.flush()
         return {"at": marks, "end": end, "steps": len(self.actions), "stops": stops,
+                "completed": self.cov.completed(),
                 "rotation_pct": 100.0 * rotations / max(len(self.actions), 1),
                 "path_m": self.ctl.forward_m * self.actions.count("move_forward")}
 
@@ -425,12 +429,13 @@ def main() -> None:
     sim, cov, sweep = SimConfig(), CoverageConfig(), SweepConfig()
     per = len(np.arange(0.0, 360.0, sweep.yaw_step_deg)) * len(sweep.pitches_deg)
     cols = " | ".join(f"at {s} %" for s in args.at)
-    print(f"| scene | seed | {cols} | at {args.steps} % | rotations % | path m | stops | s |")
-    print("|---|---|" + "---|" * (len(args.at) + 5))
+    print(f"| scene | seed | {cols} | at {args.steps} % | rotations % | path m | stops | worst room % | s |")
+    print("|---|---|" + "---|" * (len(args.at) + 6))
     rows = []
     for name in args.scenes:
         scene = load_scene(name)
-        ceiling = json.loads((args.ceilings / name / "sweep.json").read_text())["completion_ratio_pct"]
+        sweep_json = json.loads((args.ceilings / name / "sweep.json").read_text())
+        ceiling = sweep_json["completion_ratio_pct"]
         gt = scene.sample_surface(cov.n_gt_points, seed=cov.seed)
         t0 = time.time()
         poses, indptr, indices = view_sets(scene, sim, sweep, cov, np.asarray(gt, np.float64),
@@ -443,15 +448,21 @@ def main() -> None:
         for seed in args.seeds:
             route = OracleRoute(scene, seed, sim, cov, gt, poses, indptr, indices, per, args.min_gain)
             out = route.run(args.steps, args.at, tour=not args.greedy, first_budget=args.first_budget)
+            worst = np.nan
+            if scene.house is not None:
+                rooms = room_behaviour(scene.house, np.zeros((0, 2)), gt, out["completed"])
+                worst = relative_to_ceiling({"completion_ratio_pct": out["end"], **rooms}, sweep_json).get(
+                    "worst_room_of_ceiling_pct", np.nan)
             row = [100 * out["at"][s] / ceiling for s in args.at]
-            row += [100 * out["end"] / ceiling, out["rotation_pct"], out["path_m"], out["stops"]]
+            row += [100 * out["end"] / ceiling, out["rotation_pct"], out["path_m"], out["stops"], worst]
             rows.append(row)
             marks = " | ".join(f"{v:.1f}" for v in row[:len(args.at)])
             print(f"| {name} | {seed} | {marks} | {row[len(args.at)]:.1f} | {out['rotation_pct']:.1f} | "
-                  f"{out['path_m']:.1f} | {out['stops']} | {time.time() - t0:.0f} |", flush=True)
+                  f"{out['path_m']:.1f} | {out['stops']} | {worst:.1f} | {time.time() - t0:.0f} |",
+                  flush=True)
     a = np.array(rows)
     marks = " | ".join(f"**{v:.1f}**" for v in a[:, :len(args.at) + 1].mean(axis=0))
-    rest = " | ".join(f"{v:.1f}" for v in a[:, -3:].mean(axis=0))
+    rest = " | ".join(f"{v:.1f}" for v in np.nanmean(a[:, -4:], axis=0))
     print(f"| **mean** | | {marks} | {rest} | |")
 
 
