@@ -150,7 +150,8 @@ def explore_environment(env, run, out: str | Path, overwrite: bool = False, prog
     setup_s = prepare_backend(mapper.backend, planar_depth=run.mapper.planar_depth)
     t_start = time.perf_counter()
     bar = _progress(steps, name, policy, progress)
-    def add_frame() -> None:
+
+    def add_frame() -> None:  # the current observation into the map, its phases timed
         frame = timers.time("mapper", mapper.add_frame, obs.rgb, obs.depth, obs.pose,
                             dense=explorer.dense_mapping)
         for phase, ms in frame.timings.items():

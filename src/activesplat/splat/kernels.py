@@ -75,9 +75,12 @@ def check_ranges(caller: str, quats: Tensor, scales: Tensor, opacities: Tensor, 
     argument."""
     with torch.no_grad():
         if opacities.shape[0]:
-            lo_o, hi_o, lo_s, fx, fy = torch.stack([opacities.min(), opacities.max(), scales.min(), K[0, 0],
-                                                    K[1, 1]]).tolist()
-            lo_q = _min_quat_norm(quats)
+            values = [opacities.min(), opacities.max(), scales.min(), K[0, 0], K[1, 1]]  # one device, dtype
+            on_cpu = quats.device.type == "cpu"
+            if not on_cpu:  # the quaternions' reduction joins the one read-back
+                values.append((quats * quats).sum(dim=1).min())
+            lo_o, hi_o, lo_s, fx, fy, *rest = torch.stack(values).tolist()
+            lo_q = _min_quat_norm(quats) if on_cpu else rest[0]
         else:
             lo_o, hi_o, lo_s, lo_q, (fx, fy) = 0.0, 0.0, 0.0, 1.0, K.diagonal()[:2].tolist()
     if lo_o < 0.0 or hi_o > 1.0:
@@ -94,10 +97,8 @@ def check_ranges(caller: str, quats: Tensor, scales: Tensor, opacities: Tensor, 
 
 
 def _min_quat_norm(quats: Tensor) -> float:
-    """The smallest squared norm of the (N, 4) quaternions: one compiled pass on the CPU (a torch norm
-    allocates N values and takes ~1 ms for 300k), torch on a GPU."""
-    if quats.device.type != "cpu":
-        return float((quats * quats).sum(dim=1).min())
+    """The smallest squared norm of the (N, 4) CPU quaternions, in one compiled pass (a torch norm allocates
+    N values and takes ~1 ms for 300k)."""
     q = quats.detach()
     q = q.numpy() if q.is_contiguous() else np.ascontiguousarray(q.numpy())
     return float(_min_sq_norm_rows(q))
