@@ -44,8 +44,6 @@ from activesplat.errors import RecordingError
 RECORDINGS = ("a ROS 1 bag (.bag), a ROS 2 bag (its folder, its .db3 file, or an .mcap file of profile ros2) "
               "or a TUM RGB-D folder (rgb.txt, depth.txt, groundtruth.txt)")
 """What `activesplat map` reads, for its messages."""
-MESH_SUFFIXES = (".glb", ".gltf", ".ply", ".obj")
-"""Mesh files (`activesplat.sim.scene.MESH_SUFFIXES`): scenes to explore, not recordings."""
 
 
 # --------------------------------------------------------------------------- the recording
@@ -134,6 +132,8 @@ def _check_recording(p: Path) -> None:
         what = ("an episode or map folder, not a recording" if (p / "episode.json").is_file() else
                 "a folder that is neither a ROS 2 bag (no metadata.yaml) nor a TUM RGB-D folder (no rgb.txt)")
         raise RecordingError(f"{p}: {what}; `map` reads {RECORDINGS}")
+    from activesplat.sim.scene import MESH_SUFFIXES  # scenes to explore, not recordings
+
     if p.suffix.lower() in MESH_SUFFIXES:
         raise RecordingError(f"{p}: a mesh, not a recording; `map` reads {RECORDINGS}. To explore the mesh, "
                              f"run `activesplat explore --scene {p}`")
