@@ -347,8 +347,9 @@ def markdown_report(records: Sequence[RunRecord], cfg: TableConfig | None = None
            f"Cells: mean ± std over trials (std with ddof={res.cfg.std_ddof}; one trial: the value). "
            "Averages: mean over scenes of the per-scene means, ± the std over seeds of the per-seed averages "
            "over scenes (seeds complete on every scene); † = some scene has no complete run. Completion "
-           "ratio and completion follow the paper's protocol (docs/protocol.md §6); ms/step is the wall time "
-           "of the whole step including the live evaluation.", ""]
+           "ratio and completion follow the paper's protocol (docs/protocol.md §6); path length is the "
+           "forward step times the move_forward actions, blocked ones included (the paper's definition); "
+           "ms/step is the wall time of the whole step including the live evaluation.", ""]
     main = [p for p in res.policies if p not in ABLATION_POLICIES]
     ablations = [p for p in res.policies if p in ABLATION_POLICIES]
     if main:
@@ -359,7 +360,7 @@ def markdown_report(records: Sequence[RunRecord], cfg: TableConfig | None = None
                 *exploration_table(res, ablations + ours), ""]
     out += ["## Tab. III: completion at fractions of the path length", "", *path_fraction_table(res), "",
             "Each run's completion with a path of at most 25 / 50 / 75 / 100 % of its own final path length "
-            "(curve points every 50 steps), averaged as above.", ""]
+            "(curve points at step 0 and every 50 steps), averaged as above.", ""]
     if any(r.metrics and "rotation_pct" in r.metrics for r in res.records):
         ceiling = any(r.metrics and "ceiling_pct" in r.metrics for r in res.records)
         notes = ""
