@@ -46,3 +46,25 @@ def check_fields(obj, *, positive: tuple[str, ...] = (), non_negative: tuple[str
             if not ok(value):
                 off = " (or None = off)" if name in optional else ""
                 raise InvalidInputError(f"{type(obj).__name__}.{name} must be {text}{off}, got {value}")
+
+
+_BAD_PATH = (FileExistsError, FileNotFoundError, NotADirectoryError, IsADirectoryError, PermissionError)
+
+
+def cannot_write(path, exc: OSError, label: str = "") -> Exception:
+    """The one-line InvalidInputError of an output path that cannot be written (a file where a folder should
+    be, a folder in the file's place, a missing or read-only location), ``label`` (e.g. an option name)
+    before the path; any other OSError (a full disk) is returned as it is, for the command line's own
+    message."""
+    from pathlib import Path
+
+    if not isinstance(exc, _BAD_PATH):
+        return exc
+    path = Path(path)
+    where = f"{label} {path}: cannot write it" if label else f"cannot write {path}"
+    if path.is_dir():
+        return InvalidInputError(f"{where}: it is a folder")
+    blocker = next((p for p in path.parents if p.exists() and not p.is_dir()), None)
+    if blocker is not None:
+        return InvalidInputError(f"{where}{', ' if label else ': '}{blocker} is a file, not a folder")
+    return InvalidInputError(f"{where} ({exc.strerror or type(exc).__name__})")

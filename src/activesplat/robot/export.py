@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from activesplat.errors import EpisodeError, InvalidInputError
+from activesplat.errors import EpisodeError, InvalidInputError, cannot_write
 
 STEP_S = 0.1
 T0_S = 1.0
@@ -232,7 +232,7 @@ def _make_parent(out: Path) -> None:
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise _cannot_write(out, exc) from None
+        raise cannot_write(out, exc, "--mcap") from None
 
 
 def _open_for_writing(tmp: Path, out: Path):
@@ -240,20 +240,7 @@ def _open_for_writing(tmp: Path, out: Path):
     try:
         return open(tmp, "wb")
     except OSError as exc:
-        raise _cannot_write(out, exc) from None
-
-
-def _cannot_write(out: Path, exc: OSError) -> Exception:
-    """The one-line InvalidInputError of an --mcap path that cannot be written (a file where a folder
-    should be, a missing or read-only location); any other OSError (a full disk) as it is, for the command
-    line's own message."""
-    if not isinstance(exc, (FileExistsError, FileNotFoundError, NotADirectoryError, IsADirectoryError,
-                            PermissionError)):
-        return exc
-    blocker = next((p for p in out.parents if p.exists() and not p.is_dir()), None)
-    if blocker is not None:
-        return InvalidInputError(f"--mcap {out}: cannot write it, {blocker} is a file, not a folder")
-    return InvalidInputError(f"--mcap {out}: cannot write it ({exc.strerror or type(exc).__name__})")
+        raise cannot_write(out, exc, "--mcap") from None
 
 
 def _put_keyframe(put, step: int, rgb: np.ndarray, depth: np.ndarray, mapper: dict) -> None:

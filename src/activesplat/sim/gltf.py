@@ -28,7 +28,7 @@ from urllib.parse import unquote
 import numpy as np
 from PIL import Image
 
-from activesplat.errors import InvalidInputError, SceneError
+from activesplat.errors import SceneError, cannot_write
 from activesplat.sim.materials import (
     CLAMP_TO_EDGE,
     MIRRORED_REPEAT,
@@ -442,25 +442,8 @@ def write_glb(path, vertices: np.ndarray, faces: np.ndarray, surface: Surface) -
             f.write(struct.pack("<II", len(text), _JSON_CHUNK) + text)
             f.write(struct.pack("<II", len(binary), _BIN_CHUNK) + binary)
     except OSError as exc:
-        raise _cannot_write(path, exc) from None
+        raise cannot_write(path, exc) from None
     return path
-
-
-_BAD_PATH = (FileExistsError, FileNotFoundError, NotADirectoryError, IsADirectoryError, PermissionError)
-
-
-def _cannot_write(path: Path, exc: OSError) -> OSError | InvalidInputError:
-    """The one-line InvalidInputError of a path `write_glb` cannot write to (a file where a folder should be,
-    a folder in the file's place, a missing or read-only location); any other OSError (a full disk) as it
-    is, for the command line's own message."""
-    if not isinstance(exc, _BAD_PATH):
-        return exc
-    if path.is_dir():
-        return InvalidInputError(f"cannot write {path}: it is a folder")
-    blocker = next((p for p in path.parents if p.exists() and not p.is_dir()), None)
-    if blocker is not None:
-        return InvalidInputError(f"cannot write {path}: {blocker} is a file, not a folder")
-    return InvalidInputError(f"cannot write {path} ({exc.strerror or type(exc).__name__})")
 
 
 __all__ = ["BASISU_HELP", "CLAMP_TO_EDGE", "MIRRORED_REPEAT", "REPEAT", "GltfWarning", "read_gltf",
