@@ -9,3 +9,14 @@ def warm_numba_rasterizer():
     from activesplat.splat.raster.numba_backend import warm_up
 
     warm_up()
+
+
+@pytest.fixture
+def house():
+    """An L-shaped living room (two rectangles, one name), a corridor and a bedroom (tests of per-room
+    measures and of trajectory.png; a test module may define its own ``house``)."""
+    from activesplat.sim.rooms import House, Room
+
+    rooms = [Room(0, 0, 4, 3, name="living"), Room(0, 3, 2, 5, name="living"),
+             Room(4, 0, 5.5, 5, kind="corridor", name="corridor"), Room(5.5, 0, 9, 5, name="bedroom")]
+    return House("test", rooms, [], 2.6)

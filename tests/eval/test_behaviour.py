@@ -16,15 +16,6 @@ from activesplat.eval.behaviour import (
     rotation_pct,
     steps_to_reach,
 )
-from activesplat.sim.house import House, Room
-
-
-@pytest.fixture
-def house():
-    """An L-shaped living room (two rectangles, one name), a corridor and a bedroom."""
-    rooms = [Room(0, 0, 4, 3, name="living"), Room(0, 3, 2, 5, name="living"),
-             Room(4, 0, 5.5, 5, kind="corridor", name="corridor"), Room(5.5, 0, 9, 5, name="bedroom")]
-    return House("test", rooms, [], 2.6)
 
 
 def test_rotation_share_counts_turns_and_tilts():

@@ -10,16 +10,7 @@ import pytest
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 
 from activesplat.sim.navmap import NavMap
-from activesplat.sim.rooms import House, Room
 from activesplat.viz.trajectory import room_outline, trajectory_figure
-
-
-@pytest.fixture
-def house():
-    """An L-shaped living room (two rectangles, one name), a corridor and a bedroom."""
-    rooms = [Room(0, 0, 4, 3, name="living"), Room(0, 3, 2, 5, name="living"),
-             Room(4, 0, 5.5, 5, kind="corridor", name="corridor"), Room(5.5, 0, 9, 5, name="bedroom")]
-    return House("test", rooms, [], 2.6)
 
 
 def _navmap():
