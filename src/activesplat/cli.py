@@ -63,19 +63,12 @@ def _cmd_scenes_export(args: argparse.Namespace) -> int:
 
 def check_output_path(path) -> None:
     """Fail early, in one line, when `path` cannot be a file to write: it is a folder, or a file stands where
-    one of the folders above it would be."""
-    from pathlib import Path
+    one of the folders above it would be (:func:`activesplat.errors.blocked_path`)."""
+    from activesplat.errors import InvalidInputError, blocked_path
 
-    from activesplat.errors import InvalidInputError
-
-    path = Path(path)
-    if path.is_dir():
-        raise InvalidInputError(f"cannot write {path}: it is a folder")
-    for parent in path.parents:
-        if parent.exists():
-            if not parent.is_dir():
-                raise InvalidInputError(f"cannot write {path}: {parent} is a file, not a folder")
-            return
+    blocked = blocked_path(path)
+    if blocked:
+        raise InvalidInputError(f"cannot write {path}: {blocked}")
 
 
 # --------------------------------------------------------------------------- explore / benchmark (tyro)

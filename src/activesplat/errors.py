@@ -56,15 +56,24 @@ def cannot_write(path, exc: OSError, label: str = "") -> Exception:
     be, a folder in the file's place, a missing or read-only location), ``label`` (e.g. an option name)
     before the path; any other OSError (a full disk) is returned as it is, for the command line's own
     message."""
-    from pathlib import Path
-
     if not isinstance(exc, _BAD_PATH):
         return exc
-    path = Path(path)
     where = f"{label} {path}: cannot write it" if label else f"cannot write {path}"
-    if path.is_dir():
-        return InvalidInputError(f"{where}: it is a folder")
-    blocker = next((p for p in path.parents if p.exists() and not p.is_dir()), None)
-    if blocker is not None:
-        return InvalidInputError(f"{where}{', ' if label else ': '}{blocker} is a file, not a folder")
+    blocked = blocked_path(path)
+    if blocked:
+        return InvalidInputError(f"{where}{', ' if label else ': '}{blocked}")
     return InvalidInputError(f"{where} ({exc.strerror or type(exc).__name__})")
+
+
+def blocked_path(path) -> str:
+    """Why no file can be written at `path`, before trying: "it is a folder", or "X is a file, not a folder"
+    for the nearest existing folder above it that is a file; "" when nothing stands in the way."""
+    from pathlib import Path
+
+    path = Path(path)
+    if path.is_dir():
+        return "it is a folder"
+    for parent in path.parents:
+        if parent.exists():
+            return "" if parent.is_dir() else f"{parent} is a file, not a folder"
+    return ""
