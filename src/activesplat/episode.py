@@ -52,19 +52,25 @@ def write_npz(path: Path, compresslevel: int = 1, **arrays: np.ndarray) -> None:
     os.replace(tmp, path)
 
 
+def _complete(d: Path) -> bool:
+    """Whether `d` holds a complete episode: a metrics.json that is readable and not marked
+    ``"complete": false`` (what `evaluate` writes for a partial one)."""
+    metrics = d / "metrics.json"
+    if not metrics.exists():
+        return False
+    try:
+        return json.loads(metrics.read_text()).get("complete", True) is not False
+    except (ValueError, AttributeError):
+        return False
+
+
 def _held_episode(d: Path) -> str:
     """What episode ``d`` holds, in words ("a complete episode", "a partial episode (N actions)"), or ""
     when it holds none."""
-    metrics = d / "metrics.json"
-    if metrics.exists():
-        try:
-            complete = json.loads(metrics.read_text()).get("complete", True) is not False
-        except (ValueError, AttributeError):
-            complete = False
-        if complete:
-            return "a complete episode"
+    if _complete(d):
+        return "a complete episode"
     actions = d / "actions.txt"
-    if actions.exists() or metrics.exists():
+    if actions.exists() or (d / "metrics.json").exists():
         n = sum(1 for line in actions.read_text().splitlines() if line.strip()) if actions.exists() else 0
         return f"a partial episode ({n} actions)"
     return ""
@@ -158,7 +164,7 @@ def read_episode(path: str | Path) -> Episode:
     lines = text.split("\n")
     actions = [a.strip() for a in (lines if text.endswith("\n") else lines[:-1]) if a.strip()]
     poses = _read_poses(d / "poses.txt")
-    complete = _held_episode(d) == "a complete episode"
+    complete = _complete(d)
     # poses.txt holds the reset and one pose per action; an interrupted run may lack the last action's pose
     short = len(actions) + 1 - len(poses)
     if short < 0 or short > (0 if complete else 1):
