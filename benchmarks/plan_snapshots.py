@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from activesplat.cli import CommandLineError, parse_command
+from activesplat.cli_options import CommandLineError, parse_command
 from activesplat.config import ExploreCommand, RunConfig
 from activesplat.explore import explore_episode
 from activesplat.sim import load_scene
@@ -94,7 +94,7 @@ def draw_snapshot(out_png: Path, navmap, explorer, plan, box, title: str) -> Pat
 
 def parse(argv: list[str] | None = None) -> tuple[argparse.Namespace, RunConfig]:
     """This script's own options, and the run the rest of `argv` describes as `activesplat explore`'s
-    options would (the same parser: bad options raise `activesplat.cli.CommandLineError`)."""
+    options would (the same parser: bad options raise `activesplat.cli_options.CommandLineError`)."""
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--at", type=int, nargs="+", required=True, help="steps to draw")
     ap.add_argument("--box", type=float, nargs=4, default=None, metavar=("X0", "X1", "Z0", "Z1"))

@@ -8,7 +8,8 @@ import re
 import pytest
 
 from activesplat import explore
-from activesplat.cli import main, parse_command
+from activesplat.cli import main
+from activesplat.cli_options import parse_command
 from activesplat.config import (
     CONFIG_VERSION,
     DERIVED,

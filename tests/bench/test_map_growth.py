@@ -5,7 +5,7 @@ from _bench import load_benchmark
 
 
 def _explore(out, steps: int) -> None:
-    from activesplat.cli import parse_command
+    from activesplat.cli_options import parse_command
     from activesplat.config import ExploreCommand
     from activesplat.explore import explore_episode
 

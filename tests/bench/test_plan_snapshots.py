@@ -11,7 +11,7 @@ def snapshots():
 
 
 def test_options_are_those_of_activesplat_explore(snapshots, tmp_path):
-    from activesplat.cli import CommandLineError
+    from activesplat.cli_options import CommandLineError
 
     args, run = snapshots.parse(["--at", "5", "9", "--out", str(tmp_path), "--explorer.neck-margin-m", "0.2",
                                  "--sim.width", "64", "--seed", "3", "--explorer.neck-margin-m", "None"])
