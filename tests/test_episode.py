@@ -68,3 +68,18 @@ def test_a_crash_may_cut_only_the_last_line(tmp_path):
     (ep / "poses.txt").write_text(text[:-10])  # the last pose line cut half-way
     got = read_episode(ep)
     assert not got.complete and len(got.actions) == 4 and len(got.poses) == 5
+
+
+def test_a_recorded_map_is_told_apart_by_its_json_not_its_spacing(tmp_path):
+    """episode.json is read as JSON: a compact or reformatted file of a recording's map is still a
+    recording, and a file that is not a JSON object is named."""
+    from activesplat.cli import recorded_map
+
+    (tmp_path / "episode.json").write_text(json.dumps({"source": "recording"}, separators=(",", ":")))
+    assert recorded_map(tmp_path) and recorded_map(tmp_path / "refined_3dgs")
+    with pytest.raises(EpisodeError, match="map of a recording"):
+        read_episode(tmp_path)
+    (tmp_path / "episode.json").write_text("[1, 2]")
+    assert not recorded_map(tmp_path)
+    with pytest.raises(EpisodeError, match="not an episode"):
+        read_episode(tmp_path)

@@ -94,15 +94,16 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
 def recorded_map(folder) -> bool:
     """Whether `folder` (or the episode folder holding it, for a refined_<method> folder) is a map of a
     recording made by `activesplat map` rather than a simulated episode."""
-    import json
     from pathlib import Path
 
+    from activesplat.episode import is_recorded_map, read_meta
+    from activesplat.errors import EpisodeError
+
     for d in (Path(folder), Path(folder).parent):
-        meta = d / "episode.json"
-        if meta.is_file():
+        if (d / "episode.json").is_file():
             try:
-                return json.loads(meta.read_text()).get("source") == "recording"
-            except (OSError, ValueError, AttributeError):
+                return is_recorded_map(read_meta(d))
+            except EpisodeError:
                 return False  # unreadable: the command itself says so
     return False
 

@@ -141,22 +141,39 @@ class Episode:
         return np.asarray(self.meta["start_pose"], dtype=np.float64)
 
 
+def read_meta(folder: str | Path) -> dict:
+    """``folder/episode.json`` as a dict; an EpisodeError naming the file when it is missing, unreadable
+    or not a JSON object."""
+    path = Path(folder) / "episode.json"
+    try:
+        meta = json.loads(path.read_text())
+    except (OSError, ValueError) as exc:
+        raise EpisodeError(f"{path} is unreadable: {exc}") from None
+    if not isinstance(meta, dict):
+        raise EpisodeError(f"{path} is not an episode description")
+    return meta
+
+
+def is_recorded_map(meta: dict) -> bool:
+    """Whether an episode.json describes a map of a recording (``activesplat map``), not an exploration."""
+    return meta.get("source") == "recording"
+
+
 def read_episode(path: str | Path) -> Episode:
     """Read an episode folder; a partial (interrupted) one is cut to its last complete step."""
     d = Path(path)
     if not d.is_dir():
         raise EpisodeError(f"{d} is not a folder")
     meta_path = d / "episode.json"
-    recorded = meta_path.exists() and '"source": "recording"' in meta_path.read_text()
-    if recorded and not (d / "actions.txt").exists():
-        raise EpisodeError(f"{d} is a map of a recording (activesplat map), not a simulated episode: this "
-                           f"needs the simulator's ground truth and actions to replay (`activesplat explore` "
-                           f"folder). A recorded map takes render-eval (its held-out views), refine and "
-                           f"export without the options that need a simulator")
     if not meta_path.exists() or not (d / "actions.txt").exists():
+        if meta_path.exists() and is_recorded_map(read_meta(d)):
+            raise EpisodeError(f"{d} is a map of a recording (activesplat map), not a simulated episode: "
+                               f"this needs the simulator's ground truth and actions to replay (`activesplat "
+                               f"explore` folder). A recorded map takes render-eval (its held-out views), "
+                               f"refine and export without the options that need a simulator")
         raise EpisodeError(f"{d} is not an episode folder (no episode.json / actions.txt)")
+    meta = read_meta(d)
     try:
-        meta = json.loads(meta_path.read_text())
         np.asarray(meta["start_pose"], dtype=np.float64).reshape(4, 4)  # a 4x4 pose, or unreadable
     except (ValueError, KeyError, TypeError) as exc:
         raise EpisodeError(f"{meta_path} is unreadable: {exc}") from exc

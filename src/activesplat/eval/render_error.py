@@ -273,7 +273,7 @@ def error_budget(episode_dir: str | Path, gaussians_path: str | Path | None = No
     map's own depth, as render-eval's). With
     ``figure``, a PNG of the ``figure_views`` test views with the largest squared error: ground truth,
     render, and the pixel classes."""
-    from activesplat.episode import read_episode
+    from activesplat.episode import is_recorded_map, read_episode
     from activesplat.eval.render_eval import (
         SPLITS,
         RenderEvalConfig,
@@ -290,7 +290,7 @@ def error_budget(episode_dir: str | Path, gaussians_path: str | Path | None = No
             raise EpisodeError(f"unknown split {split!r}: choose from {', '.join(SPLITS)}")
     episode_dir, gaussians_path, _ = locate(episode_dir, gaussians_path)
     episode = read_episode(episode_dir)
-    if episode.meta.get("source") == "recording":
+    if is_recorded_map(episode.meta):
         raise EpisodeError(f"{episode_dir} is a recording: the error budget needs the scene's ground truth")
     setup = _simulated_setup(episode_dir, RenderEvalConfig(n_train=n_train, n_test=n_test, seed=seed),
                              sim_overrides)

@@ -40,7 +40,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from activesplat.episode import read_episode, write_json_atomic
+from activesplat.episode import is_recorded_map, read_episode, read_meta, write_json_atomic
 from activesplat.errors import EpisodeError, InvalidInputError
 
 METRIC_KEYS = ("psnr", "ssim", "ms_ssim", "lpips", "depth_l1_cm", "depth_l1_cm_normalised", "unmapped_pct")
@@ -216,11 +216,11 @@ def render_eval(episode_dir: str | Path, gaussians_path: str | Path | None = Non
     renderer = renderer or default_renderer(gaussians_path)
     # fails early, with the pip command, when the weights are not installed
     lpips_model = LPIPS() if lpips else None
-    meta = _read_meta(episode_dir)
+    meta = read_meta(episode_dir)
     gmap = load_ply(gaussians_path, device=backend_device(backend))
     if len(gmap) == 0:
         raise EpisodeError(f"{gaussians_path} holds no Gaussians: nothing to render")
-    if meta.get("source") == "recording":
+    if is_recorded_map(meta):
         setup = _recorded_setup(episode_dir, meta, cfg)
     else:
         setup = _simulated_setup(episode_dir, cfg, sim_overrides)
@@ -300,18 +300,6 @@ class _Setup:
     test_text: str
     floor_height: float = 0.0
     """Height (y) of the scene's floor: the simulator's storey; 0 for recordings."""
-
-
-def _read_meta(episode_dir: Path) -> dict:
-    import json
-
-    try:
-        meta = json.loads((episode_dir / "episode.json").read_text())
-    except (OSError, ValueError) as exc:
-        raise EpisodeError(f"{episode_dir / 'episode.json'} is unreadable: {exc}") from None
-    if not isinstance(meta, dict):
-        raise EpisodeError(f"{episode_dir / 'episode.json'} is not an episode description")
-    return meta
 
 
 def episode_simulator(episode_dir: str | Path, sim_overrides: dict | None = None):
