@@ -1,5 +1,5 @@
 """trajectory.png: the start / end legend outside the axes, and one outline per room (an L-shaped room of
-two rectangles has no boundary drawn between them)."""
+two rectangles has no boundary drawn between them; a wall two rooms share is drawn once)."""
 
 from __future__ import annotations
 
@@ -16,6 +16,10 @@ from activesplat.viz.trajectory import room_outline, trajectory_figure
 def _navmap():
     grid = np.ones((180, 100), bool)
     return NavMap(grid, grid, np.ones(grid.shape), grid, np.zeros(2), 0.05, 0.0)
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> float:
+    return float(a[0] * b[1] - a[1] * b[0])
 
 
 def _length(segments: np.ndarray) -> float:
@@ -35,11 +39,25 @@ def test_room_outline_of_an_l_shaped_room_drops_the_shared_edge():
 
 
 def test_rooms_are_drawn_as_one_outline_and_one_label_each(house):
+    from activesplat.viz.trajectory import room_walls
+
     ax = trajectory_figure(_navmap(), np.array([[1.0, 1.0], [6.0, 2.0]]), house).axes[0]
-    outlines = [c for c in ax.collections if c.get_linestyle() and c.get_linestyle()[0][1] is not None]
-    assert len(outlines) == len(house.room_names)  # one dashed outline per room, not per rectangle
-    living = outlines[0].get_segments()
-    assert not any(np.allclose(s[:, 1], 3.0) and s[:, 0].max() <= 2.0 + 1e-9 for s in living)
+    dashed = [c for c in ax.collections if c.get_linestyle() and c.get_linestyle()[0][1] is not None]
+    assert len(dashed) == 1  # every room's walls in one collection
+    walls = dashed[0].get_segments()
+    # no boundary inside the L-shaped living room (z = 3 between x = 0 and 2)
+    assert not any(np.allclose(s[:, 1], 3.0) and s[:, 0].max() <= 2.0 + 1e-9 for s in walls)
+    # every room's outline is drawn, and a wall two rooms share only once
+    outlines = [room_outline(r for r in house.rooms if r.name == n) for n in house.room_names]
+    total = sum(_length(o) for o in outlines)
+    assert _length(room_walls(house)) < total - 1.0  # the house's rooms share walls
+    keys = [tuple(np.round(s.ravel(), 6)) for s in walls]
+    assert len(keys) == len(set(keys))
+    for outline in outlines:  # each outline's stretches lie on drawn walls
+        for seg in outline:
+            mid = seg.mean(axis=0)
+            assert any(np.isclose(_cross(w[1] - w[0], mid - w[0]), 0)
+                       and np.all(mid >= w.min(0) - 1e-9) and np.all(mid <= w.max(0) + 1e-9) for w in walls)
     assert [t.get_text().split("\n")[0] for t in ax.texts] == house.room_names
 
 

@@ -133,13 +133,33 @@ def room_outline(rects) -> np.ndarray:
     return np.array(segments, np.float64).reshape(-1, 2, 2)
 
 
+def room_walls(house) -> np.ndarray:
+    """(K, 2, 2) segments of every room's outline (`room_outline`), each stretch drawn once: where two rooms
+    share a wall, their outlines cover the same stretch, and two dashed lines over each other read as one
+    uneven line."""
+    outlines = [room_outline(r for r in house.rooms if r.name == name) for name in house.room_names]
+    segments = np.concatenate(outlines) if outlines else np.zeros((0, 2, 2))
+    pieces = set()
+    for along_x in (True, False):
+        axis = 1 if along_x else 0  # the coordinate a wall along x keeps fixed is z
+        lines = segments[np.isclose(segments[:, 0, axis], segments[:, 1, axis])]
+        for fixed in np.unique(np.round(lines[:, 0, axis], 6)):
+            on = lines[np.isclose(lines[:, 0, axis], fixed)]
+            spans = np.sort(on[:, :, 1 - axis], axis=1)
+            cuts = np.unique(np.round(spans, 6))
+            for a, b in zip(cuts[:-1], cuts[1:], strict=False):
+                mid = 0.5 * (a + b)
+                if np.any((spans[:, 0] <= mid) & (mid <= spans[:, 1])):
+                    pieces.add(((a, fixed), (b, fixed)) if along_x else ((fixed, a), (fixed, b)))
+    return np.array(sorted(pieces), np.float64).reshape(-1, 2, 2)
+
+
 def _draw_rooms(ax, house, labels: dict[str, str]) -> None:
-    """Each room's outline (one outline for a room of several rectangles) and its label in its largest
-    rectangle."""
+    """Each room's outline (one outline for a room of several rectangles, one line for a wall two rooms
+    share) and its label in its largest rectangle."""
+    ax.add_collection(LineCollection(room_walls(house), colors="#1f4e79", linewidths=0.8, linestyles="--",
+                                     zorder=2))
     for name in house.room_names:
-        outline = room_outline(r for r in house.rooms if r.name == name)
-        ax.add_collection(LineCollection(outline, colors="#1f4e79", linewidths=0.8, linestyles="--",
-                                         zorder=2))
         big = largest_part(house, name)
         text = name + (f"\n{labels[name]}" if name in labels else "")
         ax.text(0.5 * (big.x0 + big.x1), 0.5 * (big.z0 + big.z1), text, ha="center", va="center",
@@ -148,4 +168,4 @@ def _draw_rooms(ax, house, labels: dict[str, str]) -> None:
 
 
 __all__ = ["draw_navigable", "draw_trajectory", "largest_part", "navmap_extent", "room_labels",
-           "room_outline", "trajectory_figure"]
+           "room_outline", "room_walls", "trajectory_figure"]
