@@ -252,3 +252,64 @@ def test_what_is_not_a_recording_says_what_map_reads(frames, tmp_path, capsys):
     assert "neither a ROS 2 bag (no metadata.yaml) nor a TUM RGB-D folder" in _err(
         capsys, ["map", str(tmp_path / "rec" / "..")])
     assert "ROS 1 bag (.bag)" in RECORDINGS and "TUM RGB-D folder" in RECORDINGS
+
+
+def _open_bag(bag, **options):
+    return open_recording(bag, *ARGS[1::2], pose_source="/camera_pose", **options)
+
+
+def test_stride_and_holdout_count_the_same_frames(frames, tmp_path):
+    from activesplat.robot.mapping import map_recording
+
+    K, fr = frames
+    rec = _open_bag(write_bag(tmp_path / "rec", K, fr))
+    m = map_recording(rec, tmp_path / "map", holdout_every=2, stride=2, backend="numba", progress=False)
+    # --stride 2 keeps frames 0 2 4 6 8; every 2nd of those is held out (before: every 2nd of all
+    # frames, all odd, so none was held out and render-eval had nothing to score)
+    assert (m["mapped_frames"], m["heldout_frames"]) == (3, 2)
+    with np.load(tmp_path / "map" / "heldout.npz") as held:
+        assert held["index"].tolist() == [2, 6]
+
+
+def test_ctrl_c_keeps_the_map_of_the_frames_so_far(frames, tmp_path, capsys):
+    from activesplat.robot.mapping import map_recording
+
+    K, fr = frames
+    rec = _open_bag(write_bag(tmp_path / "rec", K, fr))
+    stream = rec._frames
+
+    def interrupted():
+        for k, rgb, depth in stream():
+            if k == 6:
+                raise KeyboardInterrupt
+            yield k, rgb, depth
+
+    rec._frames = interrupted
+    out = tmp_path / "map"
+    with pytest.raises(KeyboardInterrupt):
+        map_recording(rec, out, holdout_every=HOLDOUT, backend="numba", progress=False)
+    assert "interrupted after 6 of 10 frames: partial map of 5 frames in" in capsys.readouterr().err
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["complete"] is False and metrics["read_frames"] == 6 and metrics["mapped_frames"] == 5
+    assert len(load_ply(out / "gaussians.ply")) > 0 and len(np.loadtxt(out / "poses.txt")) == 6
+    assert not (tmp_path / "map.partial").exists()
+    rec._frames = lambda: (_ for _ in ()).throw(KeyboardInterrupt)  # nothing mapped yet: nothing kept
+    with pytest.raises(KeyboardInterrupt):
+        map_recording(rec, tmp_path / "none", backend="numba", progress=False)
+    assert not (tmp_path / "none").exists() and not (tmp_path / "none.partial").exists()
+
+
+def test_poses_of_a_body_frame_or_another_up_axis_warn(frames, tmp_path):
+    from activesplat.robot.mapping import map_recording, upright_pct
+
+    K, fr = frames
+    bag = write_bag(tmp_path / "odom", K, fr[:4], pose="odom")
+    good = open_recording(bag, *ARGS[1::2], pose_source="/odom")
+    assert upright_pct(np.einsum("ij,njk->nik", WORLD_UP["z"], good.poses)) == 100.0
+    body = open_recording(bag, *ARGS[1::2], pose_source="/odom", camera_in_body=[0, 0, 0, 0, 0, 0, 1])
+    with pytest.warns(UserWarning, match=r"upright .* in only 0% of the frames: are the poses of the "
+                                         r"camera's optical frame .* in a z-up world \(--world-up\)"):
+        map_recording(body, tmp_path / "body", holdout_every=0, backend="numba", progress=False)
+    with pytest.warns(UserWarning, match="in a y-up world"):
+        map_recording(good, tmp_path / "y", holdout_every=0, world_up="y", backend="numba", progress=False)
+    assert json.loads((tmp_path / "y" / "episode.json").read_text())["upright_pct"] == 0.0
