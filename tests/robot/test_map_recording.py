@@ -299,6 +299,63 @@ def test_ctrl_c_keeps_the_map_of_the_frames_so_far(frames, tmp_path, capsys):
     assert not (tmp_path / "none").exists() and not (tmp_path / "none.partial").exists()
 
 
+def test_a_frame_without_pose_says_why(frames, tmp_path):
+    from activesplat.errors import RecordingError
+    from activesplat.robot.transforms import PoseTrack
+
+    K, fr = frames
+    tum = write_tum(tmp_path / "tum", K, fr[:4])
+    gt = (tum / "groundtruth.txt").read_text().splitlines()
+    (tum / "groundtruth.txt").write_text("\n".join(gt[:1] + gt[2:]) + "\n")  # the first pose is missing
+    with pytest.raises(RecordingError) as err:
+        open_recording(tum, intrinsics=[K[0, 0], K[1, 1], K[0, 2], K[1, 2]])
+    assert "0.100 s before the first pose of groundtruth.txt" in str(err.value)
+    assert "at most a tenth of --max-pose-gap, 0.050 s" in str(err.value)  # not "within 0.5 s"
+    track = PoseTrack([0, 10**9], [np.eye(4)] * 2, "/odom")
+    assert track.at(5 * 10**8, 5 * 10**8) is not None and track.at(4 * 10**8, 5 * 10**8) is None
+    assert "a gap of 1.000 s between poses of /odom" in track.why_none(4 * 10**8, 5 * 10**8)
+    bag = write_bag(tmp_path / "tf", K, fr[:4], pose="tf", drop_pose_after=2)
+    with pytest.raises(RecordingError) as err:
+        open_recording(bag, *ARGS[1::2], pose_source="tf:map")
+    assert "message 2" in str(err.value)
+    assert "after the last pose of map -> camera_color_optical_frame" in str(err.value)
+
+
+def test_a_bag_without_camera_info_takes_intrinsics(frames, tmp_path, capsys):
+    K, fr = frames
+    bag = write_bag(tmp_path / "rec", K, fr[:3], skip_topic="/camera/color/camera_info")
+    intr = [str(v) for v in (K[0, 0], K[1, 1], K[0, 2], K[1, 2])]
+    out = tmp_path / "map"
+    err = _err(capsys, ["map", str(bag), *ARGS[:4], "--out", str(out)])
+    assert err.endswith(
+        "a bag needs --camera-info-topic (or --intrinsics), --pose-source; topics: /camera/color/image_raw "
+        "(sensor_msgs/msg/Image), /camera/depth/image_raw (sensor_msgs/msg/Image), /camera_pose "
+        "(geometry_msgs/msg/PoseStamped)"), err
+    assert "no such topic in rec (topics: /camera/color/image_raw (sensor_msgs/msg/Image)," in _err(
+        capsys, ["map", str(bag), *ARGS, "--pose-source", "/camera_pose"])
+    assert "not both" in _err(capsys, ["map", str(bag), *ARGS, "--intrinsics", *intr, "--pose-source", "x"])
+    argv = ["map", str(bag), *ARGS[:4], "--intrinsics", *intr, "--pose-source", "/camera_pose",
+            "--holdout-every", "0", "--out", str(out), "--no-progress", "--backend", "numba"]
+    assert main(argv) == 0
+    meta = json.loads((out / "episode.json").read_text())
+    assert np.allclose(meta["K"], K) and (meta["width"], meta["height"]) == (32, 32)
+    assert meta["camera_frame"] == "camera_color_optical_frame"  # the colour images' frame
+    capsys.readouterr()
+
+
+def test_intrinsics_of_another_resolution_are_refused(frames, tmp_path, capsys):
+    K, fr = frames
+    tum = write_tum(tmp_path / "tum", K, fr[:2])
+    err = _err(capsys, ["map", str(tum), "--intrinsics", "517.3", "516.5", "318.6", "255.3", "--out",
+                        str(tmp_path / "map")])
+    assert err.endswith("--intrinsics: principal point (318.6, 255.3) outside the 32x32 images: "
+                        "intrinsics of another resolution? (scale fx fy cx cy by the image size over the "
+                        "calibrated size)")
+    bag = write_bag(tmp_path / "rec", K * [[20], [20], [1]], fr[:2])  # CameraInfo of a 640x640 camera
+    assert "/camera/color/camera_info: message 0: principal point (320, 320) outside the 32x32" in _err(
+        capsys, ["map", str(bag), *ARGS, "--pose-source", "/camera_pose"])
+
+
 def test_poses_of_a_body_frame_or_another_up_axis_warn(frames, tmp_path):
     from activesplat.robot.mapping import map_recording, upright_pct
 

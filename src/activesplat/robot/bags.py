@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from activesplat.errors import RecordingError
-from activesplat.robot.recording import Recording, pair_nearest
+from activesplat.robot.recording import Recording, check_intrinsics, intrinsics_matrix, pair_nearest
 from activesplat.robot.transforms import PoseTrack, TfTree, pose_matrix, stamp_ns, xyz, xyzw
 
 COLOR_ENCODINGS = ("rgb8", "bgr8", "rgba8", "bgra8")
@@ -96,7 +96,9 @@ class BagScan:
         max_dt,
         max_pose_gap,
         skip_unposed,
+        intrinsics=None,
     ):
+        self.intrinsics = intrinsics
         self.path, self.rgb_topic, self.depth_topic, self.info_topic = (
             path,
             rgb_topic,
@@ -119,19 +121,13 @@ class BagScan:
                 f"folder or a TUM RGB-D folder)"
             )
 
-    def _reader(self):
-        from rosbags.highlevel import AnyReader
-        from rosbags.typesys import Stores, get_typestore
-
-        return AnyReader([self.path], default_typestore=get_typestore(Stores.ROS2_HUMBLE))
-
     def _read(self, topics: list[str]):
         """Yield (topic, msgtype, index within its topic, deserialized message) in log order; a truncated
         or corrupt file becomes a RecordingError naming the topic of the message it broke on."""
         counts = {t: 0 for t in topics}
         topic = None
         try:
-            with self._reader() as reader:
+            with _reader(self.path) as reader:
                 conns = [c for c in reader.connections if c.topic in topics]
                 for conn, _, raw in reader.messages(connections=conns):
                     topic = conn.topic
@@ -145,25 +141,16 @@ class BagScan:
             text = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
             raise RecordingError(f"{self.path}: truncated or corrupt recording{where}: {text}") from None
 
-    def _topics(self) -> dict[str, str]:
-        try:
-            with self._reader() as reader:
-                return {c.topic: c.msgtype for c in reader.connections}
-        except Exception as exc:
-            text = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-            raise RecordingError(f"{self.path}: truncated or corrupt recording: {text}") from None
-
     def run(self) -> Recording:
-        topics = self._topics()
+        topics = topics_of(self.path)
         for option, topic in (
             ("--rgb-topic", self.rgb_topic),
             ("--depth-topic", self.depth_topic),
             ("--camera-info-topic", self.info_topic),
         ):
-            if topic not in topics:
+            if topic is not None and topic not in topics:
                 raise RecordingError(
-                    f"{option} {topic}: no such topic in {self.path.name} "
-                    f"(topics: {', '.join(sorted(topics)) or 'none'})"
+                    f"{option} {topic}: no such topic in {self.path.name} ({describe_topics(topics)})"
                 )
         expected = {
             self.rgb_topic: ("Image", "CompressedImage"),
@@ -171,7 +158,7 @@ class BagScan:
             self.info_topic: ("CameraInfo",),
         }
         for topic, kinds in expected.items():
-            if topics[topic].split("/")[-1] not in kinds:
+            if topic is not None and topics[topic].split("/")[-1] not in kinds:
                 raise RecordingError(
                     f"{topic}: messages of type {topics[topic]}, expected "
                     f"{' or '.join('sensor_msgs/' + k for k in kinds)}"
@@ -180,7 +167,7 @@ class BagScan:
         pose_topics, self.tf_world, self.tf_frame = self._pose_topics(topics)
 
         rgb, depth = [], []  # (stamp, index)
-        info = None
+        info = first_rgb = None
         tf = TfTree()
         track_stamps, track_poses, body_frame = [], [], None
         last = {}
@@ -205,6 +192,8 @@ class BagScan:
             last[topic] = stamp
             if topic == self.rgb_topic:
                 self._check_image(msg, topic, index, color=True)
+                if first_rgb is None:
+                    first_rgb = msg
                 rgb.append((stamp, index, int(getattr(msg, "width", 0)), int(getattr(msg, "height", 0))))
             elif topic == self.depth_topic:
                 self._check_image(msg, topic, index, color=False)
@@ -214,22 +203,29 @@ class BagScan:
                 track_stamps.append(stamp)
                 track_poses.append(pose_matrix(xyz(pose_msg.position), xyzw(pose_msg.orientation)))
                 body_frame = getattr(msg, "child_frame_id", None) or body_frame
-        if info is None:
-            raise RecordingError(f"{self.info_topic}: no CameraInfo message in the recording")
         if not rgb or not depth:
             raise RecordingError(f"{self.rgb_topic if not rgb else self.depth_topic}: no messages")
-        K = np.asarray(_field(info, "k", "K"), dtype=np.float64).reshape(3, 3)
-        width, height = int(info.width), int(info.height)
-        if K[0, 0] <= 0 or K[1, 1] <= 0 or width <= 0 or height <= 0:
+        if self.info_topic is None:  # --intrinsics instead: the size of the first colour image
+            K = intrinsics_matrix(self.intrinsics)
+            height, width = decode_color(first_rgb, self.rgb_topic, 0, self.rgb_compressed).shape[:2]
+            rgb = [(s, i, w or width, h or height) for s, i, w, h in rgb]
+            info, where = first_rgb, "--intrinsics"
+        elif info is None:
             raise RecordingError(
-                f"{self.info_topic}: message 0: invalid intrinsics K={K.tolist()} for a "
-                f"{width}x{height} camera"
+                f"{self.info_topic}: no CameraInfo message in the recording (give the camera's --intrinsics "
+                f"FX FY CX CY instead of --camera-info-topic)"
             )
+        else:
+            K = np.asarray(_field(info, "k", "K"), dtype=np.float64).reshape(3, 3)
+            width, height = int(info.width), int(info.height)
+            where = f"{self.info_topic}: message 0"
+        check_intrinsics(K, width, height, where)
+        described = self.info_topic or "the first colour image"
         for topic, items in ((self.rgb_topic, rgb), (self.depth_topic, depth)):
             for _, index, w, h in items:
                 if (w, h) != (width, height) and w:
                     raise RecordingError(
-                        f"{topic}: message {index}: a {w}x{h} image, but {self.info_topic} "
+                        f"{topic}: message {index}: a {w}x{h} image, but {described} "
                         f"describes a {width}x{height} camera (depth must be registered to "
                         f"colour)"
                     )
@@ -245,6 +241,9 @@ class BagScan:
         if self.tf_world is not None:
             lookup = self._tf_lookup(tf, camera_frame)
             source = f"/tf ({self.tf_world} -> {camera_frame})"
+
+            def why(stamp):
+                return tf.why_none(self.tf_world, camera_frame, stamp, self.max_gap_ns)
         else:
             track = PoseTrack(track_stamps, track_poses, self.pose_source)
             if not len(track.stamps):
@@ -259,6 +258,9 @@ class BagScan:
                 T = track.at(stamp, self.max_gap_ns)
                 return None if T is None else T @ extrinsic
 
+            def why(stamp):
+                return track.why_none(stamp, self.max_gap_ns)
+
         stamps, poses, indices, unposed = [], [], [], 0
         for stamp, ri, di in pairs:
             T = lookup(stamp)
@@ -268,8 +270,7 @@ class BagScan:
                     continue
                 raise RecordingError(
                     f"{self.rgb_topic}: message {ri} (t={stamp / 1e9:.6f} s) has no pose from "
-                    f"{source} within {self.max_gap_ns / 1e9:.3f} s (pass --skip-unposed to "
-                    f"drop such frames)"
+                    f"{source}: {why(stamp)} (pass --skip-unposed to drop such frames)"
                 )
             stamps.append(stamp)
             poses.append(T)
@@ -317,8 +318,7 @@ class BagScan:
             )
         if src not in topics:
             raise RecordingError(
-                f"--pose-source {src}: no such topic in {self.path.name} "
-                f"(topics: {', '.join(sorted(topics))})"
+                f"--pose-source {src}: no such topic in {self.path.name} ({describe_topics(topics)})"
             )
         if topics[src] not in POSE_TYPES:
             raise RecordingError(
@@ -373,6 +373,28 @@ class BagScan:
             raise RecordingError(f"{self.rgb_topic}: message {indices[nxt][0]} could not be read back")
 
 
+def _reader(path):
+    from rosbags.highlevel import AnyReader
+    from rosbags.typesys import Stores, get_typestore
+
+    return AnyReader([path], default_typestore=get_typestore(Stores.ROS2_HUMBLE))
+
+
+def topics_of(path) -> dict[str, str]:
+    """{topic: message type} of a bag; RecordingError when it cannot be read."""
+    try:
+        with _reader(path) as reader:
+            return {c.topic: c.msgtype for c in reader.connections}
+    except Exception as exc:
+        text = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise RecordingError(f"{path}: truncated or corrupt recording: {text}") from None
+
+
+def describe_topics(topics: dict[str, str]) -> str:
+    """'topics: /a (sensor_msgs/msg/Image), ...' for a message that asks for a topic."""
+    return "topics: " + (", ".join(f"{t} ({topics[t]})" for t in sorted(topics)) or "none")
+
+
 def _body_transform(values) -> np.ndarray:
     v = [float(x) for x in values]
     if len(v) != 7:
@@ -383,4 +405,13 @@ def _body_transform(values) -> np.ndarray:
         raise RecordingError(f"--camera-in-body: {exc}") from None
 
 
-__all__ = ["COLOR_ENCODINGS", "DEPTH_ENCODINGS", "POSE_TYPES", "BagScan", "decode_color", "decode_depth"]
+__all__ = [
+    "COLOR_ENCODINGS",
+    "DEPTH_ENCODINGS",
+    "POSE_TYPES",
+    "BagScan",
+    "decode_color",
+    "decode_depth",
+    "describe_topics",
+    "topics_of",
+]

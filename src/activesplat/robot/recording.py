@@ -92,7 +92,7 @@ def open_recording(
         raise RecordingError(f"{p}: no such file or folder")
     if max_dt <= 0 or max_pose_gap <= 0:
         raise RecordingError(f"--max-dt and --max-pose-gap must be > 0, got {max_dt} and {max_pose_gap}")
-    from activesplat.robot.bags import BagScan
+    from activesplat.robot.bags import BagScan, describe_topics, topics_of
     from activesplat.robot.tum import open_tum
 
     if p.is_dir() and (p / "rgb.txt").is_file():
@@ -103,13 +103,15 @@ def open_recording(
         for name, v in (
             ("--rgb-topic", rgb_topic),
             ("--depth-topic", depth_topic),
-            ("--camera-info-topic", camera_info_topic),
+            ("--camera-info-topic (or --intrinsics)", camera_info_topic or intrinsics),
             ("--pose-source", pose_source),
         )
         if not v
     ]
     if missing:
-        raise RecordingError(f"{p}: a bag needs {', '.join(missing)}")
+        raise RecordingError(f"{p}: a bag needs {', '.join(missing)}; {describe_topics(topics_of(p))}")
+    if camera_info_topic and intrinsics is not None:
+        raise RecordingError("give --camera-info-topic or --intrinsics, not both")
     return BagScan(
         p,
         rgb_topic,
@@ -120,7 +122,27 @@ def open_recording(
         max_dt,
         max_pose_gap,
         skip_unposed,
+        intrinsics,
     ).run()
+
+
+def intrinsics_matrix(values) -> np.ndarray:
+    """K (3x3) of ``--intrinsics FX FY CX CY``."""
+    fx, fy, cx, cy = (float(v) for v in values)
+    return np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]])
+
+
+def check_intrinsics(K: np.ndarray, width: int, height: int, where: str) -> None:
+    """RecordingError unless K has positive focal lengths and its principal point lies inside the
+    width x height image (intrinsics of another resolution otherwise map every pixel to the wrong ray)."""
+    fx, fy, cx, cy = K[0, 0], K[1, 1], K[0, 2], K[1, 2]
+    if not np.isfinite(K).all() or fx <= 0 or fy <= 0 or width <= 0 or height <= 0:
+        raise RecordingError(f"{where}: invalid intrinsics K={K.tolist()} for a {width}x{height} camera")
+    if not (0 < cx < width and 0 < cy < height):
+        raise RecordingError(
+            f"{where}: principal point ({cx:g}, {cy:g}) outside the {width}x{height} images: intrinsics of "
+            f"another resolution? (scale fx fy cx cy by the image size over the calibrated size)"
+        )
 
 
 def _check_recording(p: Path) -> None:
@@ -189,4 +211,12 @@ def pair_nearest(rgb: list[tuple[int, int]], depth: list[tuple[int, int]], max_d
     return pairs, dropped
 
 
-__all__ = ["RECORDINGS", "Recording", "mcap_header", "open_recording", "pair_nearest"]
+__all__ = [
+    "RECORDINGS",
+    "Recording",
+    "check_intrinsics",
+    "intrinsics_matrix",
+    "mcap_header",
+    "open_recording",
+    "pair_nearest",
+]
