@@ -444,8 +444,8 @@ def build_parser() -> argparse.ArgumentParser:
                                        "map folder in the episode layout")
     p_map.add_argument("recording", help=".bag, .mcap, .db3, a ROS 2 bag folder, or a TUM RGB-D folder")
     p_map.add_argument("--rgb-topic", help="sensor_msgs/Image (rgb8/bgr8/rgba8/bgra8) or CompressedImage")
-    p_map.add_argument("--depth-topic", help="sensor_msgs/Image, 16UC1/mono16 (mm) or 32FC1 (m), registered "
-                                             "to colour")
+    p_map.add_argument("--depth-topic", help="sensor_msgs/Image, 16UC1/mono16 (mm) or 32FC1 (m), or a "
+                                             "compressedDepth CompressedImage, registered to colour")
     p_map.add_argument("--camera-info-topic",
                        help="sensor_msgs/CameraInfo of the colour camera (or --intrinsics)")
     p_map.add_argument("--pose-source", help="tf:WORLD_FRAME[:CAMERA_FRAME], or a nav_msgs/Odometry / "

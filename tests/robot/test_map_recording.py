@@ -370,3 +370,21 @@ def test_poses_of_a_body_frame_or_another_up_axis_warn(frames, tmp_path):
     with pytest.warns(UserWarning, match="in a y-up world"):
         map_recording(good, tmp_path / "y", holdout_every=0, world_up="y", backend="numba", progress=False)
     assert json.loads((tmp_path / "y" / "episode.json").read_text())["upright_pct"] == 0.0
+
+
+def test_compressed_depth_of_image_transport(frames, tmp_path, capsys):
+    K, fr = frames
+    for kind, tol in (("compressedDepth16", 5.01e-4), ("compressedDepth32", 0.02)):
+        bag = write_bag(tmp_path / kind, K, fr[:3], depth_encoding=kind, rgb_encoding="png")
+        rec = _open_bag(bag)
+        for k, rgb, depth in rec.frames():
+            assert np.array_equal(rgb, fr[k][0]) and np.array_equal(depth > 0, fr[k][1] > 0)
+            assert np.abs(depth - fr[k][1]).max() <= tol  # mm, or 1/100 m of inverse depth at <= 3 m
+    import cv2
+
+    from activesplat.errors import RecordingError
+
+    big = [(cv2.resize(rgb, (64, 48)), depth, T) for rgb, depth, T in fr[:3]]  # colour not registered
+    rec = _open_bag(write_bag(tmp_path / "big", K, big, rgb_encoding="png"))  # sizes unknown until decoded
+    with pytest.raises(RecordingError, match=r"image_raw: message 0: a 64x48 image, but the camera is 32x32"):
+        next(iter(rec.frames()))

@@ -60,8 +60,38 @@ def decode_color(msg, topic: str, index: int, compressed: bool) -> np.ndarray:
     return np.array(img, order="C")  # a writable copy (the message buffer may be read-only)
 
 
-def decode_depth(msg, topic: str, index: int) -> np.ndarray:
+def decode_compressed_depth(msg, topic: str, index: int) -> np.ndarray:
+    """Depth in metres of a ``sensor_msgs/CompressedImage`` from image_transport's compressedDepth
+    plugin (format ``16UC1; compressedDepth png`` or ``32FC1; ...``): a 12-byte header (an int32 and
+    the two float32 inverse-depth quantisation parameters A, B), then a 16-bit PNG of millimetres
+    (16UC1) or of A / depth + B (32FC1, 0 = no depth)."""
+    import cv2
+
+    fmt = str(msg.format)
+    enc = fmt.split(";")[0].strip()
+    if "compresseddepth" not in fmt.lower() or enc not in ("16UC1", "32FC1") or "rvl" in fmt.lower():
+        raise RecordingError(
+            f"{topic}: message {index}: a CompressedImage of format {fmt!r}; depth is read from "
+            f"sensor_msgs/Image or image_transport's compressedDepth PNG (16UC1 or 32FC1)"
+        )
+    data = np.asarray(msg.data, dtype=np.uint8)
+    png = cv2.imdecode(data[12:], cv2.IMREAD_UNCHANGED) if data.size > 12 else None
+    if png is None or png.dtype != np.uint16 or png.ndim != 2:
+        raise RecordingError(f"{topic}: message {index}: undecodable compressedDepth image ({fmt!r})")
+    if enc == "16UC1":
+        return png.astype(np.float32) * np.float32(0.001)
+    a, b = np.frombuffer(data[4:12].tobytes(), dtype="<f4")
+    depth = np.zeros(png.shape, np.float32)
+    valid = png > 0
+    depth[valid] = a / (png[valid].astype(np.float32) - b)
+    depth[~np.isfinite(depth) | (depth < 0)] = 0.0
+    return depth
+
+
+def decode_depth(msg, topic: str, index: int, compressed: bool = False) -> np.ndarray:
     """Depth in metres (float32, 0 = invalid) of a depth message; RecordingError otherwise."""
+    if compressed:
+        return decode_compressed_depth(msg, topic, index)
     enc = msg.encoding
     if enc not in DEPTH_ENCODINGS:
         raise RecordingError(
@@ -154,7 +184,7 @@ class BagScan:
                 )
         expected = {
             self.rgb_topic: ("Image", "CompressedImage"),
-            self.depth_topic: ("Image",),
+            self.depth_topic: ("Image", "CompressedImage"),
             self.info_topic: ("CameraInfo",),
         }
         for topic, kinds in expected.items():
@@ -164,6 +194,7 @@ class BagScan:
                     f"{' or '.join('sensor_msgs/' + k for k in kinds)}"
                 )
         self.rgb_compressed = _image_kind(topics[self.rgb_topic]) == "compressed"
+        self.depth_compressed = _image_kind(topics[self.depth_topic]) == "compressed"
         pose_topics, self.tf_world, self.tf_frame = self._pose_topics(topics)
 
         rgb, depth = [], []  # (stamp, index)
@@ -197,7 +228,7 @@ class BagScan:
                 rgb.append((stamp, index, int(getattr(msg, "width", 0)), int(getattr(msg, "height", 0))))
             elif topic == self.depth_topic:
                 self._check_image(msg, topic, index, color=False)
-                depth.append((stamp, index, int(msg.width), int(msg.height)))
+                depth.append((stamp, index, int(getattr(msg, "width", 0)), int(getattr(msg, "height", 0))))
             elif topic == self.pose_source:
                 pose_msg = msg.pose.pose if hasattr(msg.pose, "pose") else msg.pose
                 track_stamps.append(stamp)
@@ -220,6 +251,7 @@ class BagScan:
             width, height = int(info.width), int(info.height)
             where = f"{self.info_topic}: message 0"
         check_intrinsics(K, width, height, where)
+        self.width, self.height = width, height
         described = self.info_topic or "the first colour image"
         for topic, items in ((self.rgb_topic, rgb), (self.depth_topic, depth)):
             for _, index, w, h in items:
@@ -328,7 +360,7 @@ class BagScan:
         return [src] + (["/tf_static"] if "/tf_static" in topics else []), None, None
 
     def _check_image(self, msg, topic: str, index: int, color: bool) -> None:
-        if color and self.rgb_compressed:
+        if self.rgb_compressed if color else self.depth_compressed:
             return
         enc = msg.encoding
         if color and enc not in COLOR_ENCODINGS:
@@ -351,6 +383,16 @@ class BagScan:
             )
         return lambda stamp: tf.lookup(world, camera_frame, stamp, self.max_gap_ns)
 
+    def _sized(self, image: np.ndarray, topic: str, index: int) -> np.ndarray:
+        """``image``, or a RecordingError when (a compressed one, whose size the scan could not check) is
+        not of the camera's size."""
+        if image.shape[:2] != (self.height, self.width):
+            raise RecordingError(
+                f"{topic}: message {index}: a {image.shape[1]}x{image.shape[0]} image, but the camera is "
+                f"{self.width}x{self.height} (depth must be registered to colour)"
+            )
+        return image
+
     def _stream(self, indices: list[tuple[int, int]]):
         want_rgb = {ri: k for k, (ri, _) in enumerate(indices)}
         want_depth: dict[int, list[int]] = {}
@@ -361,9 +403,11 @@ class BagScan:
         nxt = 0
         for topic, _, index, msg in self._read([self.rgb_topic, self.depth_topic]):
             if topic == self.rgb_topic and index in want_rgb:
-                got_rgb[want_rgb[index]] = decode_color(msg, topic, index, self.rgb_compressed)
+                got_rgb[want_rgb[index]] = self._sized(
+                    decode_color(msg, topic, index, self.rgb_compressed), topic, index
+                )
             if topic == self.depth_topic and index in want_depth:
-                d = decode_depth(msg, topic, index)
+                d = self._sized(decode_depth(msg, topic, index, self.depth_compressed), topic, index)
                 for k in want_depth[index]:
                     got_depth[k] = d
             while nxt < len(indices) and nxt in got_rgb and nxt in got_depth:

@@ -11,10 +11,12 @@ Conventions (README, "Recorded data"):
 
 - **Images**: ``sensor_msgs/Image`` colour in ``rgb8``, ``bgr8``, ``rgba8`` or ``bgra8`` (or a
   ``sensor_msgs/CompressedImage`` JPEG / PNG), depth in ``16UC1`` / ``mono16`` (millimetres) or ``32FC1``
-  (metres; NaN reads as no depth). Depth must be *registered to the colour camera* (same size, same
-  intrinsics, e.g. the Azure Kinect driver's ``depth_to_rgb`` topic): it is not reprojected. Images are
-  used as they are (rectified topics expected; distortion coefficients are ignored).
-- **Intrinsics**: the first ``sensor_msgs/CameraInfo`` of the camera-info topic (``K``/``k``); any size.
+  (metres; NaN reads as no depth), or image_transport's ``compressedDepth`` PNG. Depth must be
+  *registered to the colour camera* (same size, same intrinsics, e.g. the Azure Kinect driver's
+  ``depth_to_rgb`` topic): it is not reprojected. Images are used as they are (rectified topics expected;
+  distortion coefficients are ignored).
+- **Intrinsics**: the first ``sensor_msgs/CameraInfo`` of the camera-info topic (``K``/``k``); any size;
+  or ``intrinsics`` (fx fy cx cy) for a bag without one. A principal point outside the image is refused.
 - **Time**: the header stamps. A colour image is paired with the depth image of the nearest stamp within
   ``max_dt``; unpaired colour images are dropped (counted in ``Recording.info``).
 - **Poses** (camera-to-world, OpenCV optical axes, as the rest of the project): ``tf:WORLD`` or
