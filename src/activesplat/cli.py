@@ -250,9 +250,10 @@ def build_parser() -> argparse.ArgumentParser:
                                        "map folder in the episode layout")
     p_map.add_argument("recording", help=".bag, .mcap, .db3, a ROS 2 bag folder, or a TUM RGB-D folder")
     p_map.add_argument("--rgb-topic", help="sensor_msgs/Image (rgb8/bgr8/rgba8/bgra8) or CompressedImage")
-    p_map.add_argument("--depth-topic", help="sensor_msgs/Image, 16UC1/mono16 (mm) or 32FC1 (m), registered "
-                                             "to colour")
-    p_map.add_argument("--camera-info-topic", help="sensor_msgs/CameraInfo of the colour camera")
+    p_map.add_argument("--depth-topic", help="sensor_msgs/Image, 16UC1/mono16 (mm) or 32FC1 (m), or a "
+                                             "compressedDepth CompressedImage, registered to colour")
+    p_map.add_argument("--camera-info-topic",
+                       help="sensor_msgs/CameraInfo of the colour camera (or --intrinsics)")
     p_map.add_argument("--pose-source", help="tf:WORLD_FRAME[:CAMERA_FRAME], or a nav_msgs/Odometry / "
                                              "geometry_msgs/PoseStamped topic; TUM: the ground-truth file "
                                              "(default groundtruth.txt)")
@@ -261,14 +262,17 @@ def build_parser() -> argparse.ArgumentParser:
                        help="camera optical frame in the odometry / pose body frame (default: /tf_static, "
                             "else identity)")
     p_map.add_argument("--intrinsics", type=float, nargs=4, metavar=("FX", "FY", "CX", "CY"),
-                       help="TUM folders: the colour camera's intrinsics")
+                       help="the colour camera's intrinsics at the recorded image size: TUM folders, and "
+                            "bags without CameraInfo (instead of --camera-info-topic)")
     p_map.add_argument("--depth-scale", type=float, default=5000.0, help="TUM folders: depth PNG units per "
                                                                         "metre (5000)")
     p_map.add_argument("--world-up", default="z", choices=("z", "y"),
                        help="up axis of the pose source's world (ROS: z); the map is turned to y-up")
     p_map.add_argument("--holdout-every", type=int, default=8,
-                       help="every N-th frame is kept out of the map as render-eval ground truth (0: none)")
-    p_map.add_argument("--stride", type=int, default=1, help="map every N-th frame")
+                       help="every N-th frame (of those --stride keeps) is kept out of the map as "
+                            "render-eval ground truth (0: none)")
+    p_map.add_argument("--stride", type=int, default=1,
+                       help="use every N-th frame (e.g. 3 for a 30 Hz camera)")
     p_map.add_argument("--max-dt", type=float, default=0.02, help="colour/depth stamp tolerance (s)")
     p_map.add_argument("--max-pose-gap", type=float, default=0.5,
                        help="longest gap between pose samples to interpolate over (s)")

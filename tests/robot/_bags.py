@@ -125,6 +125,23 @@ def tf_msg(store, stamp, parent, child, T):
     return TFM(transforms=[ts])
 
 
+def compressed_depth_msg(store, stamp, frame, depth, encoding):
+    """image_transport's compressedDepth: ``compressedDepth16`` (16UC1, mm) or ``compressedDepth32``
+    (32FC1, quantised inverse depth A / d + B with its default A = 100, depth_max = 10 m)."""
+    if encoding == "compressedDepth16":
+        fmt, a, b, img = "16UC1; compressedDepth png", 0.0, 0.0, np.round(depth * 1000).astype(np.uint16)
+    else:
+        a, fmt = 100.0, "32FC1; compressedDepth png"
+        b = 1.0 - a / 10.0
+        with np.errstate(divide="ignore"):
+            img = np.where(depth > 0, np.round(a / depth + b), 0).astype(np.uint16)
+    header = np.frombuffer(np.int32(0).tobytes() + np.array([a, b], "<f4").tobytes(), np.uint8)
+    png = np.frombuffer(cv2.imencode(".png", img)[1].tobytes(), np.uint8)
+    return store.types["sensor_msgs/msg/CompressedImage"](
+        header=_header(store, stamp, frame), format=fmt, data=np.concatenate([header, png])
+    )
+
+
 def write_bag(
     path: Path,
     K,
@@ -164,7 +181,9 @@ def write_bag(
         "/camera/color/image_raw": "sensor_msgs/msg/CompressedImage"
         if rgb_encoding == "png"
         else "sensor_msgs/msg/Image",
-        "/camera/depth/image_raw": "sensor_msgs/msg/Image",
+        "/camera/depth/image_raw": "sensor_msgs/msg/CompressedImage"
+        if depth_encoding.startswith("compressedDepth")
+        else "sensor_msgs/msg/Image",
         "/camera/color/camera_info": "sensor_msgs/msg/CameraInfo",
     }
     topics.update(
@@ -206,6 +225,10 @@ def write_bag(
                 put("/camera/color/image_raw", stamp, msg)
             else:
                 put("/camera/color/image_raw", stamp, image_msg(store, stamp, frame, color, rgb_encoding))
+            if depth_encoding.startswith("compressedDepth"):
+                msg = compressed_depth_msg(store, stamp, frame, depth, depth_encoding)
+                put("/camera/depth/image_raw", stamp, msg)
+                continue
             d = (
                 depth.astype(np.float32)
                 if depth_encoding == "32FC1"

@@ -252,3 +252,139 @@ def test_what_is_not_a_recording_says_what_map_reads(frames, tmp_path, capsys):
     assert "neither a ROS 2 bag (no metadata.yaml) nor a TUM RGB-D folder" in _err(
         capsys, ["map", str(tmp_path / "rec" / "..")])
     assert "ROS 1 bag (.bag)" in RECORDINGS and "TUM RGB-D folder" in RECORDINGS
+
+
+def _open_bag(bag, **options):
+    return open_recording(bag, *ARGS[1::2], pose_source="/camera_pose", **options)
+
+
+def test_stride_and_holdout_count_the_same_frames(frames, tmp_path):
+    from activesplat.robot.mapping import map_recording
+
+    K, fr = frames
+    rec = _open_bag(write_bag(tmp_path / "rec", K, fr))
+    m = map_recording(rec, tmp_path / "map", holdout_every=2, stride=2, backend="numba", progress=False)
+    # --stride 2 keeps frames 0 2 4 6 8; every 2nd of those is held out (before: every 2nd of all
+    # frames, all odd, so none was held out and render-eval had nothing to score)
+    assert (m["mapped_frames"], m["heldout_frames"]) == (3, 2)
+    with np.load(tmp_path / "map" / "heldout.npz") as held:
+        assert held["index"].tolist() == [2, 6]
+
+
+def test_ctrl_c_keeps_the_map_of_the_frames_so_far(frames, tmp_path, capsys):
+    from activesplat.robot.mapping import map_recording
+
+    K, fr = frames
+    rec = _open_bag(write_bag(tmp_path / "rec", K, fr))
+    stream = rec._frames
+
+    def interrupted():
+        for k, rgb, depth in stream():
+            if k == 6:
+                raise KeyboardInterrupt
+            yield k, rgb, depth
+
+    rec._frames = interrupted
+    out = tmp_path / "map"
+    with pytest.raises(KeyboardInterrupt):
+        map_recording(rec, out, holdout_every=HOLDOUT, backend="numba", progress=False)
+    assert "interrupted after 6 of 10 frames: partial map of 5 frames in" in capsys.readouterr().err
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["complete"] is False and metrics["read_frames"] == 6 and metrics["mapped_frames"] == 5
+    assert len(load_ply(out / "gaussians.ply")) > 0 and len(np.loadtxt(out / "poses.txt")) == 6
+    assert not (tmp_path / "map.partial").exists()
+    rec._frames = lambda: (_ for _ in ()).throw(KeyboardInterrupt)  # nothing mapped yet: nothing kept
+    with pytest.raises(KeyboardInterrupt):
+        map_recording(rec, tmp_path / "none", backend="numba", progress=False)
+    assert not (tmp_path / "none").exists() and not (tmp_path / "none.partial").exists()
+
+
+def test_a_frame_without_pose_says_why(frames, tmp_path):
+    from activesplat.errors import RecordingError
+    from activesplat.robot.transforms import PoseTrack
+
+    K, fr = frames
+    tum = write_tum(tmp_path / "tum", K, fr[:4])
+    gt = (tum / "groundtruth.txt").read_text().splitlines()
+    (tum / "groundtruth.txt").write_text("\n".join(gt[:1] + gt[2:]) + "\n")  # the first pose is missing
+    with pytest.raises(RecordingError) as err:
+        open_recording(tum, intrinsics=[K[0, 0], K[1, 1], K[0, 2], K[1, 2]])
+    assert "0.100 s before the first pose of groundtruth.txt" in str(err.value)
+    assert "at most a tenth of --max-pose-gap, 0.050 s" in str(err.value)  # not "within 0.5 s"
+    track = PoseTrack([0, 10**9], [np.eye(4)] * 2, "/odom")
+    assert track.at(5 * 10**8, 5 * 10**8) is not None and track.at(4 * 10**8, 5 * 10**8) is None
+    assert "a gap of 1.000 s between poses of /odom" in track.why_none(4 * 10**8, 5 * 10**8)
+    bag = write_bag(tmp_path / "tf", K, fr[:4], pose="tf", drop_pose_after=2)
+    with pytest.raises(RecordingError) as err:
+        open_recording(bag, *ARGS[1::2], pose_source="tf:map")
+    assert "message 2" in str(err.value)
+    assert "after the last pose of map -> camera_color_optical_frame" in str(err.value)
+
+
+def test_a_bag_without_camera_info_takes_intrinsics(frames, tmp_path, capsys):
+    K, fr = frames
+    bag = write_bag(tmp_path / "rec", K, fr[:3], skip_topic="/camera/color/camera_info")
+    intr = [str(v) for v in (K[0, 0], K[1, 1], K[0, 2], K[1, 2])]
+    out = tmp_path / "map"
+    err = _err(capsys, ["map", str(bag), *ARGS[:4], "--out", str(out)])
+    assert err.endswith(
+        "a bag needs --camera-info-topic (or --intrinsics), --pose-source; topics: /camera/color/image_raw "
+        "(sensor_msgs/msg/Image), /camera/depth/image_raw (sensor_msgs/msg/Image), /camera_pose "
+        "(geometry_msgs/msg/PoseStamped)"), err
+    assert "no such topic in rec (topics: /camera/color/image_raw (sensor_msgs/msg/Image)," in _err(
+        capsys, ["map", str(bag), *ARGS, "--pose-source", "/camera_pose"])
+    assert "not both" in _err(capsys, ["map", str(bag), *ARGS, "--intrinsics", *intr, "--pose-source", "x"])
+    argv = ["map", str(bag), *ARGS[:4], "--intrinsics", *intr, "--pose-source", "/camera_pose",
+            "--holdout-every", "0", "--out", str(out), "--no-progress", "--backend", "numba"]
+    assert main(argv) == 0
+    meta = json.loads((out / "episode.json").read_text())
+    assert np.allclose(meta["K"], K) and (meta["width"], meta["height"]) == (32, 32)
+    assert meta["camera_frame"] == "camera_color_optical_frame"  # the colour images' frame
+    capsys.readouterr()
+
+
+def test_intrinsics_of_another_resolution_are_refused(frames, tmp_path, capsys):
+    K, fr = frames
+    tum = write_tum(tmp_path / "tum", K, fr[:2])
+    err = _err(capsys, ["map", str(tum), "--intrinsics", "517.3", "516.5", "318.6", "255.3", "--out",
+                        str(tmp_path / "map")])
+    assert err.endswith("--intrinsics: principal point (318.6, 255.3) outside the 32x32 images: "
+                        "intrinsics of another resolution? (scale fx fy cx cy by the image size over the "
+                        "calibrated size)")
+    bag = write_bag(tmp_path / "rec", K * [[20], [20], [1]], fr[:2])  # CameraInfo of a 640x640 camera
+    assert "/camera/color/camera_info: message 0: principal point (320, 320) outside the 32x32" in _err(
+        capsys, ["map", str(bag), *ARGS, "--pose-source", "/camera_pose"])
+
+
+def test_poses_of_a_body_frame_or_another_up_axis_warn(frames, tmp_path):
+    from activesplat.robot.mapping import map_recording, upright_pct
+
+    K, fr = frames
+    bag = write_bag(tmp_path / "odom", K, fr[:4], pose="odom")
+    good = open_recording(bag, *ARGS[1::2], pose_source="/odom")
+    assert upright_pct(np.einsum("ij,njk->nik", WORLD_UP["z"], good.poses)) == 100.0
+    body = open_recording(bag, *ARGS[1::2], pose_source="/odom", camera_in_body=[0, 0, 0, 0, 0, 0, 1])
+    with pytest.warns(UserWarning, match=r"upright .* in only 0% of the frames: are the poses of the "
+                                         r"camera's optical frame .* in a z-up world \(--world-up\)"):
+        map_recording(body, tmp_path / "body", holdout_every=0, backend="numba", progress=False)
+    with pytest.warns(UserWarning, match="in a y-up world"):
+        map_recording(good, tmp_path / "y", holdout_every=0, world_up="y", backend="numba", progress=False)
+    assert json.loads((tmp_path / "y" / "episode.json").read_text())["upright_pct"] == 0.0
+
+
+def test_compressed_depth_of_image_transport(frames, tmp_path, capsys):
+    K, fr = frames
+    for kind, tol in (("compressedDepth16", 5.01e-4), ("compressedDepth32", 0.02)):
+        bag = write_bag(tmp_path / kind, K, fr[:3], depth_encoding=kind, rgb_encoding="png")
+        rec = _open_bag(bag)
+        for k, rgb, depth in rec.frames():
+            assert np.array_equal(rgb, fr[k][0]) and np.array_equal(depth > 0, fr[k][1] > 0)
+            assert np.abs(depth - fr[k][1]).max() <= tol  # mm, or 1/100 m of inverse depth at <= 3 m
+    import cv2
+
+    from activesplat.errors import RecordingError
+
+    big = [(cv2.resize(rgb, (64, 48)), depth, T) for rgb, depth, T in fr[:3]]  # colour not registered
+    rec = _open_bag(write_bag(tmp_path / "big", K, big, rgb_encoding="png"))  # sizes unknown until decoded
+    with pytest.raises(RecordingError, match=r"image_raw: message 0: a 64x48 image, but the camera is 32x32"):
+        next(iter(rec.frames()))

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from activesplat.errors import RecordingError
-from activesplat.robot.recording import Recording, pair_nearest
+from activesplat.robot.recording import Recording, check_intrinsics, intrinsics_matrix, pair_nearest
 from activesplat.robot.transforms import PoseTrack, TfTree, pose_matrix, stamp_ns, xyz, xyzw
 
 COLOR_ENCODINGS = ("rgb8", "bgr8", "rgba8", "bgra8")
@@ -60,8 +60,38 @@ def decode_color(msg, topic: str, index: int, compressed: bool) -> np.ndarray:
     return np.array(img, order="C")  # a writable copy (the message buffer may be read-only)
 
 
-def decode_depth(msg, topic: str, index: int) -> np.ndarray:
+def decode_compressed_depth(msg, topic: str, index: int) -> np.ndarray:
+    """Depth in metres of a ``sensor_msgs/CompressedImage`` from image_transport's compressedDepth
+    plugin (format ``16UC1; compressedDepth png`` or ``32FC1; ...``): a 12-byte header (an int32 and
+    the two float32 inverse-depth quantisation parameters A, B), then a 16-bit PNG of millimetres
+    (16UC1) or of A / depth + B (32FC1, 0 = no depth)."""
+    import cv2
+
+    fmt = str(msg.format)
+    enc = fmt.split(";")[0].strip()
+    if "compresseddepth" not in fmt.lower() or enc not in ("16UC1", "32FC1") or "rvl" in fmt.lower():
+        raise RecordingError(
+            f"{topic}: message {index}: a CompressedImage of format {fmt!r}; depth is read from "
+            f"sensor_msgs/Image or image_transport's compressedDepth PNG (16UC1 or 32FC1)"
+        )
+    data = np.asarray(msg.data, dtype=np.uint8)
+    png = cv2.imdecode(data[12:], cv2.IMREAD_UNCHANGED) if data.size > 12 else None
+    if png is None or png.dtype != np.uint16 or png.ndim != 2:
+        raise RecordingError(f"{topic}: message {index}: undecodable compressedDepth image ({fmt!r})")
+    if enc == "16UC1":
+        return png.astype(np.float32) * np.float32(0.001)
+    a, b = np.frombuffer(data[4:12].tobytes(), dtype="<f4")
+    depth = np.zeros(png.shape, np.float32)
+    valid = png > 0
+    depth[valid] = a / (png[valid].astype(np.float32) - b)
+    depth[~np.isfinite(depth) | (depth < 0)] = 0.0
+    return depth
+
+
+def decode_depth(msg, topic: str, index: int, compressed: bool = False) -> np.ndarray:
     """Depth in metres (float32, 0 = invalid) of a depth message; RecordingError otherwise."""
+    if compressed:
+        return decode_compressed_depth(msg, topic, index)
     enc = msg.encoding
     if enc not in DEPTH_ENCODINGS:
         raise RecordingError(
@@ -96,7 +126,9 @@ class BagScan:
         max_dt,
         max_pose_gap,
         skip_unposed,
+        intrinsics=None,
     ):
+        self.intrinsics = intrinsics
         self.path, self.rgb_topic, self.depth_topic, self.info_topic = (
             path,
             rgb_topic,
@@ -119,19 +151,13 @@ class BagScan:
                 f"folder or a TUM RGB-D folder)"
             )
 
-    def _reader(self):
-        from rosbags.highlevel import AnyReader
-        from rosbags.typesys import Stores, get_typestore
-
-        return AnyReader([self.path], default_typestore=get_typestore(Stores.ROS2_HUMBLE))
-
     def _read(self, topics: list[str]):
         """Yield (topic, msgtype, index within its topic, deserialized message) in log order; a truncated
         or corrupt file becomes a RecordingError naming the topic of the message it broke on."""
         counts = {t: 0 for t in topics}
         topic = None
         try:
-            with self._reader() as reader:
+            with _reader(self.path) as reader:
                 conns = [c for c in reader.connections if c.topic in topics]
                 for conn, _, raw in reader.messages(connections=conns):
                     topic = conn.topic
@@ -145,42 +171,34 @@ class BagScan:
             text = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
             raise RecordingError(f"{self.path}: truncated or corrupt recording{where}: {text}") from None
 
-    def _topics(self) -> dict[str, str]:
-        try:
-            with self._reader() as reader:
-                return {c.topic: c.msgtype for c in reader.connections}
-        except Exception as exc:
-            text = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-            raise RecordingError(f"{self.path}: truncated or corrupt recording: {text}") from None
-
     def run(self) -> Recording:
-        topics = self._topics()
+        topics = topics_of(self.path)
         for option, topic in (
             ("--rgb-topic", self.rgb_topic),
             ("--depth-topic", self.depth_topic),
             ("--camera-info-topic", self.info_topic),
         ):
-            if topic not in topics:
+            if topic is not None and topic not in topics:
                 raise RecordingError(
-                    f"{option} {topic}: no such topic in {self.path.name} "
-                    f"(topics: {', '.join(sorted(topics)) or 'none'})"
+                    f"{option} {topic}: no such topic in {self.path.name} ({describe_topics(topics)})"
                 )
         expected = {
             self.rgb_topic: ("Image", "CompressedImage"),
-            self.depth_topic: ("Image",),
+            self.depth_topic: ("Image", "CompressedImage"),
             self.info_topic: ("CameraInfo",),
         }
         for topic, kinds in expected.items():
-            if topics[topic].split("/")[-1] not in kinds:
+            if topic is not None and topics[topic].split("/")[-1] not in kinds:
                 raise RecordingError(
                     f"{topic}: messages of type {topics[topic]}, expected "
                     f"{' or '.join('sensor_msgs/' + k for k in kinds)}"
                 )
         self.rgb_compressed = _image_kind(topics[self.rgb_topic]) == "compressed"
+        self.depth_compressed = _image_kind(topics[self.depth_topic]) == "compressed"
         pose_topics, self.tf_world, self.tf_frame = self._pose_topics(topics)
 
         rgb, depth = [], []  # (stamp, index)
-        info = None
+        info = first_rgb = None
         tf = TfTree()
         track_stamps, track_poses, body_frame = [], [], None
         last = {}
@@ -205,31 +223,41 @@ class BagScan:
             last[topic] = stamp
             if topic == self.rgb_topic:
                 self._check_image(msg, topic, index, color=True)
+                if first_rgb is None:
+                    first_rgb = msg
                 rgb.append((stamp, index, int(getattr(msg, "width", 0)), int(getattr(msg, "height", 0))))
             elif topic == self.depth_topic:
                 self._check_image(msg, topic, index, color=False)
-                depth.append((stamp, index, int(msg.width), int(msg.height)))
+                depth.append((stamp, index, int(getattr(msg, "width", 0)), int(getattr(msg, "height", 0))))
             elif topic == self.pose_source:
                 pose_msg = msg.pose.pose if hasattr(msg.pose, "pose") else msg.pose
                 track_stamps.append(stamp)
                 track_poses.append(pose_matrix(xyz(pose_msg.position), xyzw(pose_msg.orientation)))
                 body_frame = getattr(msg, "child_frame_id", None) or body_frame
-        if info is None:
-            raise RecordingError(f"{self.info_topic}: no CameraInfo message in the recording")
         if not rgb or not depth:
             raise RecordingError(f"{self.rgb_topic if not rgb else self.depth_topic}: no messages")
-        K = np.asarray(_field(info, "k", "K"), dtype=np.float64).reshape(3, 3)
-        width, height = int(info.width), int(info.height)
-        if K[0, 0] <= 0 or K[1, 1] <= 0 or width <= 0 or height <= 0:
+        if self.info_topic is None:  # --intrinsics instead: the size of the first colour image
+            K = intrinsics_matrix(self.intrinsics)
+            height, width = decode_color(first_rgb, self.rgb_topic, 0, self.rgb_compressed).shape[:2]
+            rgb = [(s, i, w or width, h or height) for s, i, w, h in rgb]
+            info, where = first_rgb, "--intrinsics"
+        elif info is None:
             raise RecordingError(
-                f"{self.info_topic}: message 0: invalid intrinsics K={K.tolist()} for a "
-                f"{width}x{height} camera"
+                f"{self.info_topic}: no CameraInfo message in the recording (give the camera's --intrinsics "
+                f"FX FY CX CY instead of --camera-info-topic)"
             )
+        else:
+            K = np.asarray(_field(info, "k", "K"), dtype=np.float64).reshape(3, 3)
+            width, height = int(info.width), int(info.height)
+            where = f"{self.info_topic}: message 0"
+        check_intrinsics(K, width, height, where)
+        self.width, self.height = width, height
+        described = self.info_topic or "the first colour image"
         for topic, items in ((self.rgb_topic, rgb), (self.depth_topic, depth)):
             for _, index, w, h in items:
                 if (w, h) != (width, height) and w:
                     raise RecordingError(
-                        f"{topic}: message {index}: a {w}x{h} image, but {self.info_topic} "
+                        f"{topic}: message {index}: a {w}x{h} image, but {described} "
                         f"describes a {width}x{height} camera (depth must be registered to "
                         f"colour)"
                     )
@@ -245,6 +273,9 @@ class BagScan:
         if self.tf_world is not None:
             lookup = self._tf_lookup(tf, camera_frame)
             source = f"/tf ({self.tf_world} -> {camera_frame})"
+
+            def why(stamp):
+                return tf.why_none(self.tf_world, camera_frame, stamp, self.max_gap_ns)
         else:
             track = PoseTrack(track_stamps, track_poses, self.pose_source)
             if not len(track.stamps):
@@ -259,6 +290,9 @@ class BagScan:
                 T = track.at(stamp, self.max_gap_ns)
                 return None if T is None else T @ extrinsic
 
+            def why(stamp):
+                return track.why_none(stamp, self.max_gap_ns)
+
         stamps, poses, indices, unposed = [], [], [], 0
         for stamp, ri, di in pairs:
             T = lookup(stamp)
@@ -268,8 +302,7 @@ class BagScan:
                     continue
                 raise RecordingError(
                     f"{self.rgb_topic}: message {ri} (t={stamp / 1e9:.6f} s) has no pose from "
-                    f"{source} within {self.max_gap_ns / 1e9:.3f} s (pass --skip-unposed to "
-                    f"drop such frames)"
+                    f"{source}: {why(stamp)} (pass --skip-unposed to drop such frames)"
                 )
             stamps.append(stamp)
             poses.append(T)
@@ -317,8 +350,7 @@ class BagScan:
             )
         if src not in topics:
             raise RecordingError(
-                f"--pose-source {src}: no such topic in {self.path.name} "
-                f"(topics: {', '.join(sorted(topics))})"
+                f"--pose-source {src}: no such topic in {self.path.name} ({describe_topics(topics)})"
             )
         if topics[src] not in POSE_TYPES:
             raise RecordingError(
@@ -328,7 +360,7 @@ class BagScan:
         return [src] + (["/tf_static"] if "/tf_static" in topics else []), None, None
 
     def _check_image(self, msg, topic: str, index: int, color: bool) -> None:
-        if color and self.rgb_compressed:
+        if self.rgb_compressed if color else self.depth_compressed:
             return
         enc = msg.encoding
         if color and enc not in COLOR_ENCODINGS:
@@ -351,6 +383,16 @@ class BagScan:
             )
         return lambda stamp: tf.lookup(world, camera_frame, stamp, self.max_gap_ns)
 
+    def _sized(self, image: np.ndarray, topic: str, index: int) -> np.ndarray:
+        """``image``, or a RecordingError when (a compressed one, whose size the scan could not check) is
+        not of the camera's size."""
+        if image.shape[:2] != (self.height, self.width):
+            raise RecordingError(
+                f"{topic}: message {index}: a {image.shape[1]}x{image.shape[0]} image, but the camera is "
+                f"{self.width}x{self.height} (depth must be registered to colour)"
+            )
+        return image
+
     def _stream(self, indices: list[tuple[int, int]]):
         want_rgb = {ri: k for k, (ri, _) in enumerate(indices)}
         want_depth: dict[int, list[int]] = {}
@@ -361,9 +403,11 @@ class BagScan:
         nxt = 0
         for topic, _, index, msg in self._read([self.rgb_topic, self.depth_topic]):
             if topic == self.rgb_topic and index in want_rgb:
-                got_rgb[want_rgb[index]] = decode_color(msg, topic, index, self.rgb_compressed)
+                got_rgb[want_rgb[index]] = self._sized(
+                    decode_color(msg, topic, index, self.rgb_compressed), topic, index
+                )
             if topic == self.depth_topic and index in want_depth:
-                d = decode_depth(msg, topic, index)
+                d = self._sized(decode_depth(msg, topic, index, self.depth_compressed), topic, index)
                 for k in want_depth[index]:
                     got_depth[k] = d
             while nxt < len(indices) and nxt in got_rgb and nxt in got_depth:
@@ -371,6 +415,28 @@ class BagScan:
                 nxt += 1
         if nxt < len(indices):
             raise RecordingError(f"{self.rgb_topic}: message {indices[nxt][0]} could not be read back")
+
+
+def _reader(path):
+    from rosbags.highlevel import AnyReader
+    from rosbags.typesys import Stores, get_typestore
+
+    return AnyReader([path], default_typestore=get_typestore(Stores.ROS2_HUMBLE))
+
+
+def topics_of(path) -> dict[str, str]:
+    """{topic: message type} of a bag; RecordingError when it cannot be read."""
+    try:
+        with _reader(path) as reader:
+            return {c.topic: c.msgtype for c in reader.connections}
+    except Exception as exc:
+        text = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise RecordingError(f"{path}: truncated or corrupt recording: {text}") from None
+
+
+def describe_topics(topics: dict[str, str]) -> str:
+    """'topics: /a (sensor_msgs/msg/Image), ...' for a message that asks for a topic."""
+    return "topics: " + (", ".join(f"{t} ({topics[t]})" for t in sorted(topics)) or "none")
 
 
 def _body_transform(values) -> np.ndarray:
@@ -383,4 +449,13 @@ def _body_transform(values) -> np.ndarray:
         raise RecordingError(f"--camera-in-body: {exc}") from None
 
 
-__all__ = ["COLOR_ENCODINGS", "DEPTH_ENCODINGS", "POSE_TYPES", "BagScan", "decode_color", "decode_depth"]
+__all__ = [
+    "COLOR_ENCODINGS",
+    "DEPTH_ENCODINGS",
+    "POSE_TYPES",
+    "BagScan",
+    "decode_color",
+    "decode_depth",
+    "describe_topics",
+    "topics_of",
+]

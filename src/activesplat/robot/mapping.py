@@ -1,5 +1,6 @@
 """`activesplat map RECORDING`: a recorded walk-through (ROS bag, MCAP, TUM RGB-D folder) into a map folder
-in the episode layout, readable by ``render-eval``, ``refine`` and ``view``-like tools.
+in the episode layout, readable by ``render-eval``, ``refine`` and ``export`` (``view`` replays simulated
+episodes only).
 
 Every frame goes through the same online mapper the explorer uses (``Mapper.add_frame``, the regular
 schedule), in time order, except every ``holdout_every``-th frame, which is kept out of the map and
@@ -14,10 +15,12 @@ frame as it is. The rotation is recorded in ``episode.json`` (``world_from_sourc
 the map are in the rotated frame, ``trajectory_tum.txt`` in the source frame.
 
 Folder (written to ``OUT.partial`` and renamed to ``OUT`` only when complete, so a failure never leaves a
-folder that looks finished): ``episode.json`` (``"source": "recording"``, topics, intrinsics, frame counts),
-``poses.txt`` (every frame's camera-to-world in the map frame, the first column the frame index),
-``trajectory_tum.txt`` (stamp tx ty tz qx qy qz qw, source frame), ``gaussians.ply``, ``keyframes.npz``,
-``mapper.json``, ``heldout.npz`` (rgb, depth, pose, index), ``topdown.png``, ``metrics.json`` (timing).
+folder that looks finished; Ctrl-C keeps the map of the frames read so far, ``"complete": false`` in
+``metrics.json``, as an interrupted exploration keeps its episode): ``episode.json`` (``"source":
+"recording"``, topics, intrinsics, frame counts), ``poses.txt`` (every frame's camera-to-world in
+the map frame, the first column the frame index), ``trajectory_tum.txt`` (stamp tx ty tz qx qy qz qw,
+source frame), ``gaussians.ply``, ``keyframes.npz``, ``mapper.json``, ``heldout.npz`` (rgb, depth, pose,
+index), ``topdown.png``, ``metrics.json`` (timing).
 """
 
 from __future__ import annotations
@@ -87,25 +90,41 @@ def map_recording(
     try:
         W = WORLD_UP[world_up]
         poses = np.einsum("ij,njk->nik", W, rec.poses)
+        upright = upright_pct(poses)
+        if upright < 50.0:
+            warnings.warn(
+                f"the camera is upright (image down within 60 deg of the world's down) in only "
+                f"{upright:.0f}% of the frames: are the poses of the camera's optical frame (x right, y "
+                f"down, z forward; a body frame needs --camera-in-body) in a {world_up}-up world "
+                f"(--world-up)? Otherwise the map's floor and topdown.png are wrong (a camera looking "
+                f"straight down also does this)",
+                stacklevel=2,
+            )
         torch.manual_seed(0)
         mapper = Mapper(rec.K, rec.width, rec.height, config=mapper_config, backend=backend)
         held = {"rgb": [], "depth": [], "pose": [], "index": []}
-        used, mapper_ms = [], 0.0
+        used, mapper_ms, seen, interrupted = [], 0.0, 0, False
         bar = _progress(len(rec), progress)
         t0 = time.perf_counter()
-        for k, rgb, depth in rec.frames():
-            if bar is not None:
-                bar.update(1)
-            if k % stride:
-                continue
-            if holdout_every and k % holdout_every == holdout_every - 1:
-                for name, v in (("rgb", rgb), ("depth", depth), ("pose", poses[k]), ("index", k)):
-                    held[name].append(v)
-                continue
-            t1 = time.perf_counter()
-            mapper.add_frame(rgb, depth, poses[k])
-            mapper_ms += 1000.0 * (time.perf_counter() - t1)
-            used.append(k)
+        try:
+            for k, rgb, depth in rec.frames():
+                if bar is not None:
+                    bar.update(1)
+                seen = k + 1
+                if k % stride:
+                    continue
+                if holdout_every and (k // stride) % holdout_every == holdout_every - 1:
+                    for name, v in (("rgb", rgb), ("depth", depth), ("pose", poses[k]), ("index", k)):
+                        held[name].append(v)
+                    continue
+                t1 = time.perf_counter()
+                mapper.add_frame(rgb, depth, poses[k])
+                mapper_ms += 1000.0 * (time.perf_counter() - t1)
+                used.append(k)
+        except KeyboardInterrupt:  # Ctrl-C: keep the map of the frames so far, as `explore` keeps its episode
+            if not used:
+                raise
+            interrupted = True
         wall = time.perf_counter() - t0
         if bar is not None:
             bar.close()
@@ -122,7 +141,7 @@ def map_recording(
             pose=np.stack(held["pose"]) if held["pose"] else np.zeros((0, 4, 4)),
             index=np.asarray(held["index"], dtype=np.int64),
         )
-        _write_trajectory(tmp, rec, poses)
+        _write_trajectory(tmp, rec, poses, seen)
         floor = _floor_height(mapper, poses) if floor_height is None else float(floor_height)
         topdown = _draw_topdown(tmp, mapper, poses[used], floor, workspace_config)
         meta = {
@@ -142,6 +161,7 @@ def map_recording(
             "heldout_frames": len(held["index"]),
             "holdout_every": holdout_every,
             "stride": stride,
+            "upright_pct": upright,
             "backend": mapper.backend,
             "config": {"mapper": asdict(mapper.config)},
         }
@@ -156,6 +176,8 @@ def map_recording(
             "mapper_ms_per_frame": mapper_ms / max(len(used), 1),
             "topdown": topdown,
         }
+        if interrupted:  # a partial map: `complete` false, as `evaluate` marks a partial episode
+            metrics.update(complete=False, read_frames=seen)
         write_json_atomic(tmp / "metrics.json", metrics)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
@@ -163,14 +185,26 @@ def map_recording(
     if out.exists():
         shutil.rmtree(out)
     tmp.rename(out)
+    if interrupted:
+        print(f"\ninterrupted after {seen} of {len(rec)} frames: partial map of {len(used)} frames in {out} "
+              f"(map the whole recording again to complete it)", file=sys.stderr)
+        raise KeyboardInterrupt
     return metrics
 
 
-def _write_trajectory(folder: Path, rec: Recording, poses: np.ndarray) -> None:
-    lines = [f"{i} " + " ".join(f"{v:.9g}" for v in p.reshape(16)) for i, p in enumerate(poses)]
+def upright_pct(poses: np.ndarray) -> float:
+    """Percentage of camera-to-world poses (map frame, y up) whose image-down axis (camera +y) points
+    within 60 degrees of the world's down (-y): near 100 for a camera on a robot or in a hand, near 0
+    when the poses are of a body frame (x forward, z up) or the world's up axis was mistaken."""
+    return 100.0 * float(np.mean(poses[:, 1, 1] < -0.5)) if len(poses) else 100.0
+
+
+def _write_trajectory(folder: Path, rec: Recording, poses: np.ndarray, n: int) -> None:
+    """poses.txt and trajectory_tum.txt of the first ``n`` frames (all but those after an interrupt)."""
+    lines = [f"{i} " + " ".join(f"{v:.9g}" for v in p.reshape(16)) for i, p in enumerate(poses[:n])]
     (folder / "poses.txt").write_text("\n".join(lines) + "\n")
     tum = ["# timestamp tx ty tz qx qy qz qw (camera optical frame in the pose source's world)"]
-    for stamp, T in zip(rec.stamps, rec.poses, strict=True):
+    for stamp, T in zip(rec.stamps[:n], rec.poses[:n], strict=True):
         t, q = matrix_tq(T)
         tum.append(f"{stamp / 1e9:.9f} " + " ".join(f"{v:.9g}" for v in (*t, *q)))
     (folder / "trajectory_tum.txt").write_text("\n".join(tum) + "\n")

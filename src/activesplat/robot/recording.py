@@ -11,10 +11,12 @@ Conventions (README, "Recorded data"):
 
 - **Images**: ``sensor_msgs/Image`` colour in ``rgb8``, ``bgr8``, ``rgba8`` or ``bgra8`` (or a
   ``sensor_msgs/CompressedImage`` JPEG / PNG), depth in ``16UC1`` / ``mono16`` (millimetres) or ``32FC1``
-  (metres; NaN reads as no depth). Depth must be *registered to the colour camera* (same size, same
-  intrinsics, e.g. the Azure Kinect driver's ``depth_to_rgb`` topic): it is not reprojected. Images are
-  used as they are (rectified topics expected; distortion coefficients are ignored).
-- **Intrinsics**: the first ``sensor_msgs/CameraInfo`` of the camera-info topic (``K``/``k``); any size.
+  (metres; NaN reads as no depth), or image_transport's ``compressedDepth`` PNG. Depth must be
+  *registered to the colour camera* (same size, same intrinsics, e.g. the Azure Kinect driver's
+  ``depth_to_rgb`` topic): it is not reprojected. Images are used as they are (rectified topics expected;
+  distortion coefficients are ignored).
+- **Intrinsics**: the first ``sensor_msgs/CameraInfo`` of the camera-info topic (``K``/``k``); any size;
+  or ``intrinsics`` (fx fy cx cy) for a bag without one. A principal point outside the image is refused.
 - **Time**: the header stamps. A colour image is paired with the depth image of the nearest stamp within
   ``max_dt``; unpaired colour images are dropped (counted in ``Recording.info``).
 - **Poses** (camera-to-world, OpenCV optical axes, as the rest of the project): ``tf:WORLD`` or
@@ -92,7 +94,7 @@ def open_recording(
         raise RecordingError(f"{p}: no such file or folder")
     if max_dt <= 0 or max_pose_gap <= 0:
         raise RecordingError(f"--max-dt and --max-pose-gap must be > 0, got {max_dt} and {max_pose_gap}")
-    from activesplat.robot.bags import BagScan
+    from activesplat.robot.bags import BagScan, describe_topics, topics_of
     from activesplat.robot.tum import open_tum
 
     if p.is_dir() and (p / "rgb.txt").is_file():
@@ -103,13 +105,15 @@ def open_recording(
         for name, v in (
             ("--rgb-topic", rgb_topic),
             ("--depth-topic", depth_topic),
-            ("--camera-info-topic", camera_info_topic),
+            ("--camera-info-topic (or --intrinsics)", camera_info_topic or intrinsics),
             ("--pose-source", pose_source),
         )
         if not v
     ]
     if missing:
-        raise RecordingError(f"{p}: a bag needs {', '.join(missing)}")
+        raise RecordingError(f"{p}: a bag needs {', '.join(missing)}; {describe_topics(topics_of(p))}")
+    if camera_info_topic and intrinsics is not None:
+        raise RecordingError("give --camera-info-topic or --intrinsics, not both")
     return BagScan(
         p,
         rgb_topic,
@@ -120,7 +124,27 @@ def open_recording(
         max_dt,
         max_pose_gap,
         skip_unposed,
+        intrinsics,
     ).run()
+
+
+def intrinsics_matrix(values) -> np.ndarray:
+    """K (3x3) of ``--intrinsics FX FY CX CY``."""
+    fx, fy, cx, cy = (float(v) for v in values)
+    return np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]])
+
+
+def check_intrinsics(K: np.ndarray, width: int, height: int, where: str) -> None:
+    """RecordingError unless K has positive focal lengths and its principal point lies inside the
+    width x height image (intrinsics of another resolution otherwise map every pixel to the wrong ray)."""
+    fx, fy, cx, cy = K[0, 0], K[1, 1], K[0, 2], K[1, 2]
+    if not np.isfinite(K).all() or fx <= 0 or fy <= 0 or width <= 0 or height <= 0:
+        raise RecordingError(f"{where}: invalid intrinsics K={K.tolist()} for a {width}x{height} camera")
+    if not (0 < cx < width and 0 < cy < height):
+        raise RecordingError(
+            f"{where}: principal point ({cx:g}, {cy:g}) outside the {width}x{height} images: intrinsics of "
+            f"another resolution? (scale fx fy cx cy by the image size over the calibrated size)"
+        )
 
 
 def _check_recording(p: Path) -> None:
@@ -189,4 +213,12 @@ def pair_nearest(rgb: list[tuple[int, int]], depth: list[tuple[int, int]], max_d
     return pairs, dropped
 
 
-__all__ = ["RECORDINGS", "Recording", "mcap_header", "open_recording", "pair_nearest"]
+__all__ = [
+    "RECORDINGS",
+    "Recording",
+    "check_intrinsics",
+    "intrinsics_matrix",
+    "mcap_header",
+    "open_recording",
+    "pair_nearest",
+]

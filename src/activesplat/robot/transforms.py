@@ -85,6 +85,22 @@ class PoseTrack:
         T[:3, :3] = Slerp([0.0, 1.0], rots)([w]).as_matrix()[0]
         return T
 
+    def why_none(self, stamp: int, max_gap_ns: int) -> str:
+        """Why :meth:`at` gives no transform at ``stamp``, in words for a message."""
+        s = self.stamps
+        if len(s) == 0:
+            return f"{self.name} has no sample"
+        i = int(np.searchsorted(s, stamp))
+        if i == 0 or i == len(s):
+            end, j = ("before the first", 0) if i == 0 else ("after the last", len(s) - 1)
+            return (f"it is {abs(int(s[j]) - stamp) / 1e9:.3f} s {end} pose of {self.name} "
+                    f"(t={s[j] / 1e9:.6f} s), and poses are extrapolated over at most a tenth of "
+                    f"--max-pose-gap, {max_gap_ns / 1e10:.3f} s")
+        gap = (int(s[i]) - int(s[i - 1])) / 1e9
+        return (f"it falls in a gap of {gap:.3f} s between poses of {self.name} "
+                f"(t={s[i - 1] / 1e9:.6f} s and {s[i] / 1e9:.6f} s), and poses are interpolated only within "
+                f"--max-pose-gap, {max_gap_ns / 1e9:.3f} s, of a sample on either side")
+
 
 class TfTree:
     """/tf and /tf_static: per child frame its parent and (static) transform or (dynamic) pose track."""
@@ -137,7 +153,7 @@ class TfTree:
                 return None
             else:
                 if f not in self._tracks:
-                    self._tracks[f] = PoseTrack(*self.dynamic[f], name=f)
+                    self._tracks[f] = PoseTrack(*self.dynamic[f], name=f"{self.parent[f]} -> {f}")
                 link = self._tracks[f]
                 link = link.at(stamp, max_gap_ns)
                 if link is None:
@@ -145,6 +161,15 @@ class TfTree:
             T = link @ T
             f = self.parent[f]
         return T
+
+    def why_none(self, world: str, frame: str, stamp: int, max_gap_ns: int) -> str:
+        """Why :meth:`lookup` gives no transform: the first dynamic link of the chain without a sample."""
+        f = frame.lstrip("/")
+        while f != world.lstrip("/") and f in self.parent:
+            if f not in self.static and self.lookup(self.parent[f], f, stamp, max_gap_ns) is None:
+                return self._tracks[f].why_none(stamp, max_gap_ns)
+            f = self.parent[f]
+        return f"no chain of transforms from {world!r} to {frame!r}"
 
     def static_chain(self, body: str, camera: str) -> np.ndarray | None:
         """body_T_camera from /tf_static alone, None when there is no such chain."""

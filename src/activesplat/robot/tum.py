@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from activesplat.errors import RecordingError
-from activesplat.robot.recording import Recording, pair_nearest
+from activesplat.robot.recording import Recording, check_intrinsics, intrinsics_matrix, pair_nearest
 from activesplat.robot.transforms import PoseTrack, pose_matrix
 
 
@@ -57,11 +57,9 @@ def open_tum(
             f"{folder}: a TUM RGB-D folder needs --intrinsics FX FY CX CY (e.g. TUM freiburg1: "
             f"517.3 516.5 318.6 255.3)"
         )
-    fx, fy, cx, cy = (float(v) for v in intrinsics)
-    if fx <= 0 or fy <= 0 or depth_scale <= 0:
-        raise RecordingError(
-            f"--intrinsics fx, fy and --depth-scale must be > 0, got {fx}, {fy}, {depth_scale}"
-        )
+    K = intrinsics_matrix(intrinsics)
+    if depth_scale <= 0:
+        raise RecordingError(f"--depth-scale must be > 0, got {depth_scale}")
     rgb_rows, depth_rows = _read_list(folder / "rgb.txt", 2), _read_list(folder / "depth.txt", 2)
     gt_path = folder / (pose_file or "groundtruth.txt")
     gt_rows = _read_list(gt_path, 8)
@@ -84,6 +82,7 @@ def open_tum(
     if first is None:
         raise RecordingError(f"{rgb_rows[pairs[0][1]][1]}: missing or unreadable image")
     height, width = first.shape[:2]
+    check_intrinsics(K, width, height, "--intrinsics")
     stamps, poses, files, unposed = [], [], [], 0
     for stamp, ri, di in pairs:
         T = track.at(stamp, int(max_pose_gap * 1e9))
@@ -92,8 +91,8 @@ def open_tum(
                 unposed += 1
                 continue
             raise RecordingError(
-                f"rgb.txt: {rgb_rows[ri][1]} (t={stamp / 1e9:.6f} s) has no pose in "
-                f"{gt_path.name} within {max_pose_gap} s (pass --skip-unposed to drop such frames)"
+                f"rgb.txt: {rgb_rows[ri][1]} (t={stamp / 1e9:.6f} s) has no pose: "
+                f"{track.why_none(stamp, int(max_pose_gap * 1e9))} (pass --skip-unposed to drop such frames)"
             )
         stamps.append(stamp)
         poses.append(T)
@@ -119,7 +118,6 @@ def open_tum(
                 raise RecordingError(f"{dname}: depth must be a 16-bit single-channel PNG, got {raw.dtype}")
             yield k, np.ascontiguousarray(bgr[..., ::-1]), raw.astype(np.float32) / np.float32(depth_scale)
 
-    K = np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]])
     info = {
         "rgb_topic": "rgb.txt",
         "depth_topic": "depth.txt",
