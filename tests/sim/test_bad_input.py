@@ -121,3 +121,22 @@ def test_cli_export_writes_loadable_glb(capsys, tmp_path, small0):
     loaded = load_scene(target)
     np.testing.assert_array_equal(loaded.mesh.vertices, small0.mesh.vertices)
     np.testing.assert_array_equal(loaded.mesh.faces, small0.mesh.faces)
+
+
+@pytest.mark.parametrize("case", ["millimetres", "stray_triangle"])
+def test_mesh_too_large_for_the_grid_is_refused_at_once(box, tmp_path, case):
+    """A mesh in millimetres, or one with a speck of geometry 500 m away, once ran out of memory in the
+    navigability grid after minutes; now it is one line naming the extent and the likely causes."""
+    v, f = np.asarray(box.mesh.vertices), np.asarray(box.mesh.faces)
+    if case == "millimetres":
+        v = v * 1000.0
+    else:
+        f = np.concatenate([f, [[len(v), len(v) + 2, len(v) + 1]]])
+        v = np.concatenate([v, [[500.0, 0.0, 500.0], [500.1, 0.0, 500.0], [500.0, 0.0, 500.1]]])
+    path = tmp_path / f"{case}.ply"
+    trimesh.Trimesh(v, f, process=False).export(path)
+    with pytest.raises(SceneError, match=path.name) as info:
+        load_scene(path)
+    message = str(info.value)
+    assert "millimetres" in message and "stray geometry" in message and "\n" not in message
+    assert ("4000.0 x 3000.0 m" if case == "millimetres" else "500.1 x 500.1 m") in message

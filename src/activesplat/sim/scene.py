@@ -15,7 +15,7 @@ from activesplat.sim.config import SimConfig
 from activesplat.sim.gltf import read_gltf, warn_material, write_glb
 from activesplat.sim.house import MEDIUM_FAMILIES, SMALL_FAMILIES, HouseConfig, house_mesh, make_layout
 from activesplat.sim.materials import Surface, surface_from_trimesh
-from activesplat.sim.navmap import NavMap, build_navmap
+from activesplat.sim.navmap import MAX_NAV_CELLS, GridTooLargeError, NavMap, build_navmap
 from activesplat.sim.sensor import RGBDSensor, hit_distance
 from activesplat.sim.textures import build_atlas
 
@@ -81,6 +81,8 @@ class Scene:
         if key not in self._navmaps:
             try:
                 navmap = build_navmap(self.mesh.vertices, self.mesh.faces, self.floor_height, config)
+            except GridTooLargeError as exc:
+                raise SceneError(_too_large(self, exc, config.nav_cell)) from None
             except ValueError as exc:
                 raise SceneError(f"scene {self.name!r} has no walkable floor ({exc})") from None
             if not navmap.largest.any():
@@ -117,6 +119,17 @@ class Scene:
         a[flip], b[flip] = 1.0 - a[flip], 1.0 - b[flip]
         t = tri[face]
         return t[:, 0] + a[:, None] * (t[:, 1] - t[:, 0]) + b[:, None] * (t[:, 2] - t[:, 0])
+
+
+def _too_large(scene: Scene, exc: GridTooLargeError, cell: float) -> str:
+    """The message of a navigability grid beyond MAX_NAV_CELLS: the extent and the likely causes."""
+    (x0, z0), (x1, z1) = exc.lo, exc.hi
+    return (f"scene {scene.name!r}: the geometry within the agent's height of the floor at y = "
+            f"{scene.floor_height:.2f} m spans {x1 - x0:.1f} x {z1 - z0:.1f} m (x {x0:.1f} to {x1:.1f}, "
+            f"z {z0:.1f} to {z1:.1f}), a navigability grid of {exc.shape[0]} x {exc.shape[1]} cells of "
+            f"{cell} m, more than the {MAX_NAV_CELLS:,} allowed: is the mesh in millimetres or centimetres "
+            f"rather than metres, or does it hold stray geometry far from the building? (a larger "
+            f"--sim.nav-cell allows a truly larger scene)")
 
 
 # --------------------------------------------------------------------------- built-in houses
