@@ -35,6 +35,8 @@ STOREY_SNAP = 0.5
 STOREY_BAND_BELOW = 0.1
 """In a multi-storey mesh the ground-truth surface of storey k is y in [floor_k, floor_k+1) shifted
 down by this (m): its floor and everything up to the underside of the next storey."""
+HEADROOM = 1.5
+"""A floor has a ceiling at least this high (m, the agent's height) straight above it, or none."""
 _MAX_FURNITURE_TRIES = 6
 _MAX_SECONDARY_AREA = 0.05
 """Largest navigable area (m^2) allowed outside the main component of a built-in house."""
@@ -253,16 +255,32 @@ class Storey:
 
 
 def _upward_faces(mesh: trimesh.Trimesh):
-    """Heights, areas and centres of near-horizontal faces facing +y (normal within ~25 deg);
-    |n_y| for meshes with flipped winding."""
+    """Heights, areas and centres of the near-horizontal faces that floors are made of: those facing +y
+    (normal within ~25 deg); those facing -y in a mesh wound inside out, whose ceilings face up
+    (`_headroom`); either when none faces up."""
     normals, areas = mesh.face_normals, mesh.area_faces
-    for upward in (normals[:, 1] > 0.9, np.abs(normals[:, 1]) > 0.9):
-        if areas[upward].sum() > 0:
-            break
-    else:
+    upward, downward = normals[:, 1] > 0.9, normals[:, 1] < -0.9
+    if not areas[upward].sum() > 0:
+        upward = upward | downward
+    elif areas[downward].sum() > 0 and _headroom(mesh, downward) > 2.0 * _headroom(mesh, upward):
+        upward = downward
+    if not areas[upward].sum() > 0:
         raise SceneError("mesh has no horizontal faces, so no walkable floor")
     centres = mesh.triangles_center[upward]
     return centres[:, 1], areas[upward], centres
+
+
+def _headroom(mesh: trimesh.Trimesh, faces: np.ndarray, n: int = 512) -> float:
+    """Area (m^2) of `faces` with room to stand above them: a surface at least HEADROOM higher straight
+    above (a ceiling), estimated from `n` area-sampled points. A floor has it; a ceiling taken as a floor
+    (faces wound inside out) has nothing or the storey's slab above it."""
+    areas = mesh.area_faces * faces
+    rng = np.random.default_rng(0)
+    pick = rng.choice(len(areas), size=n, p=areas / areas.sum())
+    origins = mesh.triangles_center[pick] + [0.0, 0.02, 0.0]
+    up = np.tile([0.0, 1.0, 0.0], (n, 1))
+    distance = hit_distance(mesh.vertices, mesh.faces, origins, up)
+    return float(areas.sum() * np.mean((distance >= HEADROOM) & (distance < 1e6)))
 
 
 def _median_height(h: np.ndarray, a: np.ndarray) -> float:
