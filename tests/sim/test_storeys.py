@@ -127,3 +127,9 @@ def test_faces_wound_inside_out_still_stand_on_the_floor(small0, tmp_path, insid
     path = tmp_path / "slabs.ply"
     _slab_house(inside_out).export(path)  # two-sided: slab undersides face down, the roof up
     assert load_scene(path).floor_height == pytest.approx(0.0, abs=1e-6)
+    if not inside_out:  # an open scan, no ceiling: nothing to tell floors by, and the floor faces up
+        normals, centres = small0.mesh.face_normals, small0.mesh.triangles_center
+        path = tmp_path / "open.ply"
+        trimesh.Trimesh(small0.mesh.vertices, faces[~((normals[:, 1] < -0.9) & (centres[:, 1] > 2.0))],
+                        process=False).export(path)
+        assert load_scene(path).floor_height == pytest.approx(0.0, abs=1e-6)
