@@ -440,6 +440,13 @@ def load_scene(name, z_up: bool = False, floor: int | float | None = None) -> Sc
                      f"({', '.join(MESH_SUFFIXES)})")
 
 
+def scene_label(name: str) -> str:
+    """A scene's name in figure titles and the progress bar: a mesh file by its file name (its full path
+    would not fit), any other name as it is."""
+    text = str(name)
+    return Path(text).name if Path(text).suffix.lower() in MESH_SUFFIXES else text
+
+
 def describe_builtin_scenes(seeds=(0, 1, 2)) -> str:
     """Text for `activesplat scenes list`: name patterns, layout families and a few examples with
     family, room count and size."""
