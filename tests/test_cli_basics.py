@@ -1,6 +1,8 @@
 import subprocess
 import sys
 
+import pytest
+
 from activesplat.cli import main
 
 
@@ -81,3 +83,14 @@ def test_scene_export_to_an_impossible_path_is_one_line(capsys, tmp_path):
     assert main(["scenes", "export", "small-0", str(blocker / "x.glb")]) == 2  # before the scene is built
     err = capsys.readouterr().err
     assert err == f"activesplat: error: cannot write {blocker / 'x.glb'}: {blocker} is a file, not a folder\n"
+
+
+def test_explore_help_gives_the_step_budget_of_a_mesh_file(capsys, monkeypatch):
+    """--steps' help named the budgets of small and medium houses only; a mesh file gets 1000."""
+    from activesplat.sim.scene import DEFAULT_STEPS
+
+    monkeypatch.setenv("COLUMNS", "80")  # one column of options: a help text reads on across its lines
+    with pytest.raises(SystemExit):
+        main(["explore", "--help"])
+    text = " ".join(capsys.readouterr().out.replace("│", " ").split())
+    assert f"{DEFAULT_STEPS['file']} for small scenes and mesh files" in text

@@ -309,6 +309,30 @@ def test_a_mesh_given_by_a_relative_path_is_recorded_by_its_absolute_path(tmp_pa
     assert evaluate_episode(out, write=False)["steps"] == 3
 
 
+def test_figures_of_a_mesh_scene_are_titled_by_its_file_name(tmp_path, monkeypatch):
+    """The titles of topdown.png, completion.png and trajectory.png once began with the mesh's whole
+    absolute path, which a deep dataset folder pushed out of the figure; they name the file."""
+    import trimesh
+
+    from activesplat.viz import plots, trajectory
+    from activesplat.workspace import draw
+
+    folder = tmp_path.joinpath(*["a_long_dataset_folder"] * 6)
+    folder.mkdir(parents=True)
+    box = trimesh.creation.box(extents=(4.0, 2.5, 4.0))
+    box.invert()
+    box.apply_translation((2.0, 1.25, 2.0))
+    box.export(folder / "room.ply")
+    titles = {}
+    monkeypatch.setattr(draw, "draw_topdown", lambda *a, scene=None, **k: titles.update(topdown=scene))
+    monkeypatch.setattr(plots, "draw_completion", lambda *a, title="", **k: titles.update(completion=title))
+    monkeypatch.setattr(trajectory, "draw_trajectory",
+                        lambda *a, title="", **k: titles.update(trajectory=title))
+    run_exploration(str(folder / "room.ply"), steps=3, seed=0, out=tmp_path / "ep", **TINY)
+    assert titles["topdown"] == "room.ply"
+    assert titles["completion"].startswith("room.ply / ") and titles["trajectory"].startswith("room.ply / ")
+
+
 def test_backend_gsplat_without_a_gpu_is_one_line_error_and_touches_no_folder(capsys, tmp_path):
     from activesplat.splat.raster import gsplat_available
 

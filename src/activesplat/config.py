@@ -94,7 +94,7 @@ class RunConfig:
     seed: int = 0
     """Seed of the random start pose."""
     steps: int | None = None
-    """Step budget in actions; None: 1000 for small scenes, 2000 for medium ones (paper protocol)."""
+    """Step budget in actions; None: 1000 for small scenes and mesh files, 2000 for medium ones."""
     z_up: bool = False
     """The scene mesh file is z-up (built-in scenes and glTF files are y-up)."""
     backend: BackendName = "auto"

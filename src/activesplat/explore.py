@@ -67,7 +67,7 @@ def explore_episode(run, out: str | Path | None = None, overwrite: bool = False,
     measured on the fly from its ground truth."""
     from activesplat.eval.coverage import CoverageAccumulator
     from activesplat.sim import Simulator, load_scene
-    from activesplat.sim.scene import BUILTIN_PATTERN
+    from activesplat.sim.scene import BUILTIN_PATTERN, scene_label
 
     scene_obj = scene if scene is not None else load_scene(run.scene, z_up=run.z_up, floor=run.floor)
     steps = int(run.steps or scene_obj.default_steps)
@@ -85,8 +85,9 @@ def explore_episode(run, out: str | Path | None = None, overwrite: bool = False,
     evaluator = _Completion(sim, coverage, run)
     metrics = explore_environment(sim, run, out_dir, overwrite=overwrite, progress=progress, viewer=viewer,
                                   evaluator=evaluator, meta=meta, name=scene_obj.name)
-    evaluator.draw_trajectory(out_dir / "trajectory.png", metrics.get("rooms"), title=f"{scene_obj.name} / "
-                              f"{run.policy} seed {run.seed}: trajectory over the floor plan")
+    evaluator.draw_trajectory(out_dir / "trajectory.png", metrics.get("rooms"),
+                              title=f"{scene_label(scene_obj.name)} / {run.policy} seed {run.seed}: "
+                              f"trajectory over the floor plan")
     return metrics
 
 
@@ -104,6 +105,7 @@ def explore_environment(env, run, out: str | Path, overwrite: bool = False, prog
     from activesplat.errors import InvalidInputError
     from activesplat.planning.explorer import bootstrap_actions
     from activesplat.planning.policies import make_policy
+    from activesplat.sim.scene import scene_label
     from activesplat.splat import Mapper
     from activesplat.splat.raster import prepare_backend, resolve_backend
     from activesplat.timing import Timers, peak_rss_mb
@@ -149,7 +151,8 @@ def explore_environment(env, run, out: str | Path, overwrite: bool = False, prog
               file=sys.stderr)
     setup_s = prepare_backend(mapper.backend, planar_depth=run.mapper.planar_depth)
     t_start = time.perf_counter()
-    bar = _progress(steps, name, policy, progress)
+    label = scene_label(name)  # in the progress bar and figure titles
+    bar = _progress(steps, label, policy, progress)
 
     def add_frame() -> None:  # the current observation into the map, its phases timed
         frame = timers.time("mapper", mapper.add_frame, obs.rgb, obs.depth, obs.pose,
@@ -201,7 +204,7 @@ def explore_environment(env, run, out: str | Path, overwrite: bool = False, prog
             evaluator.close()
         if bar is not None:
             bar.close()
-        _save_map(mapper, explorer, out_dir, floor_height, scene=name, step=len(actions))
+        _save_map(mapper, explorer, out_dir, floor_height, scene=label, step=len(actions))
         print(f"\ninterrupted after {len(actions)} steps: partial episode in {out_dir} "
               f"(evaluate it with: activesplat evaluate {out_dir})", file=sys.stderr)
         raise
@@ -233,11 +236,11 @@ def explore_environment(env, run, out: str | Path, overwrite: bool = False, prog
         metrics["evaluation_background"] = evaluator.background
         cov = evaluator.coverage
         metrics["completion_gain"] = completion_gain(cov.gain_by_frame(), actions, causes, len(cov.gt))
-    _save_map(mapper, explorer, out_dir, floor_height, scene=name, step=steps)
+    _save_map(mapper, explorer, out_dir, floor_height, scene=label, step=steps)
     if curve:
         from activesplat.viz.plots import draw_completion
 
-        draw_completion(out_dir / "completion.png", {policy: curve}, title=f"{name} / {policy}")
+        draw_completion(out_dir / "completion.png", {policy: curve}, title=f"{label} / {policy}")
     if evaluator is not None:
         evaluator.save(out_dir)
     writer.finish(metrics)

@@ -121,3 +121,52 @@ def test_cli_export_writes_loadable_glb(capsys, tmp_path, small0):
     loaded = load_scene(target)
     np.testing.assert_array_equal(loaded.mesh.vertices, small0.mesh.vertices)
     np.testing.assert_array_equal(loaded.mesh.faces, small0.mesh.faces)
+
+
+@pytest.mark.parametrize("case", ["millimetres", "stray_triangle"])
+def test_mesh_too_large_for_the_grid_is_refused_at_once(box, tmp_path, case):
+    """A mesh in millimetres, or one with a speck of geometry 500 m away, once ran out of memory in the
+    navigability grid after minutes; now it is one line naming the extent and the likely causes."""
+    v, f = np.asarray(box.mesh.vertices), np.asarray(box.mesh.faces)
+    if case == "millimetres":
+        v = v * 1000.0
+    else:
+        f = np.concatenate([f, [[len(v), len(v) + 2, len(v) + 1]]])
+        v = np.concatenate([v, [[500.0, 0.0, 500.0], [500.1, 0.0, 500.0], [500.0, 0.0, 500.1]]])
+    path = tmp_path / f"{case}.ply"
+    trimesh.Trimesh(v, f, process=False).export(path)
+    with pytest.raises(SceneError, match=path.name) as info:
+        load_scene(path)
+    message = str(info.value)
+    assert "millimetres" in message and "stray geometry" in message and "\n" not in message
+    assert ("4000.0 x 3000.0 m" if case == "millimetres" else "500.1 x 500.1 m") in message
+
+
+def test_mesh_without_floor_is_refused_not_walked_on_furniture(small0, tmp_path):
+    """small-0 without its floor faces once loaded with the top of a bed (y = 0.5 m, 3.4 m^2) as the
+    floor and explored it; a floor far smaller than the ceiling is refused unless asked for by --floor."""
+    normals, centres = small0.mesh.face_normals, small0.mesh.triangles_center
+    floor = (normals[:, 1] > 0.9) & (np.abs(centres[:, 1]) < 0.05)
+    path = tmp_path / "no_floor.ply"
+    trimesh.Trimesh(small0.mesh.vertices, small0.mesh.faces[~floor], process=False).export(path)
+    with pytest.raises(SceneError, match=path.name) as info:
+        load_scene(path)
+    message = str(info.value)
+    assert "no floor" in message and "--floor 0.50" in message and "z-up" not in message
+    assert load_scene(path, floor=0.5).floor_height == pytest.approx(0.5, abs=0.01)
+
+
+def test_floor_errors_hint_at_the_up_axis(small0, tmp_path):
+    """A z-up file read as y-up once listed walls as two storeys at y = -5.35 and -2.84 m with no word of
+    --z-up; a y-up file read with --z-up the same. The error now says which way the file may point."""
+    path = tmp_path / "z_up.ply"
+    mesh = small0.mesh.copy()
+    mesh.apply_transform(trimesh.transformations.rotation_matrix(np.pi / 2, [1, 0, 0]))
+    mesh.export(path)
+    with pytest.raises(SceneError, match="the file may be z-up: add --z-up"):
+        load_scene(path)
+    assert load_scene(path, z_up=True).floor_height == pytest.approx(0.0, abs=1e-6)
+    path = tmp_path / "y_up.ply"
+    small0.mesh.export(path)
+    with pytest.raises(SceneError, match="the file may be y-up: leave out --z-up"):
+        load_scene(path, z_up=True)

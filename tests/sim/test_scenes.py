@@ -136,3 +136,11 @@ def test_plain_names_work_wherever_builtin_names_do(tmp_path):
     assert "-plain" in describe_builtin_scenes(seeds=(0,))
     with pytest.raises(Exception, match="plain"):
         load_scene("small-0-shiny")
+
+
+def test_scene_label_is_a_mesh_file_name_or_the_name_as_it_is():
+    from activesplat.sim.scene import scene_label
+
+    assert scene_label("/data/hm3d/00800-TEEsavR23oF/TEEsavR23oF.glb") == "TEEsavR23oF.glb"
+    assert scene_label("small-0") == "small-0" and scene_label("medium-2-plain") == "medium-2-plain"
+    assert scene_label("robot ws://10.0.0.2:9090") == "robot ws://10.0.0.2:9090"

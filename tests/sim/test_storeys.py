@@ -4,6 +4,7 @@ and an error listing the storeys when the choice is ambiguous."""
 
 import numpy as np
 import pytest
+import trimesh
 
 from activesplat.cli import main
 from activesplat.errors import SceneError
@@ -96,3 +97,39 @@ def test_cli_floor_flag(two_storeys, tmp_path, capsys):
     assert err.count("\n") == 1 and "floor" in err and "storey index" in err and "Traceback" not in err
     with pytest.raises(SceneError, match="one storey"):
         load_scene("small-0", floor=1)
+
+
+def _slab_house(inside_out: bool) -> trimesh.Trimesh:
+    """A 5 x 4 m room modelled two-sided, as architecture exports are: boxes for the floor slab (y -0.2 to
+    0), the ceiling slab (2.6 to 2.8) and four walls, and a table; `inside_out` reverses every face."""
+    def box(lo, hi):
+        b = trimesh.creation.box(np.subtract(hi, lo))
+        b.apply_translation(np.add(lo, hi) / 2)
+        return b
+    boxes = [box([0, -0.2, 0], [5, 0, 4]), box([0, 2.6, 0], [5, 2.8, 4]), box([1, 0, 1], [2, 0.75, 2]),
+             box([-0.1, -0.2, 0], [0, 2.8, 4]), box([5, -0.2, 0], [5.1, 2.8, 4]),
+             box([0, -0.2, -0.1], [5, 2.8, 0]), box([0, -0.2, 4], [5, 2.8, 4.1])]
+    mesh = trimesh.util.concatenate(boxes)
+    return trimesh.Trimesh(mesh.vertices, mesh.faces[:, ::-1] if inside_out else mesh.faces, process=False)
+
+
+@pytest.mark.parametrize("inside_out", [False, True])
+def test_faces_wound_inside_out_still_stand_on_the_floor(small0, tmp_path, inside_out):
+    """A mesh whose faces are all reversed (floors facing down, ceilings up, as after mirroring an axis)
+    once put the agent on top of the ceiling (y = 2.61 m in small-0); the floor is the level with room to
+    stand above it, whichever way its faces point."""
+    path = tmp_path / "house.ply"
+    faces = np.asarray(small0.mesh.faces)
+    trimesh.Trimesh(small0.mesh.vertices, faces[:, ::-1] if inside_out else faces, process=False).export(path)
+    scene = load_scene(path)
+    assert scene.floor_height == pytest.approx(0.0, abs=1e-6) and len(scene.storeys) == 1
+    np.testing.assert_array_equal(scene.navmap.grid, small0.navmap.grid)
+    path = tmp_path / "slabs.ply"
+    _slab_house(inside_out).export(path)  # two-sided: slab undersides face down, the roof up
+    assert load_scene(path).floor_height == pytest.approx(0.0, abs=1e-6)
+    if not inside_out:  # an open scan, no ceiling: nothing to tell floors by, and the floor faces up
+        normals, centres = small0.mesh.face_normals, small0.mesh.triangles_center
+        path = tmp_path / "open.ply"
+        trimesh.Trimesh(small0.mesh.vertices, faces[~((normals[:, 1] < -0.9) & (centres[:, 1] > 2.0))],
+                        process=False).export(path)
+        assert load_scene(path).floor_height == pytest.approx(0.0, abs=1e-6)

@@ -204,6 +204,7 @@ def render_eval(episode_dir: str | Path, gaussians_path: str | Path | None = Non
     ``{"texture_filter": "nearest"}`` to evaluate as the simulator rendered before the area filter).
     ``lpips=False`` leaves LPIPS out (None in every view and mean; for machines without its weights)."""
     from activesplat.eval.lpips import LPIPS
+    from activesplat.sim.scene import scene_label
     from activesplat.splat.ply import load_ply
     from activesplat.splat.raster import backend_device
 
@@ -279,7 +280,8 @@ def render_eval(episode_dir: str | Path, gaussians_path: str | Path | None = Non
     out.mkdir(parents=True, exist_ok=True)
     write_json_atomic(out / "render_metrics.json", result)
     draw_render_grid(out / "render_grid.png", grid, cfg.grid_depth_max_cm,
-                     title=f"{result['scene']}: {gaussians_path.parent.name}/{gaussians_path.name}")
+                     title=f"{scene_label(result['scene'])}: {gaussians_path.parent.name}/"
+                           f"{gaussians_path.name}")
     return result
 
 

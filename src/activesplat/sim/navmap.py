@@ -21,6 +21,18 @@ from scipy import ndimage, sparse
 from activesplat.sim.config import SimConfig
 
 _MAX_POINTS_PER_CHUNK = 2_000_000
+MAX_NAV_CELLS = 32_000_000
+"""Largest navigability grid (cells): 20,000 m^2 at the default 2.5 cm cell, about 1 GB while it is built.
+A grid beyond it means a mesh in millimetres or centimetres, or stray geometry far from the building."""
+
+
+class GridTooLargeError(ValueError):
+    """The geometry near the floor spans more than MAX_NAV_CELLS grid cells; `lo` / `hi` its (x, z)
+    corners and `shape` the grid it would need."""
+
+    def __init__(self, lo: np.ndarray, hi: np.ndarray, shape: tuple[int, int]):
+        super().__init__(f"geometry near the floor spans {hi[0] - lo[0]:.1f} x {hi[1] - lo[1]:.1f} m")
+        self.lo, self.hi, self.shape = lo, hi, shape
 
 
 @dataclass
@@ -120,7 +132,9 @@ def build_navmap(vertices: np.ndarray, faces: np.ndarray, floor_height: float,
         raise ValueError("no geometry near the floor height")
     lo = triangles.reshape(-1, 3).min(axis=0)[[0, 2]] - 4 * cell
     hi = triangles.reshape(-1, 3).max(axis=0)[[0, 2]] + 4 * cell
-    shape = tuple(np.ceil((hi - lo) / cell).astype(int))
+    shape = tuple(int(n) for n in np.ceil((hi - lo) / cell))
+    if shape[0] * shape[1] > MAX_NAV_CELLS:  # checked before anything of that size is allocated
+        raise GridTooLargeError(lo + 4 * cell, hi - 4 * cell, shape)
     floor = np.zeros(shape, dtype=bool)
     occupied = np.zeros(shape, dtype=bool)
     for pts, tri in sample_triangles(triangles, 0.5 * cell):

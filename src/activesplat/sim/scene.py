@@ -15,7 +15,7 @@ from activesplat.sim.config import SimConfig
 from activesplat.sim.gltf import read_gltf, warn_material, write_glb
 from activesplat.sim.house import MEDIUM_FAMILIES, SMALL_FAMILIES, HouseConfig, house_mesh, make_layout
 from activesplat.sim.materials import Surface, surface_from_trimesh
-from activesplat.sim.navmap import NavMap, build_navmap
+from activesplat.sim.navmap import MAX_NAV_CELLS, GridTooLargeError, NavMap, build_navmap
 from activesplat.sim.sensor import RGBDSensor, hit_distance
 from activesplat.sim.textures import build_atlas
 
@@ -35,6 +35,8 @@ STOREY_SNAP = 0.5
 STOREY_BAND_BELOW = 0.1
 """In a multi-storey mesh the ground-truth surface of storey k is y in [floor_k, floor_k+1) shifted
 down by this (m): its floor and everything up to the underside of the next storey."""
+HEADROOM = 1.5
+"""A floor has a ceiling at least this high (m, the agent's height) straight above it, or none."""
 _MAX_FURNITURE_TRIES = 6
 _MAX_SECONDARY_AREA = 0.05
 """Largest navigable area (m^2) allowed outside the main component of a built-in house."""
@@ -81,6 +83,8 @@ class Scene:
         if key not in self._navmaps:
             try:
                 navmap = build_navmap(self.mesh.vertices, self.mesh.faces, self.floor_height, config)
+            except GridTooLargeError as exc:
+                raise SceneError(_too_large(self, exc, config.nav_cell)) from None
             except ValueError as exc:
                 raise SceneError(f"scene {self.name!r} has no walkable floor ({exc})") from None
             if not navmap.largest.any():
@@ -117,6 +121,17 @@ class Scene:
         a[flip], b[flip] = 1.0 - a[flip], 1.0 - b[flip]
         t = tri[face]
         return t[:, 0] + a[:, None] * (t[:, 1] - t[:, 0]) + b[:, None] * (t[:, 2] - t[:, 0])
+
+
+def _too_large(scene: Scene, exc: GridTooLargeError, cell: float) -> str:
+    """The message of a navigability grid beyond MAX_NAV_CELLS: the extent and the likely causes."""
+    (x0, z0), (x1, z1) = exc.lo, exc.hi
+    return (f"scene {scene.name!r}: the geometry within the agent's height of the floor at y = "
+            f"{scene.floor_height:.2f} m spans {x1 - x0:.1f} x {z1 - z0:.1f} m (x {x0:.1f} to {x1:.1f}, "
+            f"z {z0:.1f} to {z1:.1f}), a navigability grid of {exc.shape[0]} x {exc.shape[1]} cells of "
+            f"{cell} m, more than the {MAX_NAV_CELLS:,} allowed: is the mesh in millimetres or centimetres "
+            f"rather than metres, or does it hold stray geometry far from the building? (a larger "
+            f"--sim.nav-cell allows a truly larger scene)")
 
 
 # --------------------------------------------------------------------------- built-in houses
@@ -239,17 +254,41 @@ class Storey:
         return f"{index}: y = {self.height:.2f} m, {self.area:.1f} m^2, {kind}"
 
 
-def _upward_faces(mesh: trimesh.Trimesh):
-    """Heights, areas and centres of near-horizontal faces facing +y (normal within ~25 deg);
-    |n_y| for meshes with flipped winding."""
+def _horizontal_faces(mesh: trimesh.Trimesh) -> tuple[np.ndarray, np.ndarray]:
+    """Masks of the near-horizontal faces (normal within ~25 deg of vertical) that floors and ceilings are
+    made of: floors face +y and ceilings -y, the other way round in a mesh wound inside out (told apart by
+    `_headroom`); every horizontal face is a floor candidate when none faces up."""
     normals, areas = mesh.face_normals, mesh.area_faces
-    for upward in (normals[:, 1] > 0.9, np.abs(normals[:, 1]) > 0.9):
-        if areas[upward].sum() > 0:
-            break
-    else:
+    upward, downward = normals[:, 1] > 0.9, normals[:, 1] < -0.9
+    if not areas[upward].sum() > 0:
+        return upward | downward, np.zeros_like(upward)
+    if areas[downward].sum() > 0:
+        room_up, room_down = _headroom(mesh, upward, downward)
+        if room_down > max(2.0 * room_up, 0.25 * areas[downward].sum()):  # a good share under a ceiling
+            return downward, upward
+    return upward, downward
+
+
+def _upward_faces(mesh: trimesh.Trimesh, floors: np.ndarray | None = None):
+    """Heights, areas and centres of the floor candidates (`_horizontal_faces`, unless given)."""
+    floors = _horizontal_faces(mesh)[0] if floors is None else floors
+    if not mesh.area_faces[floors].sum() > 0:
         raise SceneError("mesh has no horizontal faces, so no walkable floor")
-    centres = mesh.triangles_center[upward]
-    return centres[:, 1], areas[upward], centres
+    centres = mesh.triangles_center[floors]
+    return centres[:, 1], mesh.area_faces[floors], centres
+
+
+def _headroom(mesh: trimesh.Trimesh, *masks: np.ndarray, n: int = 512) -> list[float]:
+    """Per mask of faces, the area (m^2) with room to stand above it: a surface at least HEADROOM higher
+    straight above (a ceiling), estimated from `n` area-sampled points each. A floor has it; a ceiling taken
+    as a floor (faces wound inside out) has nothing or its storey's slab above it."""
+    rng = np.random.default_rng(0)
+    picks = [rng.choice(len(mask), size=n, p=mesh.area_faces * mask / mesh.area_faces[mask].sum())
+             for mask in masks]
+    origins = mesh.triangles_center[np.concatenate(picks)] + [0.0, 0.02, 0.0]
+    distance = hit_distance(mesh.vertices, mesh.faces, origins, np.tile([0.0, 1.0, 0.0], (len(origins), 1)))
+    room = ((distance >= HEADROOM) & (distance < 1e6)).reshape(len(masks), n).mean(axis=1)
+    return [float(mesh.area_faces[mask].sum() * r) for mask, r in zip(masks, room, strict=True)]
 
 
 def _median_height(h: np.ndarray, a: np.ndarray) -> float:
@@ -266,12 +305,13 @@ def estimate_floor_height(mesh: trimesh.Trimesh, bin_size: float = 0.05) -> floa
     return _median_height(h[in_bin], a[in_bin])
 
 
-def find_storeys(mesh: trimesh.Trimesh, bin_size: float = 0.05,
-                 min_gap: float = STOREY_MIN_GAP) -> list[Storey]:
+def find_storeys(mesh: trimesh.Trimesh, bin_size: float = 0.05, min_gap: float = STOREY_MIN_GAP,
+                 floors: np.ndarray | None = None) -> list[Storey]:
     """Levels of a mesh, bottom to top: height bins of upward area at least STOREY_MIN_AREA_FRACTION
     of the largest (and 1 m^2), greedily kept by area when at least `min_gap` from a kept one. With
-    several, each is tested for geometry above it (vertical rays from area-sampled floor points)."""
-    h, a, centres = _upward_faces(mesh)
+    several, each is tested for geometry above it (vertical rays from area-sampled floor points).
+    `floors`: the mask of floor faces (default `_horizontal_faces`)."""
+    h, a, centres = _upward_faces(mesh, floors)
     bins = np.floor((h - h.min()) / bin_size).astype(np.int64)
     area = np.bincount(bins, weights=a)
     threshold = min(area.max(), max(1.0, STOREY_MIN_AREA_FRACTION * area.max()))  # largest always kept
@@ -338,17 +378,51 @@ def load_mesh_scene(path, z_up: bool = False, floor: int | float | None = None) 
     if z_up:
         mesh.apply_transform(trimesh.transformations.rotation_matrix(-np.pi / 2, [1, 0, 0]))
     try:
-        storeys = find_storeys(mesh)
+        floors, ceilings = _horizontal_faces(mesh)
+        storeys = find_storeys(mesh, floors=floors)
         height, top = choose_storey(storeys, floor, str(path))
+        if floor is None:
+            _check_floor_under_ceiling(mesh, ceilings, next(s for s in storeys if s.height == height))
+        scene = Scene(str(path), mesh, height, DEFAULT_STEPS["file"], surface=surface)
+        scene.storeys = storeys
+        if len(storeys) > 1:
+            scene.surface_band = (height - STOREY_BAND_BELOW, top - STOREY_BAND_BELOW)
+        scene.navmap  # noqa: B018 - raises SceneError when nothing is walkable
     except SceneError as exc:
         msg = str(exc)
-        raise SceneError(msg if msg.startswith(str(path)) else f"{path}: {msg}") from None
-    scene = Scene(str(path), mesh, height, DEFAULT_STEPS["file"], surface=surface)
-    scene.storeys = storeys
-    if len(storeys) > 1:
-        scene.surface_band = (height - STOREY_BAND_BELOW, top - STOREY_BAND_BELOW)
-    scene.navmap  # noqa: B018 - raises SceneError when nothing is walkable
+        raise SceneError((msg if str(path) in msg else f"{path}: {msg}") + _axis_hint(mesh, z_up)) from None
     return scene
+
+
+FLOOR_MIN_CEILING_FRACTION = 0.25
+"""A floor found on its own needs at least this fraction of the largest ceiling level's area; less is
+furniture tops in a mesh without a floor (a scan that missed it, a model exported without it)."""
+
+
+def _check_floor_under_ceiling(mesh: trimesh.Trimesh, ceilings: np.ndarray, storey: Storey,
+                               bin_size: float = 0.05) -> None:
+    """SceneError when the floor found is much smaller than the largest level of ceiling faces."""
+    if not ceilings.any():
+        return  # no ceiling (an open scan): nothing to compare with
+    h, a = mesh.triangles_center[ceilings, 1], mesh.area_faces[ceilings]
+    level = np.bincount(np.floor((h - h.min()) / bin_size).astype(np.int64), weights=a)
+    if storey.area < FLOOR_MIN_CEILING_FRACTION * level.max():
+        ceiling = h.min() + bin_size * level.argmax()
+        raise SceneError(f"the mesh seems to have no floor: the largest level of upward faces, y = "
+                         f"{storey.height:.2f} m, has {storey.area:.1f} m^2 under {level.max():.1f} m^2 of "
+                         f"ceiling (y = {ceiling:.2f} m), so the agent would walk on furniture; "
+                         f"--floor {storey.height:.2f} walks there anyway")
+
+
+def _axis_hint(mesh: trimesh.Trimesh, z_up: bool) -> str:
+    """For an error about the floor: a hint at --z-up when the mesh, turned, would be lower than it is wide
+    but tall enough to stand in, and more of its faces lie flat across z than across y (floors and ceilings
+    lie across the up axis)."""
+    normals, areas, size = mesh.face_normals, mesh.area_faces, np.ptp(mesh.vertices, axis=0)
+    flat = [areas[np.abs(normals[:, axis]) > 0.9].sum() for axis in (1, 2)]
+    if not HEADROOM <= size[2] < size[1] or flat[1] <= flat[0]:
+        return ""
+    return "; the file may be y-up: leave out --z-up" if z_up else "; the file may be z-up: add --z-up"
 
 
 def load_scene(name, z_up: bool = False, floor: int | float | None = None) -> Scene:
@@ -364,6 +438,13 @@ def load_scene(name, z_up: bool = False, floor: int | float | None = None) -> Sc
         return load_mesh_scene(text, z_up=z_up, floor=floor)
     raise SceneError(f"unknown scene {text!r}: expected {BUILTIN_NAMES} or a mesh file "
                      f"({', '.join(MESH_SUFFIXES)})")
+
+
+def scene_label(name: str) -> str:
+    """A scene's name in figure titles and the progress bar: a mesh file by its file name (its full path
+    would not fit), any other name as it is."""
+    text = str(name)
+    return Path(text).name if Path(text).suffix.lower() in MESH_SUFFIXES else text
 
 
 def describe_builtin_scenes(seeds=(0, 1, 2)) -> str:
