@@ -112,3 +112,48 @@ def test_image_size_renders_the_keyframes_again(episode, tmp_path, capsys):
     assert main(["refine", str(ep), "--iters", "2", "--image-size", "8", "--no-progress", "--restart"]) == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith("activesplat: error:") and "image_size" in err and "\n" not in err
+
+
+def test_what_stops_the_evaluation_is_found_before_training(episode, tmp_path, capsys):
+    """The evaluation after training needs episode.json and the scene's ground truth. A broken episode is
+    refused before the first iteration (it used to fail after the last); an episode explored without
+    ground truth (a robot) is refined and says why it was not evaluated (it used to fail at every rerun)."""
+    from activesplat.errors import EpisodeError
+
+    ep = shutil.copytree(episode, tmp_path / "ep", ignore=shutil.ignore_patterns("refined_*"))
+    meta = json.loads((ep / "episode.json").read_text())
+    (ep / "episode.json").unlink()
+    with pytest.raises(EpisodeError, match="no episode.json"):
+        refine(ep, "3dgs", 2, backend="numba", progress=False, eval_kwargs=EVAL)
+    assert not (ep / "refined_3dgs").exists()
+    (ep / "episode.json").write_text(json.dumps({**meta, "scene": str(tmp_path / "moved.glb")}))
+    with pytest.raises(EpisodeError, match="moved.glb.*ground truth"):
+        refine(ep, "3dgs", 2, backend="numba", progress=False, eval_kwargs=EVAL)
+    assert not (ep / "refined_3dgs").exists()
+    (ep / "episode.json").write_text(json.dumps({**meta, "source": "environment"}))
+    argv = ["refine", str(ep), "--iters", "2", "--no-progress", "--backend", "numba", "--no-lpips"]
+    for _ in range(2):  # the rerun of a completed run says it again
+        assert main(argv) == 0
+        out = capsys.readouterr().out
+        assert "refined 3dgs: 2 iterations" in out and "not evaluated:" in out and "ground truth" in out
+    assert (ep / "refined_3dgs" / "gaussians.ply").is_file()
+    assert not (ep / "refined_3dgs" / "render_metrics.json").exists()
+
+
+def test_a_completed_run_is_evaluated_again_when_asked_for_other_metrics(episode, tmp_path, monkeypatch):
+    """Refining twice reuses render_metrics.json only when it was measured as now asked: a first run with
+    --no-lpips and a second one with LPIPS used to print the metrics without LPIPS."""
+    import activesplat.refine.trainer as trainer
+
+    ep = shutil.copytree(episode, tmp_path / "ep", ignore=shutil.ignore_patterns("refined_*"))
+    no_lpips = {**EVAL, "lpips": False}
+    first = refine(ep, "3dgs", 2, backend="numba", progress=False, eval_kwargs=no_lpips)
+    assert first.metrics["train"]["lpips"] is None
+    asked = []
+    monkeypatch.setattr(trainer.Refiner, "evaluate", lambda self, ply, **kw: asked.append(kw) or {"new": 1})
+    again = refine(ep, "3dgs", 2, backend="numba", progress=False, eval_kwargs=no_lpips)
+    assert asked == [] and again.metrics == first.metrics  # measured as asked: read back
+    assert refine(ep, "3dgs", 2, backend="numba", progress=False, eval_kwargs=EVAL).metrics == {"new": 1}
+    more = {"n_train": 3, "n_test": 2, "lpips": False}
+    refine(ep, "3dgs", 2, backend="numba", progress=False, eval_kwargs=more)
+    assert asked == [EVAL, more]

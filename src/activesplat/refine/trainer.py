@@ -38,7 +38,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from activesplat.errors import EpisodeError, InvalidInputError
+from activesplat.errors import ActiveSplatError, EpisodeError, InvalidInputError
 from activesplat.refine.adc import DensifyStats, DensityControl, reset_opacity, scene_extent
 from activesplat.refine.config import RefineConfig
 from activesplat.refine.episode_map import check_arguments, load_episode_map, rerender_keyframes
@@ -69,6 +69,7 @@ class RefineResult:
     psnr: float  # running mean (EMA) of the PSNR of the trained keyframes (valid-depth pixels)
     densify: dict = field(default_factory=dict)  # totals: cloned, split, pruned
     metrics: dict | None = None  # render_metrics.json, None when not evaluated
+    not_evaluated: str | None = None  # why the map was not evaluated although evaluation was asked for
 
     @property
     def complete(self) -> bool:
@@ -363,6 +364,38 @@ class Refiner:
         return render_eval(self.episode_dir, gaussians_path=ply, out_dir=self.out_dir, **options)
 
 
+def evaluation_blocker(episode_dir: Path) -> str | None:
+    """Checked before training: why the refined map of ``episode_dir`` cannot be evaluated (an episode
+    explored in an environment without ground truth, e.g. a robot: refined without evaluation), None when
+    it can. EpisodeError when the evaluation would fail on a broken episode (no or an unreadable
+    episode.json, a scene that does not load), which used to surface only after the last iteration."""
+    from activesplat.eval.evaluate import simulated_scene
+    from activesplat.eval.render_eval import _read_meta, locate
+
+    locate(episode_dir)
+    meta = _read_meta(episode_dir)
+    if meta.get("source") == "environment":
+        return (f"{episode_dir} was explored in an environment without ground truth ({meta.get('scene')}), "
+                f"so there is nothing to render-evaluate the refined map against")
+    if meta.get("source") != "recording":
+        try:  # the ground truth's scene loads (e.g. a mesh file still where the episode says)
+            simulated_scene(meta, episode_dir)
+        except ActiveSplatError as err:
+            raise EpisodeError(f"{err} (the evaluation after training renders the ground truth from the "
+                               f"episode's scene)") from None
+    return None
+
+
+def _metrics_match(metrics: dict, eval_kwargs: dict) -> bool:
+    """Whether a refined folder's render_metrics.json was measured as this call asks (LPIPS on or off, the
+    number of views): a completed run then reuses it instead of evaluating again."""
+    wanted_lpips = eval_kwargs.get("lpips", True)
+    measured_lpips = not str(metrics.get("protocol", {}).get("lpips", "")).startswith("not measured")
+    views = {split: metrics.get(split, {}).get("n_views") for split in ("train", "test")}
+    return (measured_lpips == wanted_lpips and views["train"] == eval_kwargs.get("n_train", views["train"])
+            and views["test"] == eval_kwargs.get("n_test", views["test"]))
+
+
 def refine(episode_dir: str | Path, method: str = "3dgs", iters: int = 2000, *,
            config: RefineConfig | None = None, seed: int = 0, backend: str = "auto", restart: bool = False,
            progress: bool = True, evaluate: bool = True, stop_at: int | None = None,
@@ -371,11 +404,17 @@ def refine(episode_dir: str | Path, method: str = "3dgs", iters: int = 2000, *,
     """Refine the map of ``episode_dir`` offline (see the module docstring); returns what it produced.
 
     ``stop_at`` stops after that iteration with a checkpoint, as Ctrl-C would (a later call resumes);
-    ``evaluate=False`` skips render_metrics.json; ``eval_kwargs`` go to ``render_eval`` (e.g. n_test);
-    ``out_dir`` replaces ``DIR/refined_<method>`` (e.g. one folder per iteration count in a benchmark);
-    ``image_size`` refines (and evaluates) at that square size, the keyframes rendered again by the
-    simulator (:func:`rerender_keyframes`; the paper: 512).
+    ``evaluate=False`` skips render_metrics.json (so does an episode without ground truth, see
+    :func:`evaluation_blocker`; ``RefineResult.not_evaluated`` says why); ``eval_kwargs`` go to
+    ``render_eval`` (e.g. n_test); ``out_dir`` replaces ``DIR/refined_<method>`` (e.g. one folder per
+    iteration count in a benchmark); ``image_size`` refines (and evaluates) at that square size, the
+    keyframes rendered again by the simulator (:func:`rerender_keyframes`; the paper: 512). A completed run
+    is not trained again, and its render_metrics.json is reused when it was measured as ``eval_kwargs``
+    ask (LPIPS, views), else measured again.
     """
+    eval_kwargs = dict(eval_kwargs or {})
+    blocker = evaluation_blocker(check_arguments(episode_dir, method, iters)) if evaluate else None
+    evaluate = evaluate and blocker is None
     refiner = Refiner(episode_dir, method, iters, config, seed, backend, restart, progress, out_dir,
                       image_size)
     metrics_path = refiner.out_dir / "render_metrics.json"
@@ -383,12 +422,12 @@ def refine(episode_dir: str | Path, method: str = "3dgs", iters: int = 2000, *,
     refiner.train(stop_at)
     if refiner.iteration < refiner.iters:
         return refiner.result()
-    if done_before and (metrics_path.is_file() or not evaluate):
-        metrics = json.loads(metrics_path.read_text()) if metrics_path.is_file() else None
-        return refiner.result(metrics)
+    saved = json.loads(metrics_path.read_text()) if metrics_path.is_file() else None
+    if done_before and (not evaluate or (saved is not None and _metrics_match(saved, eval_kwargs))):
+        return replace(refiner.result(saved), not_evaluated=blocker)
     ply = refiner.write_outputs()
-    metrics = refiner.evaluate(ply, **(eval_kwargs or {})) if evaluate else None
-    return refiner.result(metrics)
+    metrics = refiner.evaluate(ply, **eval_kwargs) if evaluate else None
+    return replace(refiner.result(metrics), not_evaluated=blocker)
 
 
 def refine_from_command(cmd) -> int:
@@ -409,6 +448,8 @@ def refine_from_command(cmd) -> int:
           f"pruned {res.densify.get('pruned', 0)}), keyframe PSNR {res.psnr:.2f} dB -> {res.out_dir}")
     if res.metrics:
         print(format_metrics(res.metrics))
+    elif res.not_evaluated:
+        print(f"not evaluated: {res.not_evaluated}")
     return 0
 
 
@@ -427,5 +468,5 @@ def format_metrics(metrics: dict) -> str:
     return "\n".join(lines)
 
 
-__all__ = ["RefineResult", "Refiner", "check_arguments", "output_dir", "refine",
+__all__ = ["RefineResult", "Refiner", "check_arguments", "evaluation_blocker", "output_dir", "refine",
            "refine_from_command"]
