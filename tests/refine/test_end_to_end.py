@@ -157,3 +157,14 @@ def test_a_completed_run_is_evaluated_again_when_asked_for_other_metrics(episode
     more = {"n_train": 3, "n_test": 2, "lpips": False}
     refine(ep, "3dgs", 2, backend="numba", progress=False, eval_kwargs=more)
     assert asked == [EVAL, more]
+
+
+def test_restart_leaves_nothing_of_the_run_before(episode, tmp_path):
+    """--restart removed the map, metrics and checkpoint but kept the old run's render_grid.png, which then
+    sat beside the new run's checkpoint (and stayed there if it was stopped before the evaluation)."""
+    ep = shutil.copytree(episode, tmp_path / "ep", ignore=shutil.ignore_patterns("refined_*"))
+    out = ep / "refined_3dgs"
+    refine(ep, "3dgs", 2, backend="numba", progress=False, eval_kwargs={**EVAL, "lpips": False})
+    assert (out / "render_grid.png").is_file()
+    refine(ep, "3dgs", 3, backend="numba", progress=False, restart=True, stop_at=1)
+    assert sorted(p.name for p in out.iterdir()) == ["checkpoint.pt"]

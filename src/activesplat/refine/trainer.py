@@ -51,7 +51,9 @@ from activesplat.splat.raster import backend_device
 CHECKPOINT = "checkpoint.pt"
 CHECKPOINT_VERSION = 1
 HISTORY_EVERY = 50  # iterations between entries of refine.json's loss / PSNR history
-OUTPUT_FILES = ("gaussians.ply", "render_metrics.json", "refine.json", CHECKPOINT)
+OUTPUT_FILES = ("gaussians.ply", "render_metrics.json", "render_grid.png", "refine.json", CHECKPOINT,
+                "checkpoint.tmp", "render_budget.json", "render_budget.png")
+"""What a run (and render-eval of its folder) writes into DIR/refined_<method>/: --restart removes it all."""
 
 
 @dataclass
