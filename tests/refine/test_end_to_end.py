@@ -109,6 +109,13 @@ def test_image_size_renders_the_keyframes_again(episode, tmp_path, capsys):
     res = refine(ep, "3dgs", 2, backend="numba", progress=False, eval_kwargs=EVAL, image_size=96)
     info = json.loads((ep / "refined_3dgs" / "refine.json").read_text())
     assert info["image_size"] == [96, 96] and res.metrics["width"] == 96 and res.metrics["height"] == 96
+    # render-eval of the refined folder measures it as refine did (it evaluated at the episode's 64 and
+    # overwrote refine's render_metrics.json with those numbers)
+    evaluate = ["render-eval", str(ep / "refined_3dgs"), "--n-train", "2", "--n-test", "2", "--no-progress"]
+    assert main(evaluate) == 0
+    capsys.readouterr()
+    again = json.loads((ep / "refined_3dgs" / "render_metrics.json").read_text())
+    assert again["width"] == 96 and again["train"]["psnr"] == pytest.approx(res.metrics["train"]["psnr"])
     assert main(["refine", str(ep), "--iters", "2", "--image-size", "8", "--no-progress", "--restart"]) == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith("activesplat: error:") and "image_size" in err and "\n" not in err
