@@ -165,3 +165,38 @@ def test_damaged_keyframe_arrays_are_episode_errors(episode, tmp_path):
     with pytest.raises(EpisodeError, match="unreadable keyframe buffer .*CRC"):
         refine(ep, "3dgs", 2, progress=False, evaluate=False)
     assert not (ep / "refined_3dgs").exists()
+
+
+def test_ctrl_c_saves_the_iteration_and_says_how_to_resume(episode, tmp_path, monkeypatch, capsys):
+    """The first Ctrl-C ends the iteration in progress, writes the checkpoint and says where it is and that
+    the same command resumes (it said only "interrupted"); the resumed run is the uninterrupted one."""
+    import signal
+
+    whole = refine(shutil.copytree(episode, tmp_path / "a"), "3dgs", 8, config=FAST, backend="numba",
+                   progress=False, evaluate=False)
+    ep = shutil.copytree(episode, tmp_path / "b")
+    step = Refiner.step
+
+    def step_then_ctrl_c(self):
+        out = step(self)
+        if self.iteration == 3:
+            signal.raise_signal(signal.SIGINT)
+        return out
+
+    monkeypatch.setattr(Refiner, "step", step_then_ctrl_c)
+    with pytest.raises(KeyboardInterrupt):
+        refine(ep, "3dgs", 8, config=FAST, backend="numba", progress=False, evaluate=False)
+    err = capsys.readouterr().err
+    assert "stopped at iteration 3 of 8" in err and str(ep / "refined_3dgs" / CHECKPOINT) in err
+    assert "same command resumes" in err
+    assert torch.load(ep / "refined_3dgs" / CHECKPOINT, weights_only=True)["iteration"] == 3
+    monkeypatch.setattr(Refiner, "step", step)
+    rest = refine(ep, "3dgs", 8, config=FAST, backend="numba", progress=False, evaluate=False)
+    assert rest.iterations == 8 and rest.n_gaussians == whole.n_gaussians and rest.densify == whole.densify
+
+
+def test_checkpoint_of_other_settings_names_them(fresh):
+    refine(fresh, "3dgs", 10, config=FAST, backend="numba", progress=False, evaluate=False, stop_at=2)
+    other = RefineConfig(**{**FAST.__dict__, "densify_interval": 5, "lambda_dssim": 0.3})
+    with pytest.raises(InvalidInputError, match=r"\(refine\.lambda_dssim=0\.2, refine\.densify_interval=4\)"):
+        Refiner(fresh, "3dgs", 10, config=other, backend="numba", progress=False)

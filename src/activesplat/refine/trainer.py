@@ -29,6 +29,7 @@ import json
 import math
 import os
 import signal
+import sys
 import threading
 import time
 import warnings
@@ -206,10 +207,13 @@ class Refiner:
         mine = self._identity()
         differ = [k for k in mine if state.get(k) != mine[k]]
         if differ:
-            was = ", ".join(f"{k}={state.get(k)}" for k in differ if k != "config")
+            was = [f"{k}={state.get(k)}" for k in differ if k != "config"]
+            saved = state.get("config") if isinstance(state.get("config"), dict) else {}
+            was += [f"refine.{k}={saved.get(k, 'absent')}" for k, v in mine["config"].items()
+                    if "config" in differ and saved.get(k) != v]
             raise InvalidInputError(
-                f"{path} belongs to another run ({was or 'other settings'}); pass the same arguments "
-                f"to resume it or --restart to start over")
+                f"{path} belongs to another run ({', '.join(was) or 'other settings'}); pass the same "
+                f"arguments to resume it or --restart to start over")
         self.gmap = GaussianMap(state["params"])
         self.optimizer = self.gmap.make_optimizer(self.lr, self.adam_eps)
         self.optimizer.load_state_dict(state["optimizer"])
@@ -309,6 +313,9 @@ class Refiner:
                         t0 = now
                         self.save_checkpoint()
                     if interrupt.requested:
+                        print(f"refine: stopped at iteration {self.iteration} of {self.iters}, saved in "
+                              f"{self.out_dir / CHECKPOINT}; the same command resumes (--restart starts "
+                              f"over)", file=sys.stderr)
                         raise KeyboardInterrupt
         finally:
             bar.close()
