@@ -126,7 +126,9 @@ def test_cli_bad_input_gives_one_line_errors(episode, tmp_path, capsys):
     cases = [
         ((empty,), "keyframes.npz"),
         ((tmp_path / "missing",), "no such episode folder"),
-        ((episode, "--method", "nerf"), "unknown refinement method"),
+        ((episode, "--method", "nerf"), "unknown method 'nerf'; choose one of: 3dgs, 2dgs"),
+        # the storey is the episode's own (episode.json); --floor was accepted and did nothing
+        ((episode, "--floor", "1"), "unknown option --floor"),
         ((episode, "--iters", "0"), "--iters"),
         ((episode, "--iters", "-5"), "--iters"),
     ]
