@@ -164,6 +164,10 @@ def test_a_completed_run_is_evaluated_again_when_asked_for_other_metrics(episode
     more = {"n_train": 3, "n_test": 2, "lpips": False}
     refine(ep, "3dgs", 2, backend="numba", progress=False, eval_kwargs=more)
     assert asked == [EVAL, more]
+    path = ep / "refined_3dgs" / "render_metrics.json"  # measured at another size (render-eval used to)
+    path.write_text(json.dumps({**json.loads(path.read_text()), "width": 32, "height": 32}))
+    refine(ep, "3dgs", 2, backend="numba", progress=False, eval_kwargs=no_lpips)
+    assert asked == [EVAL, more, no_lpips]
 
 
 def test_restart_leaves_nothing_of_the_run_before(episode, tmp_path):
@@ -175,3 +179,29 @@ def test_restart_leaves_nothing_of_the_run_before(episode, tmp_path):
     assert (out / "render_grid.png").is_file()
     refine(ep, "3dgs", 3, backend="numba", progress=False, restart=True, stop_at=1)
     assert sorted(p.name for p in out.iterdir()) == ["checkpoint.pt"]
+
+
+def test_summary_compares_with_the_online_map_on_the_same_views_only(episode, tmp_path, capsys):
+    """The summary printed the refined map's render-eval next to a running training PSNR called "keyframe
+    PSNR" (another metric, other views) and nothing of the online map. It now names the training PSNR for
+    what it is, and shows online -> refined when the episode's render_metrics.json has the same views."""
+    from activesplat.eval.render_eval import render_eval
+
+    ep = shutil.copytree(episode, tmp_path / "ep", ignore=shutil.ignore_patterns("refined_*", "render_*"))
+    argv = ["refine", str(ep), "--iters", "2", "--no-progress", "--backend", "numba", "--no-lpips"]
+    assert main(argv) == 0
+    out = capsys.readouterr().out
+    assert "training PSNR" in out and "running mean" in out and "keyframe PSNR" not in out
+    assert "render-eval of the refined map (10 train / 50 test views" in out
+    assert f"`activesplat render-eval {ep}`" in out  # how to get the online map's numbers
+    online = render_eval(ep, backend="numba", progress=False, lpips=False)
+    assert main(argv) == 0
+    out = capsys.readouterr().out
+    refined = json.loads((ep / "refined_3dgs" / "render_metrics.json").read_text())
+    assert "online map -> refined on the same 10 train / 50 test views" in out
+    assert f"PSNR {online['test']['psnr']:.2f} -> {refined['test']['psnr']:.2f} dB" in out
+    render_eval(ep, backend="numba", progress=False, lpips=False, seed=1)  # other test poses
+    assert main(argv) == 0
+    out = capsys.readouterr().out
+    assert "render-eval of the refined map" in out and " -> " not in out.split("\n", 2)[2]
+    assert "not compared" in out and "other render-eval settings" in out
