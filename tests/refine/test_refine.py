@@ -202,3 +202,24 @@ def test_checkpoint_of_other_settings_names_them(fresh):
     other = RefineConfig(**{**FAST.__dict__, "densify_interval": 5, "lambda_dssim": 0.3})
     with pytest.raises(InvalidInputError, match=r"\(refine\.lambda_dssim=0\.2, refine\.densify_interval=4\)"):
         Refiner(fresh, "3dgs", 10, config=other, backend="numba", progress=False)
+
+
+def test_an_output_folder_that_cannot_be_written_is_refused_before_training(fresh, monkeypatch):
+    """A file where DIR/refined_3dgs should be, or a read-only DIR, failed at the first checkpoint (or at the
+    end of a short run), after the training it was meant to keep."""
+    import tempfile
+
+    (fresh / "refined_3dgs").write_text("in the way")
+    trained = []
+    monkeypatch.setattr(Refiner, "step", lambda self: trained.append(1))
+    with pytest.raises(InvalidInputError, match="cannot write into .*refined_3dgs: it is a file"):
+        refine(fresh, "3dgs", 4, backend="numba", progress=False, evaluate=False)
+    (fresh / "refined_3dgs").unlink()
+
+    def read_only(*args, **kwargs):
+        raise PermissionError(13, "Permission denied")
+
+    monkeypatch.setattr(tempfile, "TemporaryFile", read_only)
+    with pytest.raises(InvalidInputError, match="cannot write into .*refined_3dgs .*Permission denied"):
+        refine(fresh, "3dgs", 4, backend="numba", progress=False, evaluate=False)
+    assert trained == []

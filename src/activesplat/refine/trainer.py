@@ -25,11 +25,13 @@ gives the same map as an uninterrupted run; ``restart=True`` (``--restart``) sta
 
 from __future__ import annotations
 
+import errno
 import json
 import math
 import os
 import signal
 import sys
+import tempfile
 import threading
 import time
 import warnings
@@ -115,6 +117,21 @@ class _DeferredInterrupt:
         return False
 
 
+def _check_writable(out_dir: Path) -> None:
+    """Before training: the outputs can be written (a read-only DIR, or a file named like the output
+    folder, failed at the first checkpoint, after up to ``checkpoint_every`` iterations, or at the end)."""
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=out_dir):
+            pass
+    except OSError as exc:
+        if out_dir.exists() and not out_dir.is_dir():
+            raise InvalidInputError(f"cannot write into {out_dir}: it is a file, not a folder") from None
+        if exc.errno in (errno.EACCES, errno.EPERM, errno.EROFS, errno.ENOTDIR):
+            raise InvalidInputError(f"cannot write into {out_dir} ({exc.strerror})") from None
+        raise  # a full disk: the command line's own message
+
+
 class Refiner:
     """One refinement run of an episode's map (see the module docstring)."""
 
@@ -146,6 +163,7 @@ class Refiner:
         self.method = make_method(method, self.cfg, self.iters, backend, planar)
         self.densify_until = self.cfg.densify_until(self.iters)
         extent = scene_extent(torch.from_numpy(poses[:, :3, 3]), self.cfg.extent_margin)
+        _check_writable(self.out_dir)
         if restart:
             for name in OUTPUT_FILES:
                 (self.out_dir / name).unlink(missing_ok=True)
