@@ -39,7 +39,7 @@ from activesplat.eval.coverage import CoverageConfig
 from activesplat.planning.explorer_config import ExplorerConfig
 from activesplat.planning.frontier import FrontierConfig
 from activesplat.planning.policies import POLICY_NAMES
-from activesplat.refine.config import RefineConfig
+from activesplat.refine.config import METHODS, RefineConfig
 from activesplat.sim.config import SimConfig
 from activesplat.splat.config import MapperConfig
 from activesplat.splat.rasterize import BACKENDS
@@ -61,6 +61,7 @@ DERIVED: dict[str, str] = {
 
 PolicyName = Literal[POLICY_NAMES]  # type: ignore[valid-type]
 BackendName = Literal[BACKENDS]  # type: ignore[valid-type]
+RefineMethod = Literal[METHODS]  # type: ignore[valid-type]
 
 
 # nested settings groups, each with a short description for --help (the classes' docstrings are long)
@@ -226,8 +227,9 @@ class RefineCommand:
 
     dir: Annotated[tyro.conf.Positional[Path], tyro.conf.arg(metavar="DIR")]
     """Episode folder."""
-    method: str = "3dgs"
-    """3dgs or 2dgs."""
+    method: RefineMethod = "3dgs"
+    """3dgs: 3D Gaussians with 3DGS adaptive density control; 2dgs: 2D Gaussian surfels with the 2DGS
+    regularisers."""
     iters: int = 2000
     """Optimisation iterations (ours: a CPU budget; 3DGS and 2DGS train 30,000)."""
     seed: int = 0
@@ -239,9 +241,6 @@ class RefineCommand:
     image_size: int | None = None
     """Refine and evaluate at this square size in pixels, the keyframes rendered again by the simulator
     from their poses (simulated episodes; the paper refines at 512). None: the keyframes as recorded."""
-    floor: int | float | str | None = None
-    """Storey of a multi-storey mesh: an index from the bottom (0, 1, ...) or a floor height in metres
-    (3.0); None: the mesh's only storey (an error lists the storeys when there are several)."""
     progress: bool = True
     """Show a progress bar."""
     lpips: bool = True

@@ -126,7 +126,9 @@ def test_cli_bad_input_gives_one_line_errors(episode, tmp_path, capsys):
     cases = [
         ((empty,), "keyframes.npz"),
         ((tmp_path / "missing",), "no such episode folder"),
-        ((episode, "--method", "nerf"), "unknown refinement method"),
+        ((episode, "--method", "nerf"), "unknown method 'nerf'; choose one of: 3dgs, 2dgs"),
+        # the storey is the episode's own (episode.json); --floor was accepted and did nothing
+        ((episode, "--floor", "1"), "unknown option --floor"),
         ((episode, "--iters", "0"), "--iters"),
         ((episode, "--iters", "-5"), "--iters"),
     ]
@@ -146,3 +148,78 @@ def test_empty_keyframe_buffer_is_rejected(episode, tmp_path):
     (ep / "keyframes.npz").write_bytes(b"not a zip")
     with pytest.raises(EpisodeError, match="unreadable"):
         refine(ep, "3dgs", 5, progress=False)
+
+
+def test_damaged_keyframe_arrays_are_episode_errors(episode, tmp_path):
+    """check_arguments reads only the steps; an rgb array that is missing or fails its CRC is found when the
+    buffer is loaded, and is an EpisodeError there too (it was a KeyError / BadZipFile traceback)."""
+    ep = shutil.copytree(episode, tmp_path / "ep")
+    with np.load(episode / "keyframes.npz") as data:
+        arrays = {k: data[k] for k in data.files}
+    np.savez(ep / "keyframes.npz", **{k: v for k, v in arrays.items() if k != "rgb"})
+    with pytest.raises(EpisodeError, match="unreadable keyframe buffer .*rgb"):
+        refine(ep, "3dgs", 2, progress=False, evaluate=False)
+    np.savez(ep / "keyframes.npz", **arrays)  # stored (not deflated): the bytes of rgb.npy are in the file
+    raw = bytearray((ep / "keyframes.npz").read_bytes())
+    start = raw.index(b"rgb.npy") + 200  # inside rgb.npy's data, after its local header and .npy header
+    raw[start:start + 64] = bytes(b ^ 0x5A for b in raw[start:start + 64])
+    (ep / "keyframes.npz").write_bytes(bytes(raw))
+    with pytest.raises(EpisodeError, match="unreadable keyframe buffer .*CRC"):
+        refine(ep, "3dgs", 2, progress=False, evaluate=False)
+    assert not (ep / "refined_3dgs").exists()
+
+
+def test_ctrl_c_saves_the_iteration_and_says_how_to_resume(episode, tmp_path, monkeypatch, capsys):
+    """The first Ctrl-C ends the iteration in progress, writes the checkpoint and says where it is and that
+    the same command resumes (it said only "interrupted"); the resumed run is the uninterrupted one."""
+    import signal
+
+    whole = refine(shutil.copytree(episode, tmp_path / "a"), "3dgs", 8, config=FAST, backend="numba",
+                   progress=False, evaluate=False)
+    ep = shutil.copytree(episode, tmp_path / "b")
+    step = Refiner.step
+
+    def step_then_ctrl_c(self):
+        out = step(self)
+        if self.iteration == 3:
+            signal.raise_signal(signal.SIGINT)
+        return out
+
+    monkeypatch.setattr(Refiner, "step", step_then_ctrl_c)
+    with pytest.raises(KeyboardInterrupt):
+        refine(ep, "3dgs", 8, config=FAST, backend="numba", progress=False, evaluate=False)
+    err = capsys.readouterr().err
+    assert "stopped at iteration 3 of 8" in err and str(ep / "refined_3dgs" / CHECKPOINT) in err
+    assert "same command resumes" in err
+    assert torch.load(ep / "refined_3dgs" / CHECKPOINT, weights_only=True)["iteration"] == 3
+    monkeypatch.setattr(Refiner, "step", step)
+    rest = refine(ep, "3dgs", 8, config=FAST, backend="numba", progress=False, evaluate=False)
+    assert rest.iterations == 8 and rest.n_gaussians == whole.n_gaussians and rest.densify == whole.densify
+
+
+def test_checkpoint_of_other_settings_names_them(fresh):
+    refine(fresh, "3dgs", 10, config=FAST, backend="numba", progress=False, evaluate=False, stop_at=2)
+    other = RefineConfig(**{**FAST.__dict__, "densify_interval": 5, "lambda_dssim": 0.3})
+    with pytest.raises(InvalidInputError, match=r"\(refine\.lambda_dssim=0\.2, refine\.densify_interval=4\)"):
+        Refiner(fresh, "3dgs", 10, config=other, backend="numba", progress=False)
+
+
+def test_an_output_folder_that_cannot_be_written_is_refused_before_training(fresh, monkeypatch):
+    """A file where DIR/refined_3dgs should be, or a read-only DIR, failed at the first checkpoint (or at the
+    end of a short run), after the training it was meant to keep."""
+    import tempfile
+
+    (fresh / "refined_3dgs").write_text("in the way")
+    trained = []
+    monkeypatch.setattr(Refiner, "step", lambda self: trained.append(1))
+    with pytest.raises(InvalidInputError, match="cannot write into .*refined_3dgs: it is a file"):
+        refine(fresh, "3dgs", 4, backend="numba", progress=False, evaluate=False)
+    (fresh / "refined_3dgs").unlink()
+
+    def read_only(*args, **kwargs):
+        raise PermissionError(13, "Permission denied")
+
+    monkeypatch.setattr(tempfile, "TemporaryFile", read_only)
+    with pytest.raises(InvalidInputError, match="cannot write into .*refined_3dgs .*Permission denied"):
+        refine(fresh, "3dgs", 4, backend="numba", progress=False, evaluate=False)
+    assert trained == []

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import zipfile
+import zlib
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -17,6 +18,10 @@ from activesplat.refine.config import METHODS
 from activesplat.splat.config import MapperConfig
 from activesplat.splat.gaussians import GaussianMap
 from activesplat.splat.ply import load_ply
+
+UNREADABLE = (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, zlib.error)
+"""What numpy raises for a keyframes.npz that is not a complete archive of the expected arrays (an array
+missing, a truncated file, a member whose data fails its CRC or does not decompress)."""
 
 
 def check_arguments(episode_dir: str | Path, method: str, iters: int) -> Path:
@@ -37,7 +42,7 @@ def check_arguments(episode_dir: str | Path, method: str, iters: int) -> Path:
     try:
         with np.load(keyframes) as data:
             count = len(data["step"])
-    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as err:
+    except UNREADABLE as err:
         raise EpisodeError(f"{keyframes}: unreadable keyframe buffer ({err})") from None
     if count == 0:
         raise EpisodeError(f"{keyframes}: the keyframe buffer is empty, nothing to refine from")
@@ -73,8 +78,11 @@ def load_episode_map(episode_dir: str | Path, device: str | torch.device = "cpu"
         config = MapperConfig.from_dict(meta["config"])
     except (ValueError, KeyError, TypeError) as err:
         raise EpisodeError(f"{path / 'mapper.json'}: unreadable mapper settings ({err})") from None
-    with np.load(path / "keyframes.npz") as data:
-        rgb, depth, poses = data["rgb"], data["depth"].astype(np.float32), data["pose"].astype(np.float64)
+    try:
+        with np.load(path / "keyframes.npz") as data:
+            rgb, depth, poses = data["rgb"], data["depth"].astype(np.float32), data["pose"].astype(np.float64)
+    except UNREADABLE as err:  # check_arguments read only the steps: an array may be missing or damaged
+        raise EpisodeError(f"{path / 'keyframes.npz'}: unreadable keyframe buffer ({err})") from None
     n = len(rgb)
     if rgb.shape != (n, height, width, 3) or depth.shape != (n, height, width) or poses.shape != (n, 4, 4):
         raise EpisodeError(f"{path / 'keyframes.npz'}: keyframes of shape {rgb.shape} / {depth.shape} / "

@@ -14,13 +14,19 @@ from activesplat.refine.methods import make_method
 
 
 def render_options(folder: Path) -> dict:
-    """`render_eval` arguments a map folder asks for: its refinement method's (refine.json), or none for an
-    episode's online map."""
+    """`render_eval` arguments a map folder asks for: its refinement method's renderer and the image size it
+    was refined at (refine.json; `refine --image-size 512` evaluates at 512, and so does render-eval of its
+    folder), or none for an episode's online map."""
     meta = Path(folder) / "refine.json"
-    method = json.loads(meta.read_text()).get("method") if meta.is_file() else None
+    info = json.loads(meta.read_text()) if meta.is_file() else {}
+    method = info.get("method") if isinstance(info, dict) else None
     if method not in METHODS:
         return {}
-    return make_method(method, RefineConfig(), iters=1).eval_kwargs()
+    options = make_method(method, RefineConfig(), iters=1).eval_kwargs()
+    size = info.get("image_size")
+    if isinstance(size, list) and len(size) == 2:  # [width, height] of the keyframes it was refined on
+        options["sim_overrides"] = {"width": int(size[0]), "height": int(size[1])}
+    return options
 
 
 def render_eval_from_args(args: argparse.Namespace) -> int:
@@ -37,7 +43,8 @@ def render_eval_from_args(args: argparse.Namespace) -> int:
 
         budget = error_budget(args.dir, n_train=args.n_train, n_test=args.n_test, seed=args.seed,
                               backend=args.backend, progress=not args.no_progress,
-                              renderer=options["renderer"], figure=Path(out) / "render_budget.png")
+                              renderer=options["renderer"], sim_overrides=options.get("sim_overrides"),
+                              figure=Path(out) / "render_budget.png")
         write_json_atomic(Path(out) / "render_budget.json", budget)
         print(f"\nerror budget ({Path(out) / 'render_budget.json'}, {Path(out) / 'render_budget.png'}):\n")
         print(format_budget(budget))

@@ -25,10 +25,13 @@ gives the same map as an uninterrupted run; ``restart=True`` (``--restart``) sta
 
 from __future__ import annotations
 
+import errno
 import json
 import math
 import os
 import signal
+import sys
+import tempfile
 import threading
 import time
 import warnings
@@ -38,7 +41,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from activesplat.errors import EpisodeError, InvalidInputError
+from activesplat.errors import ActiveSplatError, EpisodeError, InvalidInputError
 from activesplat.refine.adc import DensifyStats, DensityControl, reset_opacity, scene_extent
 from activesplat.refine.config import RefineConfig
 from activesplat.refine.episode_map import check_arguments, load_episode_map, rerender_keyframes
@@ -51,7 +54,9 @@ from activesplat.splat.raster import backend_device
 CHECKPOINT = "checkpoint.pt"
 CHECKPOINT_VERSION = 1
 HISTORY_EVERY = 50  # iterations between entries of refine.json's loss / PSNR history
-OUTPUT_FILES = ("gaussians.ply", "render_metrics.json", "refine.json", CHECKPOINT)
+OUTPUT_FILES = ("gaussians.ply", "render_metrics.json", "render_grid.png", "refine.json", CHECKPOINT,
+                "checkpoint.tmp", "render_budget.json", "render_budget.png")
+"""What a run (and render-eval of its folder) writes into DIR/refined_<method>/: --restart removes it all."""
 
 
 @dataclass
@@ -69,6 +74,7 @@ class RefineResult:
     psnr: float  # running mean (EMA) of the PSNR of the trained keyframes (valid-depth pixels)
     densify: dict = field(default_factory=dict)  # totals: cloned, split, pruned
     metrics: dict | None = None  # render_metrics.json, None when not evaluated
+    not_evaluated: str | None = None  # why the map was not evaluated although evaluation was asked for
 
     @property
     def complete(self) -> bool:
@@ -111,6 +117,21 @@ class _DeferredInterrupt:
         return False
 
 
+def _check_writable(out_dir: Path) -> None:
+    """Before training: the outputs can be written (a read-only DIR, or a file named like the output
+    folder, failed at the first checkpoint, after up to ``checkpoint_every`` iterations, or at the end)."""
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=out_dir):
+            pass
+    except OSError as exc:
+        if out_dir.exists() and not out_dir.is_dir():
+            raise InvalidInputError(f"cannot write into {out_dir}: it is a file, not a folder") from None
+        if exc.errno in (errno.EACCES, errno.EPERM, errno.EROFS, errno.ENOTDIR):
+            raise InvalidInputError(f"cannot write into {out_dir} ({exc.strerror})") from None
+        raise  # a full disk: the command line's own message
+
+
 class Refiner:
     """One refinement run of an episode's map (see the module docstring)."""
 
@@ -142,6 +163,7 @@ class Refiner:
         self.method = make_method(method, self.cfg, self.iters, backend, planar)
         self.densify_until = self.cfg.densify_until(self.iters)
         extent = scene_extent(torch.from_numpy(poses[:, :3, 3]), self.cfg.extent_margin)
+        _check_writable(self.out_dir)
         if restart:
             for name in OUTPUT_FILES:
                 (self.out_dir / name).unlink(missing_ok=True)
@@ -203,10 +225,13 @@ class Refiner:
         mine = self._identity()
         differ = [k for k in mine if state.get(k) != mine[k]]
         if differ:
-            was = ", ".join(f"{k}={state.get(k)}" for k in differ if k != "config")
+            was = [f"{k}={state.get(k)}" for k in differ if k != "config"]
+            saved = state.get("config") if isinstance(state.get("config"), dict) else {}
+            was += [f"refine.{k}={saved.get(k, 'absent')}" for k, v in mine["config"].items()
+                    if "config" in differ and saved.get(k) != v]
             raise InvalidInputError(
-                f"{path} belongs to another run ({was or 'other settings'}); pass the same arguments "
-                f"to resume it or --restart to start over")
+                f"{path} belongs to another run ({', '.join(was) or 'other settings'}); pass the same "
+                f"arguments to resume it or --restart to start over")
         self.gmap = GaussianMap(state["params"])
         self.optimizer = self.gmap.make_optimizer(self.lr, self.adam_eps)
         self.optimizer.load_state_dict(state["optimizer"])
@@ -306,6 +331,9 @@ class Refiner:
                         t0 = now
                         self.save_checkpoint()
                     if interrupt.requested:
+                        print(f"refine: stopped at iteration {self.iteration} of {self.iters}, saved in "
+                              f"{self.out_dir / CHECKPOINT}; the same command resumes (--restart starts "
+                              f"over)", file=sys.stderr)
                         raise KeyboardInterrupt
         finally:
             bar.close()
@@ -363,6 +391,41 @@ class Refiner:
         return render_eval(self.episode_dir, gaussians_path=ply, out_dir=self.out_dir, **options)
 
 
+def evaluation_blocker(episode_dir: Path) -> str | None:
+    """Checked before training: why the refined map of ``episode_dir`` cannot be evaluated (an episode
+    explored in an environment without ground truth, e.g. a robot: refined without evaluation), None when
+    it can. EpisodeError when the evaluation would fail on a broken episode (no or an unreadable
+    episode.json, a scene that does not load), which used to surface only after the last iteration."""
+    from activesplat.eval.evaluate import simulated_scene
+    from activesplat.eval.render_eval import _read_meta, locate
+
+    locate(episode_dir)
+    meta = _read_meta(episode_dir)
+    if meta.get("source") == "environment":
+        return (f"{episode_dir} was explored in an environment without ground truth ({meta.get('scene')}), "
+                f"so there is nothing to render-evaluate the refined map against")
+    if meta.get("source") != "recording":
+        try:  # the ground truth's scene loads (e.g. a mesh file still where the episode says)
+            simulated_scene(meta, episode_dir)
+        except ActiveSplatError as err:
+            raise EpisodeError(f"{err} (the evaluation after training renders the ground truth from the "
+                               f"episode's scene)") from None
+    return None
+
+
+def _metrics_match(metrics: dict, eval_kwargs: dict, size: tuple[int, int]) -> bool:
+    """Whether a refined folder's render_metrics.json was measured as this call asks (LPIPS on or off, the
+    number of views, the image ``size`` refined at): a completed run then reuses it instead of evaluating
+    again."""
+    if (metrics.get("width"), metrics.get("height")) != size:
+        return False
+    wanted_lpips = eval_kwargs.get("lpips", True)
+    measured_lpips = not str(metrics.get("protocol", {}).get("lpips", "")).startswith("not measured")
+    views = {split: metrics.get(split, {}).get("n_views") for split in ("train", "test")}
+    return (measured_lpips == wanted_lpips and views["train"] == eval_kwargs.get("n_train", views["train"])
+            and views["test"] == eval_kwargs.get("n_test", views["test"]))
+
+
 def refine(episode_dir: str | Path, method: str = "3dgs", iters: int = 2000, *,
            config: RefineConfig | None = None, seed: int = 0, backend: str = "auto", restart: bool = False,
            progress: bool = True, evaluate: bool = True, stop_at: int | None = None,
@@ -371,11 +434,17 @@ def refine(episode_dir: str | Path, method: str = "3dgs", iters: int = 2000, *,
     """Refine the map of ``episode_dir`` offline (see the module docstring); returns what it produced.
 
     ``stop_at`` stops after that iteration with a checkpoint, as Ctrl-C would (a later call resumes);
-    ``evaluate=False`` skips render_metrics.json; ``eval_kwargs`` go to ``render_eval`` (e.g. n_test);
-    ``out_dir`` replaces ``DIR/refined_<method>`` (e.g. one folder per iteration count in a benchmark);
-    ``image_size`` refines (and evaluates) at that square size, the keyframes rendered again by the
-    simulator (:func:`rerender_keyframes`; the paper: 512).
+    ``evaluate=False`` skips render_metrics.json (so does an episode without ground truth, see
+    :func:`evaluation_blocker`; ``RefineResult.not_evaluated`` says why); ``eval_kwargs`` go to
+    ``render_eval`` (e.g. n_test); ``out_dir`` replaces ``DIR/refined_<method>`` (e.g. one folder per
+    iteration count in a benchmark); ``image_size`` refines (and evaluates) at that square size, the
+    keyframes rendered again by the simulator (:func:`rerender_keyframes`; the paper: 512). A completed run
+    is not trained again, and its render_metrics.json is reused when it was measured as ``eval_kwargs``
+    ask (LPIPS, views), else measured again.
     """
+    eval_kwargs = dict(eval_kwargs or {})
+    blocker = evaluation_blocker(check_arguments(episode_dir, method, iters)) if evaluate else None
+    evaluate = evaluate and blocker is None
     refiner = Refiner(episode_dir, method, iters, config, seed, backend, restart, progress, out_dir,
                       image_size)
     metrics_path = refiner.out_dir / "render_metrics.json"
@@ -383,12 +452,13 @@ def refine(episode_dir: str | Path, method: str = "3dgs", iters: int = 2000, *,
     refiner.train(stop_at)
     if refiner.iteration < refiner.iters:
         return refiner.result()
-    if done_before and (metrics_path.is_file() or not evaluate):
-        metrics = json.loads(metrics_path.read_text()) if metrics_path.is_file() else None
-        return refiner.result(metrics)
+    saved = json.loads(metrics_path.read_text()) if metrics_path.is_file() else None
+    size = (refiner.width, refiner.height)
+    if done_before and (not evaluate or (saved is not None and _metrics_match(saved, eval_kwargs, size))):
+        return replace(refiner.result(saved), not_evaluated=blocker)
     ply = refiner.write_outputs()
-    metrics = refiner.evaluate(ply, **(eval_kwargs or {})) if evaluate else None
-    return refiner.result(metrics)
+    metrics = refiner.evaluate(ply, **eval_kwargs) if evaluate else None
+    return replace(refiner.result(metrics), not_evaluated=blocker)
 
 
 def refine_from_command(cmd) -> int:
@@ -406,26 +476,83 @@ def refine_from_command(cmd) -> int:
     print(f"refined {res.method}: {res.iterations} iterations ({rate:.2f} it/s), "
           f"{res.n_gaussians_initial} -> {res.n_gaussians} Gaussians "
           f"(cloned {res.densify.get('cloned', 0)}, split {res.densify.get('split', 0)}, "
-          f"pruned {res.densify.get('pruned', 0)}), keyframe PSNR {res.psnr:.2f} dB -> {res.out_dir}")
+          f"pruned {res.densify.get('pruned', 0)}) -> {res.out_dir}")
+    window = round(1.0 / (1.0 - cmd.refine.psnr_ema)) if cmd.refine.psnr_ema < 1 else res.iterations
+    print(f"training PSNR {res.psnr:.2f} dB (running mean over about the last {window} iterations' "
+          f"keyframes, pixels with depth, the map still changing: not the render-eval numbers below)")
     if res.metrics:
-        print(format_metrics(res.metrics))
+        online_path = Path(cmd.dir) / "render_metrics.json"
+        online = json.loads(online_path.read_text()) if online_path.is_file() else None
+        print(format_metrics(res.metrics, online, online_path, same_size=cmd.image_size is None))
+    elif res.not_evaluated:
+        print(f"not evaluated: {res.not_evaluated}")
     return 0
 
 
-def format_metrics(metrics: dict) -> str:
-    """One line per split: PSNR / SSIM / LPIPS / depth L1."""
-    lines = []
+VIEW_KEYS = ("step", "position", "yaw_deg")  # what names a view in render_metrics.json (train / test)
+
+
+def other_views(before: dict, after: dict) -> str | None:
+    """None when two render_metrics.json measured the same views the same way (image size, field of view,
+    render-eval settings, metric definitions, every view's step or pose), else what differs. LPIPS
+    measured in one of them only does not count (it is then left out of the comparison)."""
+    def protocol(m: dict) -> dict:
+        return {k: v for k, v in (m.get("protocol") or {}).items() if k != "lpips"}
+
+    if (before.get("width"), before.get("height")) != (after.get("width"), after.get("height")):
+        return (f"image size {before.get('width')}x{before.get('height')}, not "
+                f"{after.get('width')}x{after.get('height')}")
+    for what, a, b in (("field of view", before.get("hfov_deg"), after.get("hfov_deg")),
+                       ("render-eval settings", before.get("config"), after.get("config")),
+                       ("metric definitions", protocol(before), protocol(after))):
+        if a != b:
+            return f"other {what}"
+    for split in ("train", "test"):
+        views = [[{k: v.get(k) for k in VIEW_KEYS} for v in (m.get(split) or {}).get("views", [])]
+                 for m in (before, after)]
+        if views[0] != views[1]:
+            return f"other {split} views"
+    return None
+
+
+def format_metrics(metrics: dict, online: dict | None = None, online_path: Path | None = None,
+                   same_size: bool = True) -> str:
+    """The refined map's render-eval: a heading naming the views, then one line per split (PSNR / SSIM /
+    LPIPS / depth L1). With the online map's render_metrics.json of the same views (:func:`other_views`),
+    every number as online -> refined; otherwise a last line says why the online map is not shown
+    (``same_size``: the map was refined at the keyframes' own size, so that render-eval of the episode
+    measures the same views)."""
+    differs = other_views(online, metrics) if online is not None else None
+    before = online if online is not None and differs is None else None
+    n = {split: (metrics.get(split) or {}).get("n_views") or 0 for split in ("train", "test")}
+    lines = [f"render-eval, online map -> refined on the same {n['train']} train / {n['test']} test views "
+             f"(whole image):" if before else
+             f"render-eval of the refined map ({n['train']} train / {n['test']} test views, whole image):"]
+
+    def value(split: str, key: str, spec: str) -> str:
+        after = format(metrics[split][key], spec)
+        old = (before or {}).get(split, {}).get(key)
+        return after if old is None else f"{format(old, spec)} -> {after}"
+
     for split in ("train", "test"):
         m = metrics.get(split)
         if not m or m.get("psnr") is None:  # no views (a recorded map has no test split)
             continue
-        parts = [f"PSNR {m['psnr']:.2f} dB", f"SSIM {m['ssim']:.3f}"]
+        parts = [f"PSNR {value(split, 'psnr', '.2f')} dB", f"SSIM {value(split, 'ssim', '.3f')}"]
         if m.get("lpips") is not None:
-            parts.append(f"LPIPS {m['lpips']:.3f}")
-        parts.append(f"depth L1 {m['depth_l1_cm']:.2f} cm")
+            parts.append(f"LPIPS {value(split, 'lpips', '.3f')}")
+        parts.append(f"depth L1 {value(split, 'depth_l1_cm', '.2f')} cm")
         lines.append(f"{split:5s} " + "  ".join(parts))
+    if online is None and online_path is not None and same_size:
+        lines.append(f"(the online map on the same views: `activesplat render-eval {online_path.parent}`, "
+                     f"then this command again)")
+    elif online is None and online_path is not None:
+        lines.append("(the online map is not compared: render-eval measures it at the episode's own image "
+                     "size, not the one refined at)")
+    elif differs is not None:
+        lines.append(f"(the online map is not compared: {online_path} has {differs})")
     return "\n".join(lines)
 
 
-__all__ = ["RefineResult", "Refiner", "check_arguments", "output_dir", "refine",
+__all__ = ["RefineResult", "Refiner", "check_arguments", "evaluation_blocker", "output_dir", "refine",
            "refine_from_command"]
