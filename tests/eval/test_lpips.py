@@ -130,3 +130,15 @@ def test_official_example_images(model):
     ref = load("ex_ref.png")
     assert lp.lpips_distance(ref, load("ex_p0.png"), model) == pytest.approx(0.7222, abs=2e-3)
     assert lp.lpips_distance(ref, load("ex_p1.png"), model) == pytest.approx(0.1862, abs=2e-3)
+
+
+def test_uint8_images_are_scaled_not_clamped(model):
+    """A uint8 image (the simulator's ground truth) reads as its values / 255, as in image_metrics; clamped
+    as it stood it became black and white."""
+    x, y = _smooth_image(5), _smooth_image(6)
+    x8, y8 = ((a * 255).round().astype(np.uint8) for a in (x, y))
+    scaled = lp.lpips_distance(x8 / np.float32(255), y8 / np.float32(255), model)
+    assert lp.lpips_distance(x8, y8, model) == pytest.approx(scaled, rel=1e-6)
+    assert lp.lpips_distance(x8 / np.float32(255), y8, model) == pytest.approx(scaled, rel=1e-6)
+    tensors = lp.lpips_distance(torch.from_numpy(x8), torch.from_numpy(y8), model)
+    assert tensors == pytest.approx(scaled, rel=1e-6)

@@ -171,8 +171,9 @@ def _default_model() -> LPIPS:
 
 def lpips_distance(rgb: np.ndarray | torch.Tensor, gt: np.ndarray | torch.Tensor,
                    model: LPIPS | None = None) -> float:
-    """LPIPS (AlexNet, v0.1) between two (H,W,3) images with values in [0, 1] (mapped to [-1, 1] here).
-    Images need H, W >= 32 (AlexNet's receptive field)."""
+    """LPIPS (AlexNet, v0.1) between two (H,W,3) images with values in [0, 1] (mapped to [-1, 1] here);
+    uint8 images (0-255, as the simulator renders) are divided by 255 first, as everywhere in
+    ``activesplat.eval.image_metrics``. Images need H, W >= 32 (AlexNet's receptive field)."""
     model = model or _default_model()
     x, y = (_to_batch(a) for a in (rgb, gt))
     if min(x.shape[-2:]) < 32:
@@ -185,4 +186,6 @@ def _to_batch(image) -> torch.Tensor:
     t = torch.as_tensor(np.asarray(image) if not isinstance(image, torch.Tensor) else image)
     if t.ndim != 3 or t.shape[-1] != 3:
         raise ValueError(f"expected an (H,W,3) image, got shape {tuple(t.shape)}")
-    return t.detach().to(torch.float32).clamp(0.0, 1.0).permute(2, 0, 1)[None].contiguous()
+    # a uint8 image clamped to [0, 1] as it stands would read as black and white: scale it first
+    t = t.detach().to(torch.float32) / (255.0 if t.dtype == torch.uint8 else 1.0)
+    return t.clamp(0.0, 1.0).permute(2, 0, 1)[None].contiguous()
