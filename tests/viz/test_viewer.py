@@ -8,6 +8,7 @@ import socket
 import sys
 import time
 import urllib.request
+from pathlib import Path
 from types import SimpleNamespace
 
 import msgspec
@@ -27,7 +28,7 @@ from activesplat.planning.explorer import ExplorerView
 from activesplat.planning.viewpoints import RotationTarget
 from activesplat.sim import SimConfig
 from activesplat.splat.gaussians import GaussianMap
-from activesplat.splat.ply import load_ply
+from activesplat.splat.ply import load_ply, save_ply
 from activesplat.viz.viewer import (
     EpisodeViewer,
     LiveViewer,
@@ -305,3 +306,149 @@ def test_without_a_viewer_viser_is_never_imported(tmp_path, monkeypatch):
     monkeypatch.setitem(sys.modules, "viser", None)  # any `import viser` now raises ImportError
     metrics = run_exploration("small-0", steps=2, seed=0, out=tmp_path / "ep", **TINY)
     assert metrics["steps"] == 2
+
+
+def copy_episode(src, dst):
+    """A copy of the fixture's episode (the tests below change it)."""
+    import shutil
+
+    shutil.copytree(src, dst)
+    return dst
+
+
+def splats_sent(port: int) -> int:
+    (splats, buffers), = named(scene_messages(port), "GaussianSplatsMessage", "/map/splats")
+    return len(splat_centers(splats, buffers))
+
+
+def test_a_refined_map_opens_with_its_episode_and_the_online_one_a_click_away(live, tmp_path, capsys):
+    """`view DIR/refined_3dgs`: the refined map with the episode's trajectory, graph and timeline; the map
+    dropdown switches to the online map (and `view DIR` offers the refined one)."""
+    _, out, metrics = live
+    ep = copy_episode(out, tmp_path / "ep")
+    online = load_ply(ep / "gaussians.ply")
+    (ep / "refined_3dgs").mkdir()
+    save_ply(GaussianMap(online.rows(torch.arange(len(online) // 2))), ep / "refined_3dgs" / "gaussians.ply")
+    (ep / "refined_3dgs" / "refine.json").write_text('{"method": "3dgs"}')
+    viewer = EpisodeViewer(ep / "refined_3dgs", port=free_port(), ground_truth=False)
+    try:
+        assert splats_sent(viewer.port) == len(online) // 2
+        assert viewer.slider.max == STEPS and len(viewer.positions) == STEPS + 1
+        assert viewer.map_choice.options == ("online", "refined_3dgs")
+        assert viewer.map_choice.value == "refined_3dgs"
+        assert "**map** refined_3dgs" in viewer.draw.status.content
+        viewer.map_choice.value = "online"  # what a click in the dropdown does
+        assert splats_sent(viewer.port) == metrics["n_gaussians"]
+        assert "**map** online" in viewer.draw.status.content
+        deadline = time.monotonic() + 10
+        while viewer.draw.sent.get("image:map RGB", 0) < 2 and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert viewer.draw.sent["image:map RGB"] >= 2
+    finally:
+        viewer.close()
+    viewer = EpisodeViewer(ep, port=free_port(), ground_truth=False)
+    try:
+        assert viewer.map_choice.value == "online" and splats_sent(viewer.port) == metrics["n_gaussians"]
+    finally:
+        viewer.close()
+    (ep / "refined_2dgs").mkdir()  # an interrupted refinement: no map yet
+    with pytest.raises(EpisodeError, match="nor a map folder inside one"):
+        EpisodeViewer(ep / "refined_2dgs", port=free_port())
+
+
+@pytest.fixture(scope="module")
+def recorded_map(tmp_path_factory):
+    """A map of a recording (`activesplat map` of a TUM RGB-D folder, every 3rd frame held out)."""
+    pytest.importorskip("cv2")
+    sys.path.insert(0, str(Path(__file__).parents[1] / "robot"))
+    from _bags import sim_frames, write_tum
+
+    K, frames = sim_frames(9, 32)
+    root = tmp_path_factory.mktemp("recorded")
+    tum = write_tum(root / "tum", K, frames)
+    out = root / "map"
+    assert main(["map", str(tum), "--intrinsics", *(str(v) for v in (K[0, 0], K[1, 1], K[0, 2], K[1, 2])),
+                 "--holdout-every", "3", "--backend", "numba", "--out", str(out), "--no-progress"]) == 0
+    return out, frames
+
+
+def test_a_recorded_map_shows_its_trajectory_and_the_held_out_frames_beside_the_map(recorded_map, capsys):
+    """`view` of an `activesplat map` folder: the map, the camera trajectory of poses.txt with a frame
+    slider, and at the held-out frames (the only recorded images kept) the recording beside the map's
+    rendering; at the mapped frames no stale recorded image stays on the page."""
+    out, frames = recorded_map
+    viewer = EpisodeViewer(out, port=free_port())
+    try:
+        assert splats_sent(viewer.port) == len(load_ply(out / "gaussians.ply")) > 0
+        assert viewer.slider.max == len(frames) - 1 and viewer.slider.label == "frame"
+        assert np.allclose(viewer.positions, [pose[:3, 3] for _, _, pose in frames], atol=1e-6)
+        held = np.load(out / "heldout.npz")["index"]
+        assert list(held) == [2, 5, 8] and "6 mapped, 3 held out" in viewer.draw.status.content
+
+        def images_at(frame: int) -> dict:
+            before = viewer.draw.sent.get("image:map RGB", 0)
+            viewer.slider.value = frame
+            deadline = time.monotonic() + 10
+            while viewer.draw.sent.get("image:map RGB", 0) == before and time.monotonic() < deadline:
+                time.sleep(0.05)
+            return {k: h for k, h in viewer.draw.image_handles.items() if h.visible}
+
+        shown = images_at(5)
+        assert "held out of the map" in viewer.draw.status.content
+        assert np.array_equal(shown["recorded RGB (held out)"].image, frames[5][0])
+        assert set(shown) == {"recorded RGB (held out)", "recorded depth (held out)", "map RGB"}
+        assert set(images_at(4)) == {"map RGB"} and "**frame** 4: map rendering" in viewer.draw.status.content
+    finally:
+        viewer.close()
+
+
+def test_a_map_too_large_for_the_browser_says_what_it_sends(live, tmp_path, capsys):
+    """Above `max_splats` only the most opaque Gaussians go to the browser: the page and the terminal say
+    so (the page showed the full count as if all were drawn), and `--max-splats` sets the budget."""
+    _, out, metrics = live
+    viewer = EpisodeViewer(out, port=free_port(), config=ViewerConfig(max_splats=100), ground_truth=False)
+    try:
+        assert splats_sent(viewer.port) == 100
+        assert f"{metrics['n_gaussians']} gaussians, the 100 most opaque drawn" in viewer.draw.status.content
+    finally:
+        viewer.close()
+    assert "the browser is sent the 100 most opaque (--max-splats to change)" in capsys.readouterr().err
+    mapper, obs = fake_mapper_and_obs()  # the live page too: 20 Gaussians, 5 drawn
+    live_viewer = LiveViewer(port=free_port(), config=ViewerConfig(max_splats=5), clock=FakeClock())
+    try:
+        live_viewer.update(1, obs, mapper, object())
+        assert "20 gaussians, the 5 most opaque drawn" in live_viewer.draw.status.content
+    finally:
+        live_viewer.close()
+    assert main(["view", str(out), "--max-splats", "0", "--port", str(free_port())]) == 2
+    assert "--max-splats must be a positive number" in capsys.readouterr().err
+
+
+def test_an_episode_without_a_map_or_graph_shows_what_it_has(live, tmp_path, capsys, monkeypatch):
+    """No gaussians.ply (an episode cut before its map was written): the trajectory and timeline, and a line
+    saying why there is no map. A map the workspace cannot be built from: the map without the graph."""
+    _, out, _ = live
+    ep = copy_episode(out, tmp_path / "ep")
+    (ep / "gaussians.ply").unlink()
+    viewer = EpisodeViewer(ep, port=free_port(), ground_truth=False)
+    try:
+        messages = scene_messages(viewer.port)
+        assert not named(messages, "GaussianSplatsMessage") and named(messages, "LineSegmentsMessage",
+                                                                      "/agent/trajectory_all")
+        assert "**map** none (no gaussians.ply)" in viewer.draw.status.content
+    finally:
+        viewer.close()
+    assert "has no map (no gaussians.ply): showing the trajectory only" in capsys.readouterr().err
+
+    def no_workspace(*_args, **_kwargs):
+        raise ValueError("no floor in the map")
+
+    monkeypatch.setattr("activesplat.workspace.plan.build_plan", no_workspace)
+    viewer = EpisodeViewer(out, port=free_port(), ground_truth=False)
+    try:
+        messages = scene_messages(viewer.port)
+        assert named(messages, "GaussianSplatsMessage") and not named(messages, "PointCloudMessage")
+        assert "**graph** 0 nodes" in viewer.draw.status.content
+    finally:
+        viewer.close()
+    assert "viewer: no graph (ValueError: no floor in the map)" in capsys.readouterr().err
