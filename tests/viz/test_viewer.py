@@ -452,3 +452,27 @@ def test_an_episode_without_a_map_or_graph_shows_what_it_has(live, tmp_path, cap
     finally:
         viewer.close()
     assert "viewer: no graph (ValueError: no floor in the map)" in capsys.readouterr().err
+
+
+def test_ctrl_c_during_a_render_closes_without_a_warning(live):
+    """Ctrl-C while the render worker draws the map: it finishes before the server stops, and nothing is
+    queued on the stopped server (viser warned 'Queued a GuiImageMessage on a closed connection')."""
+    import warnings
+
+    _, out, _ = live
+    viewer = EpisodeViewer(out, port=free_port(), ground_truth=False)
+    gmap, render = viewer._map("online")
+
+    def slow(*args):
+        time.sleep(0.5)
+        return render(*args)
+
+    viewer._loaded["online"] = (gmap, slow)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        viewer.show_step(3)
+        time.sleep(0.2)  # the worker is rendering
+        viewer.close()
+        time.sleep(0.5)
+    assert not [w for w in caught if "closed connection" in str(w.message)]
+    assert not viewer._worker.is_alive()

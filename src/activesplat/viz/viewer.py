@@ -455,17 +455,23 @@ class EpisodeViewer:
         pose = self.poses[step]
         if self.sim is not None:
             rgb, depth = self.sim.render(pose, self.width, self.height)
-            self.draw.set_image("ground truth RGB", rgb)
-            self.draw.set_image("ground truth depth", depth_image(depth, self.cfg.depth_max_m))
+            self._show("ground truth RGB", rgb)
+            self._show("ground truth depth", depth_image(depth, self.cfg.depth_max_m))
         if self.heldout is not None:
             rgb, depth = self.heldout.get(step, (None, None))
-            self.draw.set_image("recorded RGB (held out)", rgb)
-            self.draw.set_image("recorded depth (held out)", None if depth is None else
-                                depth_image(depth, self.cfg.depth_max_m))
+            self._show("recorded RGB (held out)", rgb)
+            self._show("recorded depth (held out)",
+                       None if depth is None else depth_image(depth, self.cfg.depth_max_m))
         if self.map_name is not None:
             gmap, renderer = self._map(self.map_name)
             rgb = renderer(gmap, pose, self.K, self.width, self.height, "auto")[0]
-            self.draw.set_image("map RGB", (255 * np.clip(rgb, 0, 1) + 0.5).astype(np.uint8))
+            self._show("map RGB", (255 * np.clip(rgb, 0, 1) + 0.5).astype(np.uint8))
+
+    def _show(self, label: str, image: np.ndarray | None) -> None:
+        """An image of the render worker, unless the viewer is closing (a render that ends after Ctrl-C
+        would be queued on a stopped server, which warns that it will never be delivered)."""
+        if not self._stop:
+            self.draw.set_image(label, image)
 
     def serve_forever(self) -> None:
         """Serve until Ctrl-C; the play checkbox advances the slider at `play_fps`."""
@@ -482,9 +488,9 @@ class EpisodeViewer:
         with self._wake:
             self._stop = True
             self._wake.notify()
-        self.server.stop()
-        if self._worker.is_alive():
+        if self._worker.is_alive():  # its last render ends before the server does
             self._worker.join(timeout=5.0)
+        self.server.stop()
 
 
 def view_from_args(args) -> int:
