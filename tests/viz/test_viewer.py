@@ -295,11 +295,12 @@ def test_bad_input_is_a_one_line_error(live, tmp_path, capsys):
         busy.bind(("127.0.0.1", 0))
         busy.listen()
         port = busy.getsockname()[1]
-        with pytest.raises(InvalidInputError, match="not available"):
+        with pytest.raises(InvalidInputError, match="not available .*; pick another with --viewer-port$"):
             LiveViewer(port=port)
         assert main(["view", str(out), "--port", str(port)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert err[-1].startswith("activesplat: error:") and "not available" in err[-1]
+    assert err[-1].endswith("pick another with --port")  # the option of `view`, not also explore's
 
 
 def test_without_a_viewer_viser_is_never_imported(tmp_path, monkeypatch):
@@ -476,3 +477,23 @@ def test_ctrl_c_during_a_render_closes_without_a_warning(live):
         time.sleep(0.5)
     assert not [w for w in caught if "closed connection" in str(w.message)]
     assert not viewer._worker.is_alive()
+
+
+def test_an_error_in_the_live_viewer_stops_the_page_not_the_exploration(tmp_path, capsys):
+    """A failing update (here: the explorer's state cannot be read) used to end the run with a traceback,
+    after however many minutes of exploring; now the page stops updating and the run goes on."""
+    mapper, obs = fake_mapper_and_obs()
+
+    def broken():
+        raise RuntimeError("no plan yet")
+
+    viewer = LiveViewer(port=free_port(), clock=FakeClock())
+    try:
+        viewer.update(1, obs, mapper, SimpleNamespace(view_state=broken))
+        viewer.update(2, obs, mapper, SimpleNamespace(view_state=broken))
+        assert viewer.failed == "step 1: RuntimeError: no plan yet" and viewer.updates == 0
+    finally:
+        viewer.close()
+    err = capsys.readouterr().err
+    assert err.count("the page stopped updating at step 1: RuntimeError: no plan yet; the exploration goes "
+                     "on") == 1

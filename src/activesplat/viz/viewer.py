@@ -73,27 +73,30 @@ def free_port(host: str = "127.0.0.1") -> int:
         return int(s.getsockname()[1])
 
 
-def _check_port(host: str, port: int) -> None:
+def _check_port(host: str, port: int, option: str = "--port") -> None:
+    """InvalidInputError naming `option` (the command's port option) when `host:port` cannot be served."""
     if not 0 < port < 65536:
-        raise InvalidInputError(f"viewer port must be in 1..65535, got {port}")
+        raise InvalidInputError(f"{option} must be in 1..65535, got {port}")
     with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
         s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)  # as the server itself binds
         try:
             s.bind((host, port))
         except OSError as exc:
             raise InvalidInputError(f"viewer port {port} on {host} is not available ({exc.strerror}); "
-                                    "pick another with --port / --viewer-port") from None
+                                    f"pick another with {option}") from None
 
 
-def start_server(port: int, cfg: ViewerConfig):
-    """A viser server on exactly `cfg.host:port` (viser itself would silently take the next free port)."""
-    _check_port(cfg.host, port)
+def start_server(port: int, cfg: ViewerConfig, option: str = "--port"):
+    """A viser server on exactly `cfg.host:port` (viser itself would silently take the next free port);
+    `option` is the command's port option, named when the port is taken."""
+    _check_port(cfg.host, port, option)
     import viser
 
     server = viser.ViserServer(host=cfg.host, port=port, verbose=False)
     if server.get_port() != port:  # lost a race for the port
         server.stop()
-        raise InvalidInputError(f"viewer port {port} on {cfg.host} is not available")
+        raise InvalidInputError(f"viewer port {port} on {cfg.host} is not available; pick another with "
+                                f"{option}")
     server.scene.set_up_direction("+y")
     return server
 
@@ -111,7 +114,7 @@ class LiveViewer:
     def __init__(self, port: int = 8080, config: ViewerConfig | None = None,
                  clock: Callable[[], float] = time.monotonic):
         self.cfg = config or ViewerConfig()
-        self.server = start_server(port, self.cfg)
+        self.server = start_server(port, self.cfg, "--viewer-port")
         self.port = self.server.get_port()
         self.url = f"http://{self.cfg.host}:{self.port}"
         self.draw = SceneDrawer(self.server, self.cfg, "activesplat explore (live)")
@@ -125,6 +128,8 @@ class LiveViewer:
         self.time_ms = 0.0
         """Wall time spent in update() so far (what the viewer costs the run)."""
         self.updates = 0
+        self.failed: str | None = None
+        """Why the page stopped updating (the first error of `update`), None while it updates."""
         print(f"viewer: {self.url}", file=sys.stderr)
 
     @property
@@ -132,6 +137,18 @@ class LiveViewer:
         return self.draw.sent
 
     def update(self, step: int, obs, mapper, explorer, final: bool = False) -> None:
+        """Send what is due. An error here stops the page's updates, not the exploration: one line says so
+        and the run goes on (it may have minutes of work behind it)."""
+        if self.failed is not None:
+            return
+        try:
+            self._update(step, obs, mapper, explorer, final)
+        except Exception as exc:
+            self.failed = f"step {step}: {type(exc).__name__}: {exc}"
+            print(f"viewer: the page stopped updating at {self.failed}; the exploration goes on",
+                  file=sys.stderr)
+
+    def _update(self, step: int, obs, mapper, explorer, final: bool) -> None:
         t0 = time.perf_counter()
         self._positions.append(np.asarray(obs.pose, dtype=np.float64)[:3, 3].copy())
         now = self._clock()
@@ -187,8 +204,9 @@ class LiveViewer:
     def hold(self) -> None:
         """Keep serving the final state until Ctrl-C."""
         cost = self.time_ms / max(self.updates, 1)
-        print(f"viewer: {cost:.1f} ms/step spent updating it; the run is over, still serving {self.url} "
-              "(Ctrl-C to quit)", file=sys.stderr)
+        stopped = "" if self.failed is None else f" (its updates stopped at {self.failed})"
+        print(f"viewer: {cost:.1f} ms/step spent updating it; the run is over, still serving {self.url}"
+              f"{stopped} (Ctrl-C to quit)", file=sys.stderr)
         try:
             while True:
                 time.sleep(0.5)
