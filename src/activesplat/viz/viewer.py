@@ -16,6 +16,10 @@ Replay (`EpisodeViewer`) loads gaussians.ply and poses.txt, rebuilds the workspa
 the final map (`workspace.plan.build_plan`), and adds a timeline slider: the frustum moves along the
 trajectory and a background worker re-renders the ground truth RGB-D (simulator) and the map at that pose,
 always the latest slider position (intermediate ones are dropped, so dragging never queues up renders).
+The maps of `activesplat refine` (``DIR/refined_<method>/gaussians.ply``) are offered beside the online
+one in a `map` dropdown, each rendered with its method's rasterizer. A map of a recording
+(`activesplat map`, ``"source": "recording"``) has no simulator: the slider runs over the frames of
+poses.txt and the ground truth is the recorded RGB-D of its held-out frames (heldout.npz).
 """
 
 from __future__ import annotations
