@@ -497,3 +497,47 @@ def test_an_error_in_the_live_viewer_stops_the_page_not_the_exploration(tmp_path
     err = capsys.readouterr().err
     assert err.count("the page stopped updating at step 1: RuntimeError: no plan yet; the exploration goes "
                      "on") == 1
+
+
+def test_a_broken_map_or_render_leaves_the_viewer_working(live, tmp_path, capsys):
+    """A refined map that cannot be read, chosen in the map menu: the current map stays and a line says why
+    (it raised in viser's callback thread). A render that fails: one line, and the next step renders (the
+    worker thread died and the images froze). A 2dgs map renders with the surfel rasterizer."""
+    from activesplat.refine.surfels import render_surfel_view
+
+    _, out, _ = live
+    ep = copy_episode(out, tmp_path / "ep")
+    for method in ("2dgs", "3dgs"):
+        (ep / f"refined_{method}").mkdir()
+        (ep / f"refined_{method}" / "refine.json").write_text(f'{{"method": "{method}"}}')
+    (ep / "refined_2dgs" / "gaussians.ply").symlink_to(ep / "gaussians.ply")
+    (ep / "refined_3dgs" / "gaussians.ply").write_bytes((ep / "gaussians.ply").read_bytes()[:5000])  # cut
+    viewer = EpisodeViewer(ep, port=free_port(), ground_truth=False)
+    try:
+        assert viewer._map("refined_2dgs")[1] is render_surfel_view
+        viewer.map_choice.value = "refined_3dgs"
+        assert viewer.map_name == viewer.map_choice.value == "online"
+        assert "**map refined_3dgs not shown**: " in viewer.draw.status.content
+        assert "viewer: map refined_3dgs not shown: " in capsys.readouterr().err
+        gmap, render = viewer._map("online")
+        calls = []
+
+        def fails_once(*args):
+            calls.append(1)
+            if len(calls) == 1:
+                raise RuntimeError("out of memory")
+            return render(*args)
+
+        viewer._loaded["online"] = (gmap, fails_once)
+        viewer.slider.value = 2
+        deadline = time.monotonic() + 10
+        while not calls and time.monotonic() < deadline:  # the worker took step 2
+            time.sleep(0.05)
+        sent = viewer.draw.sent.get("image:map RGB", 0)
+        viewer.slider.value = 3
+        while viewer.draw.sent.get("image:map RGB", 0) == sent and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert viewer.draw.sent["image:map RGB"] > sent and viewer._worker.is_alive()
+        assert "viewer: no images at step 2 (RuntimeError: out of memory)" in capsys.readouterr().err
+    finally:
+        viewer.close()

@@ -433,8 +433,19 @@ class EpisodeViewer:
 
     # ------------------------------------------------------------------ timeline
     def show_map(self, name: str) -> None:
-        """Show map `name` (of `self.maps`) in the scene and in the map images."""
-        self._map(name)
+        """Show map `name` (of `self.maps`) in the scene and in the map images; one that cannot be read
+        leaves the current one and says why (page and terminal)."""
+        from activesplat.errors import ActiveSplatError
+
+        if name == self.map_name:  # also the menu set back below
+            return
+        try:
+            self._map(name)
+        except ActiveSplatError as exc:
+            print(f"viewer: map {name} not shown: {exc}", file=sys.stderr)
+            self.draw.status.content = f"{self.summary}\n**map {name} not shown**: {exc}"
+            self.map_choice.value = self.map_name
+            return
         self.map_name = name
         self._say_subsampled()
         self.draw.draw_map(self._map(name)[0])
@@ -469,7 +480,10 @@ class EpisodeViewer:
                 if self._stop:
                     return
                 step, self._pending = self._pending, None
-            self.render_images(step)
+            try:
+                self.render_images(step)
+            except Exception as exc:  # the worker lives on: the next slider position renders again
+                print(f"viewer: no images at step {step} ({type(exc).__name__}: {exc})", file=sys.stderr)
 
     def render_images(self, step: int) -> None:
         """Ground-truth RGB-D (simulator, or a recording's held-out frame) and the map's rendering at the
