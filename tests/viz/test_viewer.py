@@ -4,6 +4,7 @@ way a browser gets it (a websocket client decoding viser's wire format). No disp
 
 from __future__ import annotations
 
+import json
 import socket
 import sys
 import time
@@ -401,6 +402,12 @@ def test_a_recorded_map_shows_its_trajectory_and_the_held_out_frames_beside_the_
         assert set(images_at(4)) == {"map RGB"} and "**frame** 4: map rendering" in viewer.draw.status.content
     finally:
         viewer.close()
+    broken = copy_episode(out, out.parent / "broken")
+    meta = json.loads((broken / "episode.json").read_text())
+    del meta["K"]
+    (broken / "episode.json").write_text(json.dumps(meta))
+    assert main(["view", str(broken), "--port", str(free_port())]) == 2
+    assert "episode.json: no camera of the recording (K, width, height): KeyError" in capsys.readouterr().err
 
 
 def test_a_map_too_large_for_the_browser_says_what_it_sends(live, tmp_path, capsys):

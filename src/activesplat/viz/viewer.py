@@ -315,8 +315,12 @@ class EpisodeViewer:
 
         meta = self.meta
         if self.recorded:
-            self.K = np.asarray(meta["K"], dtype=np.float64)
-            self.width, self.height = int(meta["width"]), int(meta["height"])
+            try:
+                self.K = np.asarray(meta["K"], dtype=np.float64).reshape(3, 3)
+                self.width, self.height = int(meta["width"]), int(meta["height"])
+            except (KeyError, TypeError, ValueError) as exc:
+                raise EpisodeError(f"{self.dir / 'episode.json'}: no camera of the recording (K, width, "
+                                   f"height): {type(exc).__name__}: {exc}") from None
             self.floor_height = float(meta.get("floor_height", self.positions[:, 1].min() - 1.25))
         else:
             sim_cfg = meta.get("config", {}).get("sim", {})
