@@ -331,9 +331,14 @@ def build_parser() -> argparse.ArgumentParser:
     p_cmp.set_defaults(func=_cmd_compare)
 
     # view
-    p_view = sub.add_parser("view", help="serve a viser web viewer of a finished episode")
-    p_view.add_argument("dir", help="episode folder")
+    p_view = sub.add_parser("view", help="browse an episode (finished or interrupted), a map of a recording "
+                                          "or a refined map in a viser web viewer")
+    p_view.add_argument("dir", help="episode folder, map folder of `activesplat map`, or a refined_<method> "
+                                    "folder inside either (that map shown first, the others a click away)")
     p_view.add_argument("--port", type=int, default=8080, help="port (default 8080)")
+    p_view.add_argument("--max-splats", type=int, default=400_000, metavar="N",
+                        help="a map of more than N Gaussians sends only its N most opaque to the browser "
+                             "(default 400000)")
     p_view.set_defaults(func=_cmd_view)
 
     return parser

@@ -170,7 +170,7 @@ def read_episode(path: str | Path) -> Episode:
             raise EpisodeError(f"{d} is a map of a recording (activesplat map), not a simulated episode: "
                                f"this needs the simulator's ground truth and actions to replay (`activesplat "
                                f"explore` folder). A recorded map takes render-eval (its held-out views), "
-                               f"refine and export without the options that need a simulator")
+                               f"refine, export and view without the options that need a simulator")
         raise EpisodeError(f"{d} is not an episode folder (no episode.json / actions.txt)")
     meta = read_meta(d)
     try:

@@ -4,10 +4,12 @@ way a browser gets it (a websocket client decoding viser's wire format). No disp
 
 from __future__ import annotations
 
+import json
 import socket
 import sys
 import time
 import urllib.request
+from pathlib import Path
 from types import SimpleNamespace
 
 import msgspec
@@ -27,7 +29,7 @@ from activesplat.planning.explorer import ExplorerView
 from activesplat.planning.viewpoints import RotationTarget
 from activesplat.sim import SimConfig
 from activesplat.splat.gaussians import GaussianMap
-from activesplat.splat.ply import load_ply
+from activesplat.splat.ply import load_ply, save_ply
 from activesplat.viz.viewer import (
     EpisodeViewer,
     LiveViewer,
@@ -294,14 +296,255 @@ def test_bad_input_is_a_one_line_error(live, tmp_path, capsys):
         busy.bind(("127.0.0.1", 0))
         busy.listen()
         port = busy.getsockname()[1]
-        with pytest.raises(InvalidInputError, match="not available"):
+        with pytest.raises(InvalidInputError, match="not available .*; pick another with --viewer-port$"):
             LiveViewer(port=port)
         assert main(["view", str(out), "--port", str(port)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert err[-1].startswith("activesplat: error:") and "not available" in err[-1]
+    assert err[-1].endswith("pick another with --port")  # the option of `view`, not also explore's
 
 
 def test_without_a_viewer_viser_is_never_imported(tmp_path, monkeypatch):
     monkeypatch.setitem(sys.modules, "viser", None)  # any `import viser` now raises ImportError
     metrics = run_exploration("small-0", steps=2, seed=0, out=tmp_path / "ep", **TINY)
     assert metrics["steps"] == 2
+
+
+def copy_episode(src, dst):
+    """A copy of the fixture's episode (the tests below change it)."""
+    import shutil
+
+    shutil.copytree(src, dst)
+    return dst
+
+
+def splats_sent(port: int) -> int:
+    (splats, buffers), = named(scene_messages(port), "GaussianSplatsMessage", "/map/splats")
+    return len(splat_centers(splats, buffers))
+
+
+def test_a_refined_map_opens_with_its_episode_and_the_online_one_a_click_away(live, tmp_path, capsys):
+    """`view DIR/refined_3dgs`: the refined map with the episode's trajectory, graph and timeline; the map
+    dropdown switches to the online map (and `view DIR` offers the refined one)."""
+    _, out, metrics = live
+    ep = copy_episode(out, tmp_path / "ep")
+    online = load_ply(ep / "gaussians.ply")
+    (ep / "refined_3dgs").mkdir()
+    save_ply(GaussianMap(online.rows(torch.arange(len(online) // 2))), ep / "refined_3dgs" / "gaussians.ply")
+    (ep / "refined_3dgs" / "refine.json").write_text('{"method": "3dgs"}')
+    viewer = EpisodeViewer(ep / "refined_3dgs", port=free_port(), ground_truth=False)
+    try:
+        assert splats_sent(viewer.port) == len(online) // 2
+        assert viewer.slider.max == STEPS and len(viewer.positions) == STEPS + 1
+        assert viewer.map_choice.options == ("online", "refined_3dgs")
+        assert viewer.map_choice.value == "refined_3dgs"
+        assert "**map** refined_3dgs" in viewer.draw.status.content
+        viewer.map_choice.value = "online"  # what a click in the dropdown does
+        assert splats_sent(viewer.port) == metrics["n_gaussians"]
+        assert "**map** online" in viewer.draw.status.content
+        deadline = time.monotonic() + 10
+        while viewer.draw.sent.get("image:map RGB", 0) < 2 and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert viewer.draw.sent["image:map RGB"] >= 2
+    finally:
+        viewer.close()
+    viewer = EpisodeViewer(ep, port=free_port(), ground_truth=False)
+    try:
+        assert viewer.map_choice.value == "online" and splats_sent(viewer.port) == metrics["n_gaussians"]
+    finally:
+        viewer.close()
+    (ep / "refined_2dgs").mkdir()  # an interrupted refinement: no map yet
+    with pytest.raises(EpisodeError, match="nor a map folder inside one"):
+        EpisodeViewer(ep / "refined_2dgs", port=free_port())
+
+
+@pytest.fixture(scope="module")
+def recorded_map(tmp_path_factory):
+    """A map of a recording (`activesplat map` of a TUM RGB-D folder, every 3rd frame held out)."""
+    pytest.importorskip("cv2")
+    sys.path.insert(0, str(Path(__file__).parents[1] / "robot"))
+    from _bags import sim_frames, write_tum
+
+    K, frames = sim_frames(9, 32)
+    root = tmp_path_factory.mktemp("recorded")
+    tum = write_tum(root / "tum", K, frames)
+    out = root / "map"
+    assert main(["map", str(tum), "--intrinsics", *(str(v) for v in (K[0, 0], K[1, 1], K[0, 2], K[1, 2])),
+                 "--holdout-every", "3", "--backend", "numba", "--out", str(out), "--no-progress"]) == 0
+    return out, frames
+
+
+def test_a_recorded_map_shows_its_trajectory_and_the_held_out_frames_beside_the_map(recorded_map, capsys):
+    """`view` of an `activesplat map` folder: the map, the camera trajectory of poses.txt with a frame
+    slider, and at the held-out frames (the only recorded images kept) the recording beside the map's
+    rendering; at the mapped frames no stale recorded image stays on the page."""
+    out, frames = recorded_map
+    viewer = EpisodeViewer(out, port=free_port())
+    try:
+        assert splats_sent(viewer.port) == len(load_ply(out / "gaussians.ply")) > 0
+        assert viewer.slider.max == len(frames) - 1 and viewer.slider.label == "frame"
+        assert np.allclose(viewer.positions, [pose[:3, 3] for _, _, pose in frames], atol=1e-6)
+        held = np.load(out / "heldout.npz")["index"]
+        assert list(held) == [2, 5, 8] and "6 mapped, 3 held out" in viewer.draw.status.content
+
+        def images_at(frame: int) -> dict:
+            before = viewer.draw.sent.get("image:map RGB", 0)
+            viewer.slider.value = frame
+            deadline = time.monotonic() + 10
+            while viewer.draw.sent.get("image:map RGB", 0) == before and time.monotonic() < deadline:
+                time.sleep(0.05)
+            return {k: h for k, h in viewer.draw.image_handles.items() if h.visible}
+
+        shown = images_at(5)
+        assert "held out of the map" in viewer.draw.status.content
+        assert np.array_equal(shown["recorded RGB (held out)"].image, frames[5][0])
+        assert set(shown) == {"recorded RGB (held out)", "recorded depth (held out)", "map RGB"}
+        assert set(images_at(4)) == {"map RGB"} and "**frame** 4: map rendering" in viewer.draw.status.content
+    finally:
+        viewer.close()
+    broken = copy_episode(out, out.parent / "broken")
+    meta = json.loads((broken / "episode.json").read_text())
+    del meta["K"]
+    (broken / "episode.json").write_text(json.dumps(meta))
+    assert main(["view", str(broken), "--port", str(free_port())]) == 2
+    assert "episode.json: no camera of the recording (K, width, height): KeyError" in capsys.readouterr().err
+
+
+def test_a_map_too_large_for_the_browser_says_what_it_sends(live, tmp_path, capsys):
+    """Above `max_splats` only the most opaque Gaussians go to the browser: the page and the terminal say
+    so (the page showed the full count as if all were drawn), and `--max-splats` sets the budget."""
+    _, out, metrics = live
+    viewer = EpisodeViewer(out, port=free_port(), config=ViewerConfig(max_splats=100), ground_truth=False)
+    try:
+        assert splats_sent(viewer.port) == 100
+        assert f"{metrics['n_gaussians']} gaussians, the 100 most opaque drawn" in viewer.draw.status.content
+    finally:
+        viewer.close()
+    assert "the browser is sent the 100 most opaque (--max-splats to change)" in capsys.readouterr().err
+    mapper, obs = fake_mapper_and_obs()  # the live page too: 20 Gaussians, 5 drawn
+    live_viewer = LiveViewer(port=free_port(), config=ViewerConfig(max_splats=5), clock=FakeClock())
+    try:
+        live_viewer.update(1, obs, mapper, object())
+        assert "20 gaussians, the 5 most opaque drawn" in live_viewer.draw.status.content
+    finally:
+        live_viewer.close()
+    assert main(["view", str(out), "--max-splats", "0", "--port", str(free_port())]) == 2
+    assert "--max-splats must be a positive number" in capsys.readouterr().err
+
+
+def test_an_episode_without_a_map_or_graph_shows_what_it_has(live, tmp_path, capsys, monkeypatch):
+    """No gaussians.ply (an episode cut before its map was written): the trajectory and timeline, and a line
+    saying why there is no map. A map the workspace cannot be built from: the map without the graph."""
+    _, out, _ = live
+    ep = copy_episode(out, tmp_path / "ep")
+    (ep / "gaussians.ply").unlink()
+    viewer = EpisodeViewer(ep, port=free_port(), ground_truth=False)
+    try:
+        messages = scene_messages(viewer.port)
+        assert not named(messages, "GaussianSplatsMessage") and named(messages, "LineSegmentsMessage",
+                                                                      "/agent/trajectory_all")
+        assert "**map** none (no gaussians.ply)" in viewer.draw.status.content
+    finally:
+        viewer.close()
+    assert "has no map (no gaussians.ply): showing the trajectory only" in capsys.readouterr().err
+
+    def no_workspace(*_args, **_kwargs):
+        raise ValueError("no floor in the map")
+
+    monkeypatch.setattr("activesplat.workspace.plan.build_plan", no_workspace)
+    viewer = EpisodeViewer(out, port=free_port(), ground_truth=False)
+    try:
+        messages = scene_messages(viewer.port)
+        assert named(messages, "GaussianSplatsMessage") and not named(messages, "PointCloudMessage")
+        assert "**graph** 0 nodes" in viewer.draw.status.content
+    finally:
+        viewer.close()
+    assert "viewer: no graph (ValueError: no floor in the map)" in capsys.readouterr().err
+
+
+def test_ctrl_c_during_a_render_closes_without_a_warning(live):
+    """Ctrl-C while the render worker draws the map: it finishes before the server stops, and nothing is
+    queued on the stopped server (viser warned 'Queued a GuiImageMessage on a closed connection')."""
+    import warnings
+
+    _, out, _ = live
+    viewer = EpisodeViewer(out, port=free_port(), ground_truth=False)
+    gmap, render = viewer._map("online")
+
+    def slow(*args):
+        time.sleep(0.5)
+        return render(*args)
+
+    viewer._loaded["online"] = (gmap, slow)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        viewer.show_step(3)
+        time.sleep(0.2)  # the worker is rendering
+        viewer.close()
+        time.sleep(0.5)
+    assert not [w for w in caught if "closed connection" in str(w.message)]
+    assert not viewer._worker.is_alive()
+
+
+def test_an_error_in_the_live_viewer_stops_the_page_not_the_exploration(tmp_path, capsys):
+    """A failing update (here: the explorer's state cannot be read) used to end the run with a traceback,
+    after however many minutes of exploring; now the page stops updating and the run goes on."""
+    mapper, obs = fake_mapper_and_obs()
+
+    def broken():
+        raise RuntimeError("no plan yet")
+
+    viewer = LiveViewer(port=free_port(), clock=FakeClock())
+    try:
+        viewer.update(1, obs, mapper, SimpleNamespace(view_state=broken))
+        viewer.update(2, obs, mapper, SimpleNamespace(view_state=broken))
+        assert viewer.failed == "step 1: RuntimeError: no plan yet" and viewer.updates == 0
+    finally:
+        viewer.close()
+    err = capsys.readouterr().err
+    assert err.count("the page stopped updating at step 1: RuntimeError: no plan yet; the exploration goes "
+                     "on") == 1
+
+
+def test_a_broken_map_or_render_leaves_the_viewer_working(live, tmp_path, capsys):
+    """A refined map that cannot be read, chosen in the map menu: the current map stays and a line says why
+    (it raised in viser's callback thread). A render that fails: one line, and the next step renders (the
+    worker thread died and the images froze). A 2dgs map renders with the surfel rasterizer."""
+    from activesplat.refine.surfels import render_surfel_view
+
+    _, out, _ = live
+    ep = copy_episode(out, tmp_path / "ep")
+    for method in ("2dgs", "3dgs"):
+        (ep / f"refined_{method}").mkdir()
+        (ep / f"refined_{method}" / "refine.json").write_text(f'{{"method": "{method}"}}')
+    (ep / "refined_2dgs" / "gaussians.ply").symlink_to(ep / "gaussians.ply")
+    (ep / "refined_3dgs" / "gaussians.ply").write_bytes((ep / "gaussians.ply").read_bytes()[:5000])  # cut
+    viewer = EpisodeViewer(ep, port=free_port(), ground_truth=False)
+    try:
+        assert viewer._map("refined_2dgs")[1] is render_surfel_view
+        viewer.map_choice.value = "refined_3dgs"
+        assert viewer.map_name == viewer.map_choice.value == "online"
+        assert "**map refined_3dgs not shown**: " in viewer.draw.status.content
+        assert "viewer: map refined_3dgs not shown: " in capsys.readouterr().err
+        gmap, render = viewer._map("online")
+        calls = []
+
+        def fails_once(*args):
+            calls.append(1)
+            if len(calls) == 1:
+                raise RuntimeError("out of memory")
+            return render(*args)
+
+        viewer._loaded["online"] = (gmap, fails_once)
+        viewer.slider.value = 2
+        deadline = time.monotonic() + 10
+        while not calls and time.monotonic() < deadline:  # the worker took step 2
+            time.sleep(0.05)
+        sent = viewer.draw.sent.get("image:map RGB", 0)
+        viewer.slider.value = 3
+        while viewer.draw.sent.get("image:map RGB", 0) == sent and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert viewer.draw.sent["image:map RGB"] > sent and viewer._worker.is_alive()
+        assert "viewer: no images at step 2 (RuntimeError: out of memory)" in capsys.readouterr().err
+    finally:
+        viewer.close()

@@ -1,6 +1,5 @@
 """`activesplat map RECORDING`: a recorded walk-through (ROS bag, MCAP, TUM RGB-D folder) into a map folder
-in the episode layout, readable by ``render-eval``, ``refine`` and ``export`` (``view`` replays simulated
-episodes only).
+in the episode layout, readable by ``render-eval``, ``refine``, ``export`` and ``view``.
 
 Every frame goes through the same online mapper the explorer uses (``Mapper.add_frame``, the regular
 schedule), in time order, except every ``holdout_every``-th frame, which is kept out of the map and

@@ -62,6 +62,13 @@ def splat_arrays(gaussians, max_splats: int) -> dict[str, np.ndarray]:
             "opacities": (255 * opac + 0.5).astype(np.uint8)[:, None]}
 
 
+def splat_count_text(n: int, max_splats: int) -> str:
+    """How many Gaussians a map has and, above ``max_splats``, how many of them the browser is sent."""
+    if n <= max_splats:
+        return f"{n} gaussians"
+    return f"{n} gaussians, the {max_splats} most opaque drawn"
+
+
 def _wxyz(rotation: np.ndarray) -> np.ndarray:
     from viser import transforms
 
@@ -120,15 +127,19 @@ class SceneDrawer:
         self.handles[layer] = [h for h in self.handles[layer] if h.name != name]
 
     def set_image(self, label: str, image: np.ndarray | None) -> None:
-        """A GUI image under "Images" (created on first use); None leaves the last one in place."""
-        if image is None:
-            return
+        """A GUI image under "Images" (created on first use); None hides it until the next image (a view
+        without one: nothing stale is left beside the others)."""
         handle = self.image_handles.get(label)
+        if image is None:
+            if handle is not None:
+                handle.visible = False
+            return
         if handle is None:
             with self.images_folder:
                 self.image_handles[label] = self.server.gui.add_image(image, label=label, format="jpeg")
         else:
             handle.image = image
+            handle.visible = True
         self.sent[f"image:{label}"] = self.sent.get(f"image:{label}", 0) + 1
 
     # ------------------------------------------------------------------ layers
@@ -234,4 +245,4 @@ class SceneDrawer:
         self.server.initial_camera.position = target + np.array([3.0, 6.0, 3.0])
 
 
-__all__ = ["LAYERS", "SceneDrawer", "depth_image", "panorama_image", "splat_arrays"]
+__all__ = ["LAYERS", "SceneDrawer", "depth_image", "panorama_image", "splat_arrays", "splat_count_text"]

@@ -16,6 +16,10 @@ Replay (`EpisodeViewer`) loads gaussians.ply and poses.txt, rebuilds the workspa
 the final map (`workspace.plan.build_plan`), and adds a timeline slider: the frustum moves along the
 trajectory and a background worker re-renders the ground truth RGB-D (simulator) and the map at that pose,
 always the latest slider position (intermediate ones are dropped, so dragging never queues up renders).
+The maps of `activesplat refine` (``DIR/refined_<method>/gaussians.ply``) are offered beside the online
+one in a `map` dropdown, each rendered with its method's rasterizer. A map of a recording
+(`activesplat map`, ``"source": "recording"``) has no simulator: the slider runs over the frames of
+poses.txt and the ground truth is the recorded RGB-D of its held-out frames (heldout.npz).
 """
 
 from __future__ import annotations
@@ -31,8 +35,9 @@ from pathlib import Path
 
 import numpy as np
 
-from activesplat.errors import InvalidInputError
-from activesplat.viz.drawing import SceneDrawer, depth_image, panorama_image, splat_arrays
+from activesplat.episode import DERIVED_DIRS, _complete, _read_poses, is_recorded_map, read_episode, read_meta
+from activesplat.errors import EpisodeError, InvalidInputError
+from activesplat.viz.drawing import SceneDrawer, depth_image, panorama_image, splat_arrays, splat_count_text
 
 
 @dataclass
@@ -72,27 +77,30 @@ def free_port(host: str = "127.0.0.1") -> int:
         return int(s.getsockname()[1])
 
 
-def _check_port(host: str, port: int) -> None:
+def _check_port(host: str, port: int, option: str = "--port") -> None:
+    """InvalidInputError naming `option` (the command's port option) when `host:port` cannot be served."""
     if not 0 < port < 65536:
-        raise InvalidInputError(f"viewer port must be in 1..65535, got {port}")
+        raise InvalidInputError(f"{option} must be in 1..65535, got {port}")
     with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
         s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)  # as the server itself binds
         try:
             s.bind((host, port))
         except OSError as exc:
             raise InvalidInputError(f"viewer port {port} on {host} is not available ({exc.strerror}); "
-                                    "pick another with --port / --viewer-port") from None
+                                    f"pick another with {option}") from None
 
 
-def start_server(port: int, cfg: ViewerConfig):
-    """A viser server on exactly `cfg.host:port` (viser itself would silently take the next free port)."""
-    _check_port(cfg.host, port)
+def start_server(port: int, cfg: ViewerConfig, option: str = "--port"):
+    """A viser server on exactly `cfg.host:port` (viser itself would silently take the next free port);
+    `option` is the command's port option, named when the port is taken."""
+    _check_port(cfg.host, port, option)
     import viser
 
     server = viser.ViserServer(host=cfg.host, port=port, verbose=False)
     if server.get_port() != port:  # lost a race for the port
         server.stop()
-        raise InvalidInputError(f"viewer port {port} on {cfg.host} is not available")
+        raise InvalidInputError(f"viewer port {port} on {cfg.host} is not available; pick another with "
+                                f"{option}")
     server.scene.set_up_direction("+y")
     return server
 
@@ -110,7 +118,7 @@ class LiveViewer:
     def __init__(self, port: int = 8080, config: ViewerConfig | None = None,
                  clock: Callable[[], float] = time.monotonic):
         self.cfg = config or ViewerConfig()
-        self.server = start_server(port, self.cfg)
+        self.server = start_server(port, self.cfg, "--viewer-port")
         self.port = self.server.get_port()
         self.url = f"http://{self.cfg.host}:{self.port}"
         self.draw = SceneDrawer(self.server, self.cfg, "activesplat explore (live)")
@@ -124,6 +132,8 @@ class LiveViewer:
         self.time_ms = 0.0
         """Wall time spent in update() so far (what the viewer costs the run)."""
         self.updates = 0
+        self.failed: str | None = None
+        """Why the page stopped updating (the first error of `update`), None while it updates."""
         print(f"viewer: {self.url}", file=sys.stderr)
 
     @property
@@ -131,6 +141,18 @@ class LiveViewer:
         return self.draw.sent
 
     def update(self, step: int, obs, mapper, explorer, final: bool = False) -> None:
+        """Send what is due. An error here stops the page's updates, not the exploration: one line says so
+        and the run goes on (it may have minutes of work behind it)."""
+        if self.failed is not None:
+            return
+        try:
+            self._update(step, obs, mapper, explorer, final)
+        except Exception as exc:
+            self.failed = f"step {step}: {type(exc).__name__}: {exc}"
+            print(f"viewer: the page stopped updating at {self.failed}; the exploration goes on",
+                  file=sys.stderr)
+
+    def _update(self, step: int, obs, mapper, explorer, final: bool) -> None:
         t0 = time.perf_counter()
         self._positions.append(np.asarray(obs.pose, dtype=np.float64)[:3, 3].copy())
         now = self._clock()
@@ -157,7 +179,8 @@ class LiveViewer:
         self.draw.draw_camera(pose, *_camera_fov(mapper.K, mapper.width, mapper.height))
         self.draw.draw_trajectory(np.stack(self._positions))
         view = explorer.view_state() if hasattr(explorer, "view_state") else None
-        lines = [f"**step** {step}  ", f"**gaussians** {len(mapper.gaussians)}  "]
+        count = splat_count_text(len(mapper.gaussians), self.cfg.max_splats)
+        lines = [f"**step** {step}  ", f"**map** {count}  "]
         if view is not None:
             if view.plan is not self._plan:
                 self._plan = view.plan
@@ -185,8 +208,9 @@ class LiveViewer:
     def hold(self) -> None:
         """Keep serving the final state until Ctrl-C."""
         cost = self.time_ms / max(self.updates, 1)
-        print(f"viewer: {cost:.1f} ms/step spent updating it; the run is over, still serving {self.url} "
-              "(Ctrl-C to quit)", file=sys.stderr)
+        stopped = "" if self.failed is None else f" (its updates stopped at {self.failed})"
+        print(f"viewer: {cost:.1f} ms/step spent updating it; the run is over, still serving {self.url}"
+              f"{stopped} (Ctrl-C to quit)", file=sys.stderr)
         try:
             while True:
                 time.sleep(0.5)
@@ -204,16 +228,65 @@ def _dataclass_from(cls, saved: dict | None):
     return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in (saved or {}).items() if k in names})
 
 
+ONLINE = "online"
+"""The name of an episode's own map (DIR/gaussians.ply) in the replay's map choice."""
+
+
+def view_folder(path: str | Path) -> tuple[Path, str]:
+    """(episode folder, name of the map to show first) of `activesplat view DIR`: DIR an episode or a
+    recorded map's folder (its online map), or a map folder inside one (``DIR/refined_<method>/``: that
+    map). EpisodeError otherwise."""
+    d = Path(path)
+    if not d.is_dir():
+        raise EpisodeError(f"{d} is not a folder")
+    if (d / "episode.json").is_file():
+        return d, ONLINE
+    if (d / "gaussians.ply").is_file() and (d.parent / "episode.json").is_file():
+        return d.parent, d.name
+    raise EpisodeError(f"{d} is not an episode folder (no episode.json), nor a map folder inside one "
+                       f"(DIR/refined_<method>/ with its gaussians.ply)")
+
+
+def map_files(episode_dir: Path) -> dict[str, Path]:
+    """The maps of an episode folder by name: ``online`` (its gaussians.ply) and every ``refined_<method>``
+    folder holding a gaussians.ply (`activesplat refine`)."""
+    maps = {ONLINE: episode_dir / "gaussians.ply"} if (episode_dir / "gaussians.ply").is_file() else {}
+    for folder in sorted(episode_dir.glob(DERIVED_DIRS)):
+        if (folder / "gaussians.ply").is_file():
+            maps[folder.name] = folder / "gaussians.ply"
+    return maps
+
+
+def _map_renderer(ply: Path):
+    """How a map renders: its refinement method's rasterizer (2dgs: surfels), else the 3DGS one."""
+    from activesplat.eval.render_eval import default_renderer
+    from activesplat.refine.maps import render_options
+
+    return render_options(ply.parent).get("renderer") or default_renderer(ply)
+
+
 class EpisodeViewer:
-    """The `activesplat view DIR` page: the final map and graph, and a timeline over the trajectory."""
+    """The `activesplat view DIR` page: the map (the online one or a refined one, switchable) and the graph,
+    and a timeline over the trajectory. DIR is an exploration episode (ground truth from its simulator), a
+    map of a recording (`activesplat map`: the recorded RGB-D at its held-out frames), or a
+    ``refined_<method>/`` folder inside either (that map first)."""
 
     def __init__(self, episode_dir: str | Path, port: int = 8080, config: ViewerConfig | None = None,
                  ground_truth: bool = True):
-        from activesplat.episode import read_episode
-
         self.cfg = config or ViewerConfig()
-        self.episode = read_episode(episode_dir)  # EpisodeError when it is not an episode folder
+        self.dir, first_map = view_folder(episode_dir)
+        self.recorded = is_recorded_map(read_meta(self.dir))
+        if self.recorded:
+            self.meta, self.complete = read_meta(self.dir), _complete(self.dir)
+            self.poses, self.actions = np.stack(_read_poses(self.dir / "poses.txt")), None
+        else:  # EpisodeError when it is not an episode folder
+            ep = read_episode(self.dir)
+            self.meta, self.complete, self.poses, self.actions = ep.meta, ep.complete, ep.poses, ep.actions
+        self.positions = self.poses[:, :3, 3]
+        self.maps = map_files(self.dir)
         _check_port(self.cfg.host, port)  # before the (slow) loading
+        self._loaded: dict[str, tuple] = {}
+        self.map_name = first_map if first_map in self.maps else next(iter(self.maps), None)
         self._load(ground_truth)
         self.server = start_server(port, self.cfg)  # the page appears once everything is loaded
         self.port = self.server.get_port()
@@ -223,7 +296,7 @@ class EpisodeViewer:
         self._stop = False
         self._worker = threading.Thread(target=self._render_loop, name="activesplat-view-render", daemon=True)
         try:
-            self.draw = SceneDrawer(self.server, self.cfg, f"activesplat view {self.episode.dir.name}")
+            self.draw = SceneDrawer(self.server, self.cfg, f"activesplat view {self.dir.name}")
             self._draw_scene()
         except BaseException:
             self.server.stop()
@@ -233,78 +306,172 @@ class EpisodeViewer:
 
     # ------------------------------------------------------------------ loading
     def _load(self, ground_truth: bool) -> None:
-        """Map, camera model, ground-truth simulator and the workspace / graph of the final map."""
+        """Camera model, ground truth (simulator or held-out frames), the first map and the workspace / graph
+        of the online map."""
+        from activesplat.geometry import intrinsics
         from activesplat.planning.controller import floor_xz
-        from activesplat.splat.ply import load_ply
         from activesplat.workspace.config import WorkspaceConfig
         from activesplat.workspace.plan import build_plan
 
-        ep, meta = self.episode, self.episode.meta
-        self.poses, self.positions = ep.poses, ep.poses[:, :3, 3]
-        ply = ep.dir / "gaussians.ply"
-        self.gaussians = load_ply(ply) if ply.is_file() else None
-        has_map = self.gaussians is not None and len(self.gaussians) > 0
-        sim_cfg = meta.get("config", {}).get("sim", {})
-        self.floor_height = float(meta.get("floor_height",
-                                           self.poses[0][1, 3] - sim_cfg.get("sensor_height", 1.25)))
-        self.width, self.height = int(sim_cfg.get("width", 256)), int(sim_cfg.get("height", 256))
-        hfov = math.radians(float(sim_cfg.get("hfov_deg", 90.0)))
-        self.fov_y = 2.0 * math.atan(math.tan(hfov / 2) * self.height / self.width)
-        self.sim = self._load_simulator(meta) if ground_truth else None
-        self.renderer = self.plan = None
-        if has_map:
-            from activesplat.geometry import intrinsics
-            from activesplat.splat.mapper import Mapper
-
-            # a bare mapper renders the map (Mapper.load would also read every keyframe, which is slow)
-            K = intrinsics(self.width, self.height, math.degrees(hfov))
-            self.renderer = Mapper(K, self.width, self.height, backend="auto")
-            self.renderer.gaussians = self.gaussians
+        meta = self.meta
+        if self.recorded:
+            try:
+                self.K = np.asarray(meta["K"], dtype=np.float64).reshape(3, 3)
+                self.width, self.height = int(meta["width"]), int(meta["height"])
+            except (KeyError, TypeError, ValueError) as exc:
+                raise EpisodeError(f"{self.dir / 'episode.json'}: no camera of the recording (K, width, "
+                                   f"height): {type(exc).__name__}: {exc}") from None
+            self.floor_height = float(meta.get("floor_height", self.positions[:, 1].min() - 1.25))
+        else:
+            sim_cfg = meta.get("config", {}).get("sim", {})
+            self.width, self.height = int(sim_cfg.get("width", 256)), int(sim_cfg.get("height", 256))
+            self.K = intrinsics(self.width, self.height, float(sim_cfg.get("hfov_deg", 90.0)))
+            self.floor_height = float(meta.get("floor_height",
+                                               self.poses[0][1, 3] - sim_cfg.get("sensor_height", 1.25)))
+        self.fov_y, _ = _camera_fov(self.K, self.width, self.height)
+        self.sim = self.heldout = None
+        if ground_truth:
+            if self.recorded:
+                self.heldout = self._load_heldout()
+            else:
+                self.sim = self._load_simulator(meta)
+        if self.map_name is None:
+            print(f"viewer: {self.dir} has no map (no gaussians.ply): showing the trajectory only",
+                  file=sys.stderr)
+        else:
+            self._say_subsampled()
+        self.plan = None
+        graph_map = ONLINE if ONLINE in self.maps else self.map_name
+        if graph_map is not None and len(self._map(graph_map)[0]) > 0:
             saved = meta.get("config", {}).get("explorer", {}).get("workspace")
-            self.plan = build_plan(self.gaussians, self.floor_height, floor_xz(self.poses[-1]),
-                                   _dataclass_from(WorkspaceConfig, saved))
+            try:
+                self.plan = build_plan(self._map(graph_map)[0], self.floor_height, floor_xz(self.poses[-1]),
+                                       _dataclass_from(WorkspaceConfig, saved))
+            except Exception as exc:  # a map the workspace cannot be built from (tiny, flat): show the rest
+                print(f"viewer: no graph ({type(exc).__name__}: {exc})", file=sys.stderr)
+
+    def _map(self, name: str) -> tuple:
+        """(GaussianMap, renderer) of map `name`, read once."""
+        from activesplat.splat.ply import load_ply
+
+        if name not in self._loaded:
+            self._loaded[name] = (load_ply(self.maps[name]), _map_renderer(self.maps[name]))
+        return self._loaded[name]
+
+    def _say_subsampled(self) -> None:
+        n = len(self._map(self.map_name)[0])
+        if n > self.cfg.max_splats:
+            print(f"viewer: {self.map_name} map: {n} Gaussians; the browser is sent the "
+                  f"{self.cfg.max_splats} most opaque (--max-splats to change)", file=sys.stderr)
 
     def _load_simulator(self, meta: dict):
         """The episode's simulator for ground-truth images, None when its scene cannot be loaded."""
         from activesplat.errors import ActiveSplatError
-        from activesplat.sim import SimConfig, Simulator, load_scene
+        from activesplat.eval.evaluate import simulated_scene
+        from activesplat.sim import SimConfig, Simulator
 
         try:
-            scene = load_scene(meta["scene"], z_up=bool(meta.get("z_up", False)), floor=meta.get("floor"))
+            scene = simulated_scene(meta, self.dir)
             cfg = _dataclass_from(SimConfig, meta.get("config", {}).get("sim"))
-            return Simulator(scene, start=self.episode.start_pose, config=cfg)
+            return Simulator(scene, start=np.asarray(meta["start_pose"], dtype=np.float64), config=cfg)
         except (ActiveSplatError, KeyError) as exc:
             print(f"viewer: no ground-truth images ({exc})", file=sys.stderr)
             return None
 
+    def _load_heldout(self) -> dict[int, tuple[np.ndarray, np.ndarray]] | None:
+        """A recorded map's held-out frames (frame index -> recorded rgb, depth), None without any."""
+        from activesplat.eval.render_eval import HELDOUT_FILE
+
+        path = self.dir / HELDOUT_FILE
+        try:
+            with np.load(path) as data:
+                frames = zip(data["index"], data["rgb"], data["depth"], strict=True)
+                held = {int(k): (rgb, depth) for k, rgb, depth in frames}
+        except (OSError, KeyError, ValueError) as exc:
+            print(f"viewer: no recorded images beside the map ({path.name}: {exc})", file=sys.stderr)
+            return None
+        if not held:
+            print("viewer: no recorded images beside the map (mapped with --holdout-every 0: every frame is "
+                  "in the map, none kept out)", file=sys.stderr)
+            return None
+        return held
+
+    def _summary(self) -> str:
+        meta, n = self.meta, len(self.poses) - 1
+        partial = "" if self.complete else " (partial)"
+        if self.recorded:
+            held = 0 if self.heldout is None else len(self.heldout)
+            head = (f"**{Path(str(meta.get('recording', self.dir))).name}** (recording){partial}  \n"
+                    f"**frames** {len(self.poses)}, {meta.get('mapped_frames', '?')} mapped, {held} held "
+                    f"out  ")
+        else:
+            head = (f"**{meta.get('scene', '?')}** / {meta.get('policy', '?')} / seed "
+                    f"{meta.get('seed', '?')}{partial}  \n**steps** {n}  ")
+        nodes = 0 if self.plan is None else self.plan.graph.number_of_nodes()
+        return f"{head}\n{self._map_text()}  \n**graph** {nodes} nodes  "
+
+    def _map_text(self) -> str:
+        if self.map_name is None:
+            return "**map** none (no gaussians.ply)"
+        count = splat_count_text(len(self._map(self.map_name)[0]), self.cfg.max_splats)
+        return f"**map** {self.map_name}: {count}"
+
     def _draw_scene(self) -> None:
-        meta, n = self.episode.meta, len(self.poses) - 1
+        n = len(self.poses) - 1
+        if self.map_name is not None:
+            self.draw.draw_map(self._map(self.map_name)[0])
         if self.plan is not None:
-            self.draw.draw_map(self.gaussians)
             self.draw.draw_plan(self.plan, self.floor_height)
         self.draw.draw_trajectory(self.positions, name="/agent/trajectory_all", color=(170, 190, 225))
         self.draw.look_at(self.positions[0])
         gui = self.server.gui
+        if len(self.maps) > 1:
+            self.map_choice = gui.add_dropdown("map", list(self.maps), initial_value=self.map_name)
+            self.map_choice.on_update(lambda _e: self.show_map(str(self.map_choice.value)))
         with gui.add_folder("Timeline"):
-            self.slider = gui.add_slider("step", min=0, max=max(n, 1), step=1, initial_value=n)
+            self.slider = gui.add_slider("frame" if self.recorded else "step", min=0, max=max(n, 1), step=1,
+                                         initial_value=n)
             self.play = gui.add_checkbox("play", False)
         self.slider.on_update(lambda _e: self.show_step(int(self.slider.value)))
-        nodes = 0 if self.plan is None else self.plan.graph.number_of_nodes()
-        count = 0 if self.gaussians is None else len(self.gaussians)
-        partial = "" if self.episode.complete else " (partial)"
-        self.summary = (f"**{meta.get('scene', '?')}** / {meta.get('policy', '?')} / seed "
-                        f"{meta.get('seed', '?')}{partial}  \n**steps** {n}  \n**gaussians** {count}  \n"
-                        f"**graph** {nodes} nodes  ")
+        self.summary = self._summary()
 
     # ------------------------------------------------------------------ timeline
+    def show_map(self, name: str) -> None:
+        """Show map `name` (of `self.maps`) in the scene and in the map images; one that cannot be read
+        leaves the current one and says why (page and terminal)."""
+        from activesplat.errors import ActiveSplatError
+
+        if name == self.map_name:  # also the menu set back below
+            return
+        try:
+            self._map(name)
+        except ActiveSplatError as exc:
+            print(f"viewer: map {name} not shown: {exc}", file=sys.stderr)
+            self.draw.status.content = f"{self.summary}\n**map {name} not shown**: {exc}"
+            self.map_choice.value = self.map_name
+            return
+        self.map_name = name
+        self._say_subsampled()
+        self.draw.draw_map(self._map(name)[0])
+        self.summary = self._summary()
+        self.show_step(int(self.slider.value))
+
+    def _step_text(self, step: int) -> str:
+        if not self.recorded:
+            return f"**step** {step}: {self.actions[step - 1] if step > 0 else 'reset'}"
+        if self.heldout is not None and step in self.heldout:
+            return f"**frame** {step}: held out of the map; the recorded RGB-D beside the map's rendering"
+        why = "no recorded images kept" if self.heldout is None else "only held-out frames keep theirs"
+        return f"**frame** {step}: map rendering ({why})"
+
     def show_step(self, step: int) -> None:
-        """Move the frustum to the pose after `step` actions; the images follow from the render worker."""
+        """Move the frustum to the pose after `step` actions (a recording: of frame `step`); the images
+        follow from the render worker."""
         step = int(np.clip(step, 0, len(self.poses) - 1))
         pose = self.poses[step]
         self.draw.draw_camera(pose, self.fov_y, self.width / self.height)
         self.draw.draw_trajectory(self.positions[: step + 1])
-        action = self.episode.actions[step - 1] if step > 0 else "reset"
-        self.draw.status.content = f"{self.summary}\n**step** {step}: {action}"
+        self.draw.status.content = f"{self.summary}\n{self._step_text(step)}"
         with self._wake:
             self._pending = step
             self._wake.notify()
@@ -317,18 +484,34 @@ class EpisodeViewer:
                 if self._stop:
                     return
                 step, self._pending = self._pending, None
-            self.render_images(step)
+            try:
+                self.render_images(step)
+            except Exception as exc:  # the worker lives on: the next slider position renders again
+                print(f"viewer: no images at step {step} ({type(exc).__name__}: {exc})", file=sys.stderr)
 
     def render_images(self, step: int) -> None:
-        """Ground-truth RGB-D (simulator) and the map's rendering at the pose after `step` actions."""
+        """Ground-truth RGB-D (simulator, or a recording's held-out frame) and the map's rendering at the
+        pose after `step` actions (a recording: of frame `step`)."""
         pose = self.poses[step]
         if self.sim is not None:
             rgb, depth = self.sim.render(pose, self.width, self.height)
-            self.draw.set_image("ground truth RGB", rgb)
-            self.draw.set_image("ground truth depth", depth_image(depth, self.cfg.depth_max_m))
-        if self.renderer is not None:
-            out = self.renderer.render(pose)
-            self.draw.set_image("map RGB", (255 * out.rgb.clamp(0, 1).cpu().numpy()).astype(np.uint8))
+            self._show("ground truth RGB", rgb)
+            self._show("ground truth depth", depth_image(depth, self.cfg.depth_max_m))
+        if self.heldout is not None:
+            rgb, depth = self.heldout.get(step, (None, None))
+            self._show("recorded RGB (held out)", rgb)
+            self._show("recorded depth (held out)",
+                       None if depth is None else depth_image(depth, self.cfg.depth_max_m))
+        if self.map_name is not None:
+            gmap, renderer = self._map(self.map_name)
+            rgb = renderer(gmap, pose, self.K, self.width, self.height, "auto")[0]
+            self._show("map RGB", (255 * np.clip(rgb, 0, 1) + 0.5).astype(np.uint8))
+
+    def _show(self, label: str, image: np.ndarray | None) -> None:
+        """An image of the render worker, unless the viewer is closing (a render that ends after Ctrl-C
+        would be queued on a stopped server, which warns that it will never be delivered)."""
+        if not self._stop:
+            self.draw.set_image(label, image)
 
     def serve_forever(self) -> None:
         """Serve until Ctrl-C; the play checkbox advances the slider at `play_fps`."""
@@ -345,13 +528,16 @@ class EpisodeViewer:
         with self._wake:
             self._stop = True
             self._wake.notify()
-        self.server.stop()
-        if self._worker.is_alive():
+        if self._worker.is_alive():  # its last render ends before the server does
             self._worker.join(timeout=5.0)
+        self.server.stop()
 
 
 def view_from_args(args) -> int:
-    viewer = EpisodeViewer(args.dir, port=args.port)
+    max_splats = getattr(args, "max_splats", ViewerConfig.max_splats)
+    if max_splats < 1:
+        raise InvalidInputError(f"--max-splats must be a positive number of Gaussians, got {max_splats}")
+    viewer = EpisodeViewer(args.dir, port=args.port, config=ViewerConfig(max_splats=max_splats))
     try:
         viewer.serve_forever()
     finally:
@@ -359,5 +545,5 @@ def view_from_args(args) -> int:
     return 0
 
 
-__all__ = ["EpisodeViewer", "LiveViewer", "SceneDrawer", "ViewerConfig", "depth_image", "free_port",
-           "panorama_image", "splat_arrays", "start_server", "view_from_args"]
+__all__ = ["ONLINE", "EpisodeViewer", "LiveViewer", "SceneDrawer", "ViewerConfig", "depth_image", "free_port",
+           "map_files", "panorama_image", "splat_arrays", "start_server", "view_folder", "view_from_args"]
