@@ -287,11 +287,18 @@ def build_parser() -> argparse.ArgumentParser:
 
     # export
     p_export_mcap = sub.add_parser("export", help="an episode or map folder as an MCAP file for Foxglove "
-                                                  "(camera poses, trajectory, keyframe images, map points)")
-    p_export_mcap.add_argument("dir", help="episode folder or recorded-map folder")
-    p_export_mcap.add_argument("--mcap", required=True, help="output file (.mcap)")
+                                                  "(camera poses, trajectory, keyframe images, map points) "
+                                                  "and/or its map as a 3DGS PLY laid out for an SH degree")
+    p_export_mcap.add_argument("dir", help="episode folder or recorded-map folder (--ply: also "
+                                           "refined_<method>)")
+    p_export_mcap.add_argument("--mcap", default=None, help="output file (.mcap)")
     p_export_mcap.add_argument("--max-points", type=int, default=None,
                                help="at most this many map points (the most opaque Gaussians; default: all)")
+    p_export_mcap.add_argument("--ply", default=None,
+                               help="output file (.ply): the map's gaussians.ply laid out for --sh-degree")
+    p_export_mcap.add_argument("--sh-degree", type=int, default=None, choices=(0, 1, 2, 3),
+                               help="with --ply: write the f_rest_* of this SH degree, all zero (the map is "
+                                    "degree 0); 3 for the original 3DGS loader's default (default: 0)")
     p_export_mcap.add_argument("--overwrite", action="store_true", help="replace an existing file")
     p_export_mcap.set_defaults(func=_cmd_export)
 

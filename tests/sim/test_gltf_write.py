@@ -58,3 +58,60 @@ def test_a_full_disk_is_left_to_the_command_line(room, tmp_path, monkeypatch):
 def test_written_where_it_can_be(room, tmp_path):
     path = write_glb(tmp_path / "a" / "b" / "x.glb", *room)
     assert path.is_file() and path.read_bytes()[:4] == b"glTF"
+
+
+def test_glb_structure_is_what_the_khronos_validator_checks(tmp_path):
+    """What the Khronos glTF validator reported clean on exported houses, kept by hand: chunk lengths and
+    4-byte alignment, bufferViews inside the buffer and aligned for their float accessors, POSITION min/max
+    equal to the data (float32), no target on image views, PNG images with their mime type, sampler and
+    texture indices valid, every attribute of a primitive the same count."""
+    import json
+    import struct
+
+    import numpy as np
+
+    from activesplat.sim.materials import CLAMP_TO_EDGE, MIRRORED_REPEAT, Material, Surface
+
+    rng = np.random.default_rng(0)
+    vertices = rng.normal(size=(12, 3))
+    faces = np.stack([np.arange(10), np.arange(1, 11), np.arange(2, 12)], axis=1)
+    texture = rng.integers(0, 256, size=(5, 7, 3), dtype=np.uint8)
+    materials = [Material("tiles", [1.0, 0.5, 0.2], texture, CLAMP_TO_EDGE, MIRRORED_REPEAT),
+                 Material("plain", [0.3, 0.3, 0.3]), Material("unused", [1.0, 1.0, 1.0], texture)]
+    surface = Surface(materials, np.r_[np.zeros(6, int), np.ones(4, int)],
+                      rng.uniform(-2, 3, size=(10, 3, 2)), rng.uniform(0, 1, size=(10, 3, 3)))
+    data = write_glb(tmp_path / "x.glb", vertices, faces, surface).read_bytes()
+    magic, version, total = struct.unpack_from("<III", data)
+    assert (magic, version, total) == (0x46546C67, 2, len(data))
+    json_len, json_type = struct.unpack_from("<II", data, 12)
+    assert json_type == 0x4E4F534A and json_len % 4 == 0
+    gltf = json.loads(data[20:20 + json_len])
+    bin_len, bin_type = struct.unpack_from("<II", data, 20 + json_len)
+    assert bin_type == 0x004E4942 and bin_len % 4 == 0 and 28 + json_len + bin_len == len(data)
+    blob = data[28 + json_len:]
+    assert gltf["buffers"] == [{"byteLength": bin_len}]
+    for view in gltf["bufferViews"]:
+        assert view["byteOffset"] % 4 == 0 and view["byteOffset"] + view["byteLength"] <= bin_len
+    sizes = {"VEC2": 2, "VEC3": 3}
+    for prim in gltf["meshes"][0]["primitives"]:
+        counts = {gltf["accessors"][a]["count"] for a in prim["attributes"].values()}
+        assert len(counts) == 1 and 0 <= prim["material"] < len(gltf["materials"])
+        for name, a in prim["attributes"].items():
+            acc = gltf["accessors"][a]
+            view = gltf["bufferViews"][acc["bufferView"]]
+            assert acc["componentType"] == 5126 and view.get("target") == 34962
+            n = sizes[acc["type"]]
+            assert view["byteLength"] == 4 * n * acc["count"]
+            values = np.frombuffer(blob, "<f4", n * acc["count"], view["byteOffset"]).reshape(-1, n)
+            if name == "POSITION":  # required, and exactly the data's bounds
+                assert acc["min"] == values.min(axis=0).tolist() and acc["max"] == values.max(axis=0).tolist()
+            if name == "COLOR_0":
+                assert values.min() >= 0 and values.max() <= 1
+    assert len(gltf["materials"]) == 2  # a material without faces is left out
+    for image in gltf["images"]:
+        view = gltf["bufferViews"][image["bufferView"]]
+        assert "target" not in view and image["mimeType"] == "image/png"
+        assert blob[view["byteOffset"]:view["byteOffset"] + 8] == b"\x89PNG\r\n\x1a\n"
+    for tex in gltf["textures"]:
+        assert 0 <= tex["source"] < len(gltf["images"]) and 0 <= tex["sampler"] < len(gltf["samplers"])
+    assert gltf["samplers"][0]["wrapS"] == CLAMP_TO_EDGE and gltf["samplers"][0]["wrapT"] == MIRRORED_REPEAT

@@ -86,3 +86,72 @@ def test_truncated_and_missing_files(tmp_path):
         load_ply(path)
     with pytest.raises(InvalidInputError, match="does not exist"):
         load_ply(tmp_path / "nope.ply")
+
+
+def _header_names(raw: bytes) -> tuple[list[str], bytes]:
+    header, body = raw.split(b"end_header\n", 1)
+    return [ln.split()[2] for ln in header.decode().splitlines() if ln.startswith("property")], body
+
+
+@pytest.mark.parametrize("degree", [0, 1, 2, 3])
+def test_sh_degree_layout_is_what_the_original_3dgs_loader_asserts(tmp_path, degree):
+    """The original 3DGS load_ply asserts 3 (d + 1)^2 - 3 f_rest_* for its --sh_degree d (45 for the default
+    3) and its viewer reads records at fixed offsets: x y z n f_dc f_rest opacity scale rot. The padded file
+    holds the same Gaussians, f_rest all zero, and loads back bit-exact."""
+    gmap = _random_map(9)
+    _, plain = _header_names(save_ply(gmap, tmp_path / "d0.ply").read_bytes())
+    plain = np.frombuffer(plain, "<f4").reshape(9, 17)
+    names, body = _header_names(save_ply(gmap, tmp_path / "g.ply", sh_degree=degree).read_bytes())
+    n_rest = 3 * (degree + 1) ** 2 - 3
+    rest = sorted((n for n in names if n.startswith("f_rest_")), key=lambda n: int(n.split("_")[-1]))
+    assert len(rest) == n_rest
+    assert names == [*PLY_FIELDS[:9], *(f"f_rest_{i}" for i in range(n_rest)), *PLY_FIELDS[9:]]
+    rec = np.frombuffer(body, "<f4").reshape(9, 17 + n_rest)
+    assert not rec[:, 9:9 + n_rest].any()
+    assert np.array_equal(np.delete(rec, np.s_[9:9 + n_rest], axis=1), plain)
+    back = load_ply(tmp_path / "g.ply")
+    for name, t in gmap.params.items():
+        assert torch.equal(back.params[name], t.detach()), name
+
+
+@pytest.mark.parametrize("degree", [-1, 4, True, 1.5])
+def test_unknown_sh_degree_is_refused(tmp_path, degree):
+    with pytest.raises(InvalidInputError, match="SH degree must be one of 0, 1, 2, 3"):
+        save_ply(_random_map(2), tmp_path / "g.ply", sh_degree=degree)
+    assert not (tmp_path / "g.ply").exists()
+
+
+def test_export_ply_command(tmp_path, capsys):
+    """`activesplat export DIR --ply FILE --sh-degree 3`: a map folder's (or refined_<method>'s) gaussians.ply
+    for the original 3DGS loader; without --sh-degree the file is the map's own."""
+    from activesplat.cli import main
+
+    folder = tmp_path / "refined_3dgs"
+    gmap = _random_map(4)
+    save_ply(gmap, folder / "gaussians.ply")
+    out = tmp_path / "out" / "sh3.ply"
+    assert main(["export", str(folder), "--ply", str(out), "--sh-degree", "3"]) == 0
+    assert "SH degree 3" in capsys.readouterr().out
+    names, _ = _header_names(out.read_bytes())
+    assert sum(n.startswith("f_rest_") for n in names) == 45
+    assert torch.equal(load_ply(out).params["means"], gmap.params["means"].detach())
+    same = tmp_path / "same.ply"
+    assert main(["export", str(folder), "--ply", str(same)]) == 0
+    assert same.read_bytes() == (folder / "gaussians.ply").read_bytes()
+    capsys.readouterr()
+    refusals = {
+        ("export", str(folder)): "export needs --mcap FILE (Foxglove) or --ply FILE (3DGS PLY), or both",
+        ("export", str(folder), "--mcap", str(tmp_path / "x.mcap"), "--sh-degree", "3"):
+            "--sh-degree applies to --ply FILE only",
+        ("export", str(folder), "--ply", str(tmp_path / "x.ply"), "--max-points", "3"):
+            "--max-points applies to --mcap FILE only",
+        ("export", str(folder), "--ply", str(same)): f"{same} exists; pass --overwrite to replace it",
+        ("export", str(folder), "--ply", str(tmp_path / "x.txt")):
+            f"--ply file must end in .ply: {tmp_path}/x.txt",
+        ("export", str(tmp_path / "out"), "--ply", str(tmp_path / "x.ply")):
+            f"{tmp_path}/out: not an episode, map or refined folder (no gaussians.ply)",
+    }
+    for argv, message in refusals.items():
+        assert main(list(argv)) == 2
+        assert capsys.readouterr().err == f"activesplat: error: {message}\n"
+    assert not (tmp_path / "x.ply").exists() and not list(tmp_path.rglob("*.partial"))

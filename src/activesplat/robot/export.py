@@ -322,8 +322,61 @@ def _point_cloud(gmap, step: int, max_points: int | None) -> dict:
     }
 
 
+def export_ply(folder: str | Path, out: str | Path, sh_degree: int = 0, overwrite: bool = False) -> Path:
+    """Write the map of ``folder`` (an episode, map or ``refined_<method>`` folder: its ``gaussians.ply``)
+    as the 3DGS PLY file ``out`` laid out for SH degree ``sh_degree`` (``splat.ply``: the f_rest_* the
+    original 3DGS loader asserts for its ``--sh_degree``, all zero); written under a temporary name,
+    renamed when complete."""
+    from activesplat.splat.ply import load_ply, ply_fields, save_ply
+
+    folder, out = Path(folder), Path(out)
+    if not folder.is_dir() or not (folder / "gaussians.ply").is_file():
+        raise EpisodeError(f"{folder}: not an episode, map or refined folder (no gaussians.ply)")
+    if out.suffix != ".ply":
+        raise InvalidInputError(f"--ply file must end in .ply: {out}")
+    ply_fields(sh_degree)  # a bad degree fails before anything is written
+    if out.is_dir():
+        raise InvalidInputError(f"--ply {out}: it is a folder, not a file")
+    if out.exists() and not overwrite:
+        raise EpisodeError(f"{out} exists; pass --overwrite to replace it")
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise cannot_write(out, exc, "--ply") from None
+    gmap = load_ply(folder / "gaussians.ply")
+    tmp = out.with_name(out.name + ".partial")
+    try:
+        try:
+            save_ply(gmap, tmp, sh_degree)
+        except OSError as exc:
+            raise cannot_write(out, exc, "--ply") from None
+        os.replace(tmp, out)
+    except BaseException:
+        try:
+            tmp.unlink(missing_ok=True)
+        except OSError:
+            pass
+        raise
+    return out
+
+
 def export_from_args(args) -> int:
     """The ``export`` command."""
-    counts = export_mcap(args.dir, args.mcap, overwrite=args.overwrite, max_points=args.max_points)
-    print(f"wrote {args.mcap}: " + ", ".join(f"{t} {n}" for t, n in counts.items()))
+    if args.mcap is None and args.ply is None:
+        raise InvalidInputError("export needs --mcap FILE (Foxglove) or --ply FILE (3DGS PLY), or both")
+    if args.sh_degree is not None and args.ply is None:
+        raise InvalidInputError("--sh-degree applies to --ply FILE only")
+    if args.max_points is not None and args.mcap is None:
+        raise InvalidInputError("--max-points applies to --mcap FILE only")
+    for out in (args.ply, args.mcap):  # neither is written when the other would be refused for existing
+        if out is not None and Path(out).is_file() and not args.overwrite:
+            raise EpisodeError(f"{out} exists; pass --overwrite to replace it")
+    if args.ply is not None:
+        sh = 0 if args.sh_degree is None else args.sh_degree
+        export_ply(args.dir, args.ply, sh_degree=sh, overwrite=args.overwrite)
+        zero = " (higher coefficients zero)" if sh else ""
+        print(f"wrote {args.ply}: the map's Gaussians, SH degree {sh}{zero}")
+    if args.mcap is not None:
+        counts = export_mcap(args.dir, args.mcap, overwrite=args.overwrite, max_points=args.max_points)
+        print(f"wrote {args.mcap}: " + ", ".join(f"{t} {n}" for t, n in counts.items()))
     return 0

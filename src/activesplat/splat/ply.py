@@ -4,6 +4,13 @@ Vertex properties, all float32, in this order: x y z, nx ny nz (zeros), f_dc_0..
 rgb = 0.5 + C0 f_dc), opacity (logit), scale_0..2 (log), rot_0..3 (quaternion wxyz, unnormalised).
 The map stores exactly these raw values, so save -> load is bit-exact. Loading accepts any extra
 vertex properties (e.g. f_rest_* of higher SH degrees) and ignores them.
+
+The map's colours are SH degree 0, so the file has no f_rest_* properties (the higher-degree
+coefficients). Readers that take the degree from the properties present, or use f_dc only
+(antimatter15/splat), read it; the original 3DGS loader (``GaussianModel.load_ply``) asserts
+3 (d + 1)^2 - 3 of them for its ``--sh_degree d``, 45 for the default 3. ``save_ply(..., sh_degree=3)``
+(``activesplat export DIR --ply FILE --sh-degree 3``) writes them, all zero, between f_dc_2 and opacity
+where that repository puts them: the same colours, 62 instead of 17 floats per Gaussian.
 """
 
 from __future__ import annotations
@@ -25,12 +32,28 @@ _PLY_TYPES = {"float": "<f4", "float32": "<f4", "double": "<f8", "float64": "<f8
               "uint16": "<u2", "int": "<i4", "int32": "<i4", "uint": "<u4", "uint32": "<u4"}
 
 
-def save_ply(gmap: GaussianMap, path: str | Path) -> Path:
-    """Write ``gmap`` as a 3DGS PLY file; returns the path."""
+SH_DEGREES = (0, 1, 2, 3)
+"""Spherical-harmonics degrees ``save_ply`` can lay a file out for (the 3DGS range)."""
+
+
+def ply_fields(sh_degree: int = 0) -> tuple[str, ...]:
+    """Vertex properties, in order, of a file laid out for SH degree ``sh_degree``: ``PLY_FIELDS`` with
+    3 ((d + 1)^2 - 1) f_rest_* after f_dc_2 (none for degree 0)."""
+    if isinstance(sh_degree, bool) or sh_degree not in SH_DEGREES:
+        choices = ", ".join(map(str, SH_DEGREES))
+        raise InvalidInputError(f"SH degree must be one of {choices}, got {sh_degree!r}")
+    rest = tuple(f"f_rest_{i}" for i in range(3 * ((sh_degree + 1) ** 2 - 1)))
+    return PLY_FIELDS[:9] + rest + PLY_FIELDS[9:]
+
+
+def save_ply(gmap: GaussianMap, path: str | Path, sh_degree: int = 0) -> Path:
+    """Write ``gmap`` as a 3DGS PLY file; returns the path. ``sh_degree`` > 0 adds the higher-degree
+    coefficients f_rest_* as zeros (module docstring)."""
     path = Path(path)
+    fields = ply_fields(sh_degree)
     raw = {k: v.detach().cpu().numpy().astype(np.float32) for k, v in gmap.params.items()}
     n = len(gmap)
-    data = np.zeros(n, dtype=[(name, "<f4") for name in PLY_FIELDS])
+    data = np.zeros(n, dtype=[(name, "<f4") for name in fields])
     for i, axis in enumerate("xyz"):
         data[axis] = raw["means"][:, i]
     for i in range(3):
@@ -40,7 +63,7 @@ def save_ply(gmap: GaussianMap, path: str | Path) -> Path:
         data[f"rot_{i}"] = raw["quats"][:, i]
     data["opacity"] = raw["opacity_logits"]
     header = ["ply", "format binary_little_endian 1.0", f"element vertex {n}"]
-    header += [f"property float {name}" for name in PLY_FIELDS]
+    header += [f"property float {name}" for name in fields]
     header.append("end_header")
     path.parent.mkdir(parents=True, exist_ok=True)
     with open(path, "wb") as f:
