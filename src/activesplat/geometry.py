@@ -23,6 +23,28 @@ def intrinsics(width: int, height: int, hfov_deg: float, vfov_deg: float | None 
     return np.array([[fx, 0.0, width / 2.0], [0.0, fy, height / 2.0], [0.0, 0.0, 1.0]])
 
 
+PIXEL_CENTRE = 0.5
+"""Where pixel (u, v)'s centre lies in this project's image coordinates: (u + 0.5, v + 0.5), with (0, 0)
+the top-left corner of the top-left pixel (the simulator's rays, the rasterizers, `backproject`; gsplat's
+and COLMAP's convention). ROS ``CameraInfo``, OpenCV and the TUM RGB-D calibrations put it at (u, v), so
+their principal point is half a pixel less for the same camera."""
+
+
+def K_from_opencv(K) -> np.ndarray:
+    """This project's K of a camera whose K follows ROS / OpenCV (pixel centres at whole numbers): the
+    principal point moves by `PIXEL_CENTRE`."""
+    K = np.array(K, dtype=np.float64).reshape(3, 3)
+    K[:2, 2] += PIXEL_CENTRE * K[2, 2]
+    return K
+
+
+def K_to_opencv(K) -> np.ndarray:
+    """The ROS / OpenCV K of a camera of this project's K (the inverse of `K_from_opencv`)."""
+    K = np.array(K, dtype=np.float64).reshape(3, 3)
+    K[:2, 2] -= PIXEL_CENTRE * K[2, 2]
+    return K
+
+
 def heading(yaw: float, pitch: float = 0.0) -> np.ndarray:
     """Unit viewing direction for a yaw (about +y) and pitch (up positive), in radians."""
     cp = math.cos(pitch)

@@ -8,6 +8,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from activesplat.geometry import K_to_opencv
 from activesplat.robot.mapping import WORLD_UP
 from activesplat.robot.transforms import matrix_tq
 
@@ -57,6 +58,8 @@ def image_msg(store, stamp, frame, array, encoding, ros1=False):
 
 
 def camera_info_msg(store, stamp, frame, K, w, h):
+    """A CameraInfo of the camera of this project's `K`, in ROS's convention (as a driver writes it)."""
+    K = K_to_opencv(K)
     Info = store.types["sensor_msgs/msg/CameraInfo"]
     Roi = store.types["sensor_msgs/msg/RegionOfInterest"]
     kwargs = dict(
@@ -246,6 +249,12 @@ ARGS = [
     "--camera-info-topic",
     "/camera/color/camera_info",
 ]
+
+
+def ros_intrinsics(K) -> list[float]:
+    """fx fy cx cy of the camera of this project's `K`, as ROS / OpenCV / TUM give them (`--intrinsics`)."""
+    k = K_to_opencv(K)
+    return [k[0, 0], k[1, 1], k[0, 2], k[1, 2]]
 
 
 def write_tum(folder: Path, K, frames, depth_scale: float = 5000.0) -> Path:

@@ -60,6 +60,12 @@ def test_export_writes_foxglove_channels(map_folder, tmp_path, capsys):
         == 16 * json.loads((map_folder / "metrics.json").read_text())["n_gaussians"]
     )
     assert len(msgs["/trajectory"][0]["poses"]) == len(poses)
+    # the calibration is the recording's own, in ROS's convention (pixel centres at whole numbers), and
+    # the map was made with the same camera in the project's (centres at integer + 0.5)
+    meta = json.loads((map_folder / "episode.json").read_text())
+    calibration = np.reshape(msgs["/camera/calibration"][0]["K"], (3, 3))
+    assert np.allclose(calibration, meta["K_ros"]) and np.allclose(calibration[:2, 2], 15.5)
+    assert np.allclose(np.reshape(meta["K"], (3, 3))[:2, 2], 16.0)
     assert main(["export", str(map_folder), "--mcap", str(out)]) == 2  # exists: needs --overwrite
     assert main(["export", str(tmp_path), "--mcap", str(tmp_path / "x.mcap")]) == 2
     assert "not an episode or map folder" in capsys.readouterr().err

@@ -10,7 +10,7 @@ import torch
 
 pytest.importorskip("rosbags")
 
-from _bags import ARGS, sim_frames, write_bag, write_tum  # noqa: E402
+from _bags import ARGS, ros_intrinsics, sim_frames, write_bag, write_tum  # noqa: E402
 
 from activesplat.cli import main  # noqa: E402
 from activesplat.robot.mapping import WORLD_UP  # noqa: E402
@@ -92,7 +92,7 @@ def test_bag_maps_like_the_online_mapper(fmt, frames, direct_map, tmp_path, caps
 def test_tum_folder_and_tf_poses_and_16bit_depth(frames, direct_map, tmp_path):
     K, fr = frames
     tum = write_tum(tmp_path / "tum", K, fr)
-    rec = open_recording(tum, intrinsics=[K[0, 0], K[1, 1], K[0, 2], K[1, 2]])
+    rec = open_recording(tum, intrinsics=ros_intrinsics(K))
     assert len(rec) == N
     np.testing.assert_allclose(
         np.einsum("ij,njk->nik", WORLD_UP["z"], rec.poses), [p for _, _, p in fr], atol=1e-9
@@ -224,7 +224,7 @@ def test_map_without_backend_option(frames, tmp_path, capsys):
     K, fr = frames
     tum = write_tum(tmp_path / "tum", K, fr[:3])
     out = tmp_path / "map"
-    argv = ["map", str(tum), "--intrinsics", *(str(v) for v in (K[0, 0], K[1, 1], K[0, 2], K[1, 2])),
+    argv = ["map", str(tum), "--intrinsics", *(str(v) for v in ros_intrinsics(K)),
             "--holdout-every", "0", "--out", str(out), "--no-progress"]
     assert main(argv) == 0, capsys.readouterr().err
     assert json.loads((out / "episode.json").read_text())["backend"] == "auto"
@@ -308,7 +308,7 @@ def test_a_frame_without_pose_says_why(frames, tmp_path):
     gt = (tum / "groundtruth.txt").read_text().splitlines()
     (tum / "groundtruth.txt").write_text("\n".join(gt[:1] + gt[2:]) + "\n")  # the first pose is missing
     with pytest.raises(RecordingError) as err:
-        open_recording(tum, intrinsics=[K[0, 0], K[1, 1], K[0, 2], K[1, 2]])
+        open_recording(tum, intrinsics=ros_intrinsics(K))
     assert "0.100 s before the first pose of groundtruth.txt" in str(err.value)
     assert "at most a tenth of --max-pose-gap, 0.050 s" in str(err.value)  # not "within 0.5 s"
     track = PoseTrack([0, 10**9], [np.eye(4)] * 2, "/odom")
@@ -324,7 +324,7 @@ def test_a_frame_without_pose_says_why(frames, tmp_path):
 def test_a_bag_without_camera_info_takes_intrinsics(frames, tmp_path, capsys):
     K, fr = frames
     bag = write_bag(tmp_path / "rec", K, fr[:3], skip_topic="/camera/color/camera_info")
-    intr = [str(v) for v in (K[0, 0], K[1, 1], K[0, 2], K[1, 2])]
+    intr = [str(v) for v in ros_intrinsics(K)]
     out = tmp_path / "map"
     err = _err(capsys, ["map", str(bag), *ARGS[:4], "--out", str(out)])
     assert err.endswith(
@@ -352,7 +352,7 @@ def test_intrinsics_of_another_resolution_are_refused(frames, tmp_path, capsys):
                         "intrinsics of another resolution? (scale fx fy cx cy by the image size over the "
                         "calibrated size)")
     bag = write_bag(tmp_path / "rec", K * [[20], [20], [1]], fr[:2])  # CameraInfo of a 640x640 camera
-    assert "/camera/color/camera_info: message 0: principal point (320, 320) outside the 32x32" in _err(
+    assert "/camera/color/camera_info: message 0: principal point (319.5, 319.5) outside the 32x32" in _err(
         capsys, ["map", str(bag), *ARGS, "--pose-source", "/camera_pose"])
 
 

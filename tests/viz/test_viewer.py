@@ -363,13 +363,13 @@ def recorded_map(tmp_path_factory):
     """A map of a recording (`activesplat map` of a TUM RGB-D folder, every 3rd frame held out)."""
     pytest.importorskip("cv2")
     sys.path.insert(0, str(Path(__file__).parents[1] / "robot"))
-    from _bags import sim_frames, write_tum
+    from _bags import ros_intrinsics, sim_frames, write_tum
 
     K, frames = sim_frames(9, 32)
     root = tmp_path_factory.mktemp("recorded")
     tum = write_tum(root / "tum", K, frames)
     out = root / "map"
-    assert main(["map", str(tum), "--intrinsics", *(str(v) for v in (K[0, 0], K[1, 1], K[0, 2], K[1, 2])),
+    assert main(["map", str(tum), "--intrinsics", *(str(v) for v in ros_intrinsics(K)),
                  "--holdout-every", "3", "--backend", "numba", "--out", str(out), "--no-progress"]) == 0
     return out, frames
 

@@ -31,6 +31,7 @@ import numpy as np
 
 from activesplat.env import ACTIONS, Observation
 from activesplat.errors import InvalidInputError
+from activesplat.geometry import K_from_opencv, K_to_opencv
 from activesplat.robot.bags import decode_color, decode_depth
 from activesplat.robot.mapping import WORLD_UP
 from activesplat.robot.transforms import matrix_tq, pose_matrix
@@ -166,7 +167,7 @@ class RosbridgeEnvironment:
                     latest[key] = msg
             if "info" in latest and not hasattr(self, "_K"):
                 info = latest["info"]
-                self._K = np.asarray(info.get("k", info.get("K")), dtype=np.float64).reshape(3, 3)
+                self._K = K_from_opencv(np.asarray(info.get("k", info.get("K")), dtype=np.float64))
                 self._width, self._height = int(info["width"]), int(info["height"])
         rgb = decode_color(_image(latest["rgb"]), self.topics["rgb"], self.steps, compressed=False)
         depth = decode_depth(_image(latest["depth"]), self.topics["depth"], self.steps)
@@ -252,7 +253,7 @@ def serve_simulator(sim, host: str = "127.0.0.1", port: int = 0, topics: dict | 
                 ws.send(json.dumps({"op": "publish", "topic": topic, "msg": msg}))
 
             publish(DONE_TOPIC, {"data": op["msg"]["data"]})
-            K = sim.K
+            K = K_to_opencv(sim.K)  # CameraInfo: ROS's convention, as a camera driver publishes it
             publish(
                 topics["info"],
                 {

@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from activesplat.errors import EpisodeError, InvalidInputError, cannot_write
+from activesplat.geometry import K_to_opencv
 
 STEP_S = 0.1
 T0_S = 1.0
@@ -273,7 +274,7 @@ def _put_keyframe(put, step: int, rgb: np.ndarray, depth: np.ndarray, mapper: di
             "data": base64.b64encode(d.tobytes()).decode(),
         },
     )
-    K = np.asarray(mapper["K"], dtype=np.float64)
+    K = K_to_opencv(mapper["K"])  # Foxglove's CameraCalibration follows ROS: pixel centres at whole numbers
     P = np.zeros((3, 4))
     P[:, :3] = K
     put(

@@ -100,7 +100,7 @@ def map_recording(
                 stacklevel=2,
             )
         torch.manual_seed(0)
-        mapper = Mapper(rec.K, rec.width, rec.height, config=mapper_config, backend=backend)
+        mapper = Mapper(rec.mapper_K, rec.width, rec.height, config=mapper_config, backend=backend)
         held = {"rgb": [], "depth": [], "pose": [], "index": []}
         used, mapper_ms, seen, interrupted = [], 0.0, 0, False
         bar = _progress(len(rec), progress)
@@ -148,7 +148,8 @@ def map_recording(
             "recording": str(rec.path),
             "kind": rec.kind,
             **rec.info,
-            "K": rec.K.tolist(),
+            "K": rec.mapper_K.tolist(),  # this project's convention, as a simulated episode's
+            "K_ros": rec.K.tolist(),
             "width": rec.width,
             "height": rec.height,
             "world_up": world_up,

@@ -17,6 +17,8 @@ Conventions (README, "Recorded data"):
   distortion coefficients are ignored).
 - **Intrinsics**: the first ``sensor_msgs/CameraInfo`` of the camera-info topic (``K``/``k``); any size;
   or ``intrinsics`` (fx fy cx cy) for a bag without one. A principal point outside the image is refused.
+  Both in the ROS / OpenCV convention (pixel (u, v)'s centre at (u, v)); the map is made with the same
+  camera in this project's (:attr:`Recording.mapper_K`, half a pixel more).
 - **Time**: the header stamps. A colour image is paired with the depth image of the nearest stamp within
   ``max_dt``; unpaired colour images are dropped (counted in ``Recording.info``).
 - **Poses** (camera-to-world, OpenCV optical axes, as the rest of the project): ``tf:WORLD`` or
@@ -42,6 +44,7 @@ from pathlib import Path
 import numpy as np
 
 from activesplat.errors import RecordingError
+from activesplat.geometry import K_from_opencv
 
 RECORDINGS = ("a ROS 1 bag (.bag), a ROS 2 bag (its folder, its .db3 file, or an .mcap file of profile ros2) "
               "or a TUM RGB-D folder (rgb.txt, depth.txt, groundtruth.txt)")
@@ -51,9 +54,10 @@ RECORDINGS = ("a ROS 1 bag (.bag), a ROS 2 bag (its folder, its .db3 file, or an
 # --------------------------------------------------------------------------- the recording
 @dataclass
 class Recording:
-    """A scanned recording: ``K`` (3x3), image size, and per frame (colour / depth pair, in time order) its
-    stamp (ns) and camera-to-world pose in the pose source's world frame. :meth:`frames` streams the
-    images."""
+    """A scanned recording: ``K`` (3x3, as the recording gives it: ROS / OpenCV, pixel (u, v)'s centre at
+    (u, v); :attr:`mapper_K` is the same camera in this project's convention), image size, and per frame
+    (colour / depth pair, in time order) its stamp (ns) and camera-to-world pose in the pose source's world
+    frame. :meth:`frames` streams the images."""
 
     path: Path
     kind: str  # "ros1", "ros2", "mcap", "tum"
@@ -67,6 +71,12 @@ class Recording:
 
     def __len__(self) -> int:
         return len(self.stamps)
+
+    @property
+    def mapper_K(self) -> np.ndarray:
+        """K in this project's convention (pixel centres at integer + 0.5, `geometry.PIXEL_CENTRE`): what the
+        mapper, render-eval and the viewer use; the principal point half a pixel more than ``K``'s."""
+        return K_from_opencv(self.K)
 
     def frames(self) -> Iterator[tuple[int, np.ndarray, np.ndarray]]:
         """(index, rgb uint8 (H, W, 3), depth float32 metres (H, W), 0 = no depth), in time order."""
