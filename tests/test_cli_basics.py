@@ -15,6 +15,14 @@ def test_help_lists_commands(capsys):
     assert "explore" in out and "scenes" in out
 
 
+def test_version_is_the_package_version(capsys):
+    from activesplat import __version__
+
+    with pytest.raises(SystemExit) as exc:
+        main(["--version"])
+    assert exc.value.code == 0 and capsys.readouterr().out.strip() == f"activesplat {__version__}"
+
+
 def test_module_entry_point_runs():
     res = subprocess.run([sys.executable, "-m", "activesplat", "--help"], capture_output=True, text=True)
     assert res.returncode == 0

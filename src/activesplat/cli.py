@@ -17,6 +17,7 @@ import os
 import sys
 from collections.abc import Callable, Sequence
 
+from activesplat import __version__
 from activesplat.cli_options import parse_command
 from activesplat.errors import ActiveSplatError
 
@@ -191,6 +192,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Autonomous exploration that builds a 3D Gaussian-splatting map "
         "(ActiveSplat, RA-L 2025).",
     )
+    parser.add_argument("--version", action="version", version=f"activesplat {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
 

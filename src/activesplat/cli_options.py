@@ -61,15 +61,20 @@ def _default_hint(helptext, label: str) -> str:
 def _registry(hidden: dict):
     """tyro constructors that leave out the fields derived from others (and those a command sets itself), and
     that clean every field's help (`help_text`)."""
+    from typing import Literal
+
     import tyro
     from tyro.constructors import ConstructorRegistry
     from tyro.constructors._struct_spec_dataclass import dataclass_rule
 
-    from activesplat.config import strip_annotated
+    from activesplat.config import PolicyName, strip_annotated
+    from activesplat.planning.policies import policy_names
 
     registry = ConstructorRegistry()
 
     def field(f, names):
+        if f.type is PolicyName:  # the policies of this run: the built-in ones and those added since import
+            f = dataclasses.replace(f, type=Literal[policy_names()])
         if f.name in names:
             return dataclasses.replace(f, type=tyro.conf.Suppress[f.type])
         nested = strip_annotated(f.type)

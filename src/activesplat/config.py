@@ -38,7 +38,7 @@ from activesplat.errors import InvalidInputError
 from activesplat.eval.coverage import CoverageConfig
 from activesplat.planning.explorer_config import ExplorerConfig
 from activesplat.planning.frontier import FrontierConfig
-from activesplat.planning.policies import POLICY_NAMES
+from activesplat.planning.policies import POLICY_NAMES, check_policy
 from activesplat.refine.config import METHODS, RefineConfig
 from activesplat.sim.config import SimConfig
 from activesplat.splat.config import MapperConfig
@@ -91,7 +91,8 @@ class RunConfig:
     """Built-in scene (small-<seed>: 2-4 rooms, medium-<seed>: 5-10 rooms) or a mesh file
     (.glb/.gltf/.ply/.obj)."""
     policy: PolicyName = "activesplat"
-    """Exploration policy: the paper's method (activesplat), its ablations and the baselines."""
+    """Exploration policy: the paper's method (activesplat), its ablations and the baselines, or one a package
+    adds (docs/extending.md)."""
     seed: int = 0
     """Seed of the random start pose."""
     steps: int | None = None
@@ -112,9 +113,8 @@ class RunConfig:
     refine: RefineGroup = field(default_factory=RefineConfig)
 
     def __post_init__(self) -> None:
-        if self.policy not in POLICY_NAMES:
-            raise InvalidInputError(f"unknown policy {self.policy!r}; "
-                                    f"choose one of: {', '.join(POLICY_NAMES)}")
+        if self.policy not in POLICY_NAMES:  # a registered or installed one (docs/extending.md)
+            check_policy(self.policy)
         if self.backend not in BACKENDS:
             raise InvalidInputError(f"RunConfig.backend must be one of {', '.join(BACKENDS)}, "
                                     f"got {self.backend!r}")

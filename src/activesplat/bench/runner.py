@@ -120,7 +120,7 @@ def plan_runs(scenes: Sequence[str], policies: Sequence[str], seeds: Sequence[in
     """Validate every argument, then list the runs scene by scene, policy by policy, seed by seed.
 
     Raises InvalidInputError / SceneError (one line each) before anything runs."""
-    from activesplat.planning.policies import POLICY_NAMES
+    from activesplat.planning.policies import check_policy
 
     if not scenes:
         raise InvalidInputError("--scenes needs at least one scene")
@@ -130,9 +130,8 @@ def plan_runs(scenes: Sequence[str], policies: Sequence[str], seeds: Sequence[in
         raise InvalidInputError("--trials must be a positive number of trials, got 0")
     if steps is not None and steps <= 0:
         raise InvalidInputError(f"--steps must be a positive number of actions, got {steps}")
-    unknown = [p for p in policies if p not in POLICY_NAMES]
-    if unknown:
-        raise InvalidInputError(f"unknown policy {unknown[0]!r}; choose from: {', '.join(POLICY_NAMES)}")
+    for policy in policies:
+        check_policy(policy)
     for scene in scenes:
         validate_scene(scene)
     scenes, policies, seeds = _unique(scenes), _unique(policies), _unique(seeds)
