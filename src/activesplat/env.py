@@ -4,7 +4,8 @@ An environment is anything with a pinhole RGB-D camera on a mobile base that tak
 actions. :class:`activesplat.sim.Simulator` is one; a robot bridge or a user's own simulator is another.
 The loop (:func:`activesplat.explore.explore_environment`) needs only this:
 
-- ``K`` (3x3 intrinsics), ``width``, ``height``: the camera, fixed for the whole run;
+- ``K`` (3x3 intrinsics), ``width``, ``height``: the camera, fixed for the whole run; pixel (u, v)'s centre
+  lies at (u + 0.5, v + 0.5) as in the simulator (a ROS / OpenCV K: ``geometry.K_from_opencv``);
 - ``reset() -> Observation``: the first observation (the loop maps it before choosing an action);
 - ``step(action) -> Observation``: apply one of :data:`ACTIONS` and observe. An action costs one step
   whatever happens; a ``move_forward`` that did not move sets ``collided`` (the planner then marks its goal
