@@ -98,153 +98,296 @@ def explore_environment(env, run, out: str | Path, overwrite: bool = False, prog
     user's own), for `run.steps` actions with `run`'s policy and settings; writes the episode folder `out`
     (episode.json with `meta` added, actions, poses, map, topdown.png, metrics.json) and returns the metrics.
     `evaluator` (the simulator's completion measurement, or None where there is no ground truth) sees every
-    observation's pose and adds its metrics."""
-    import torch
+    observation's pose and adds its metrics.
 
-    from activesplat.env import check_observation
-    from activesplat.errors import InvalidInputError
+    The README's "What happens in an exploration", step by step (`_Exploration`): reset the environment and
+    start the episode folder; then, for every action of the budget, map the current observation (sec.
+    III-A), let the policy choose the next action from the map (workspace, viewpoints and planning, sec.
+    III-A to III-C; the first ones are the bootstrap look-around), have the environment take it and record
+    it; map the last observation too; then the metrics, the map and the figures. Ctrl-C leaves a partial
+    episode that `activesplat evaluate` reads."""
+    episode = _Exploration(env, run, Path(out), overwrite=overwrite, progress=progress, viewer=viewer,
+                           evaluator=evaluator, meta=meta, name=name)
+    try:
+        for step in range(1, episode.steps + 1):
+            episode.step(step)
+        episode.end()
+    except KeyboardInterrupt:
+        episode.interrupted()
+        raise
+    return episode.finish()
+
+
+class _Exploration:
+    """One episode of `explore_environment` under way: the environment's latest observation, the map, the
+    policy, the episode writer, and what the loop counts (actions and their causes, forward moves, timings,
+    the completion curve)."""
+
+    def __init__(self, env, run, out_dir: Path, *, overwrite: bool, progress: bool, viewer, evaluator,
+                 meta: dict | None, name: str):
+        """Set up the run: check the step budget and the backend before the folder is touched, reset the
+        environment, build the mapper and the policy on the floor the agent starts on, start the episode
+        folder (episode.json), load the rasterizer's kernels, start the clock and the progress bar, and
+        hand the reset's frame to the evaluation (the curve's step 0)."""
+        import torch
+
+        from activesplat.env import check_observation
+        from activesplat.errors import InvalidInputError
+        from activesplat.planning.policies import make_policy
+        from activesplat.sim.scene import scene_label
+        from activesplat.splat import Mapper
+        from activesplat.splat.raster import resolve_backend
+        from activesplat.timing import Timers
+
+        if not isinstance(run.steps, int) or run.steps <= 0:
+            raise InvalidInputError(f"an environment needs a step budget > 0 (run.steps), got {run.steps}")
+        self.env, self.run, self.out_dir, self.viewer, self.evaluator = env, run, out_dir, viewer, evaluator
+        self.steps, self.name = run.steps, name
+        resolve_backend(run.backend)  # a backend this machine cannot run fails before the folder is touched
+        self.writer = EpisodeWriter(out_dir, overwrite=overwrite)
+        torch.manual_seed(run.seed)
+        self.obs = env.reset()
+        check_observation(self.obs, env.width, env.height, "reset()")
+        self.mapper = Mapper(env.K, env.width, env.height, config=run.mapper, backend=run.backend)
+        self.timers = Timers()
+        # the floor height comes from the agent's own start pose (its sensor height is known), not the mesh
+        self.floor_height = float(self.obs.pose[1, 3] - run.sim.sensor_height)
+        self.explorer = make_policy(run.policy, self.mapper, self.floor_height, cfg=run.explorer,
+                                    timers=self.timers, frontier=run.frontier)
+        _warn_if_no_choice(run, stacklevel=4)  # attributed to the caller of explore_environment
+        self.writer.start(self._episode_meta(meta), self.obs.pose)
+
+        self.actions: list[str] = []
+        self.causes: list[str] = []  # why each action was taken (the explorer's `last_cause`)
+        self.forward = 0  # forward moves so far (the path length)
+        self.mapper_phases: dict[str, float] = {}  # ms over the episode, per phase of Mapper._map_frame
+        self.curve: list[dict] = []
+        self.setup_s = _prepare_rasterizer(self.mapper, run, progress)  # kept out of the per-step timings
+        self.t_start = time.perf_counter()
+        self.label = scene_label(name)  # in the progress bar and figure titles
+        self.bar = _progress(self.steps, self.label, run.policy, progress)
+        if evaluator is not None:  # the reset's frame (poses.txt holds steps + 1 frames): the curve's step 0
+            self.timers.time("evaluation", evaluator.observe, self.obs.pose)
+            self.timers.time("evaluation", evaluator.curve_point, 0, {"path_length_m": 0.0, "n_gaussians": 0})
+
+    def _episode_meta(self, meta: dict | None) -> dict:
+        """episode.json: the run (scene, seed, policy, budget, start pose, settings), the caller's `meta` on
+        top, and what the loop found (the floor height, the backend, the camera)."""
+        env, run, obs = self.env, self.run, self.obs
+        meta = {
+            "scene": self.name, "scene_name": self.name, "seed": run.seed, "policy": run.policy,
+            "steps": self.steps, "start_pose": np.asarray(obs.pose).tolist(), **(meta or {}),
+            "floor_height": self.floor_height, "backend": self.mapper.backend, "config": run.to_dict(),
+            # the camera the run saw (run.sim describes the simulator's; a robot's may differ)
+            "camera": {"width": env.width, "height": env.height, "K": np.asarray(env.K).tolist()},
+        }
+        if self.evaluator is None:  # no ground truth: evaluate and render-eval's scene checks say so
+            meta["source"] = "environment"
+        return meta
+
+    @property
+    def path_length_m(self) -> float:
+        return self.forward * self.run.sim.forward_step
+
+    # ------------------------------------------------------------------ the loop
+    def step(self, step: int) -> None:
+        """Action `step` of the budget: map the current observation, choose the next action, take it and
+        record it; then the viewer and the curve point when one is due (after the last action they wait for
+        its frame's mapping: `end`), and the progress bar."""
+        self.map_observation()
+        action = self.choose_action(step)
+        self.take_action(step, action)
+        if step < self.steps:
+            if self.viewer is not None:
+                self.viewer.update(step, self.obs, self.mapper, self.explorer, final=False)
+            if self.evaluator is not None and self.evaluator.curve_due(step, self.steps):
+                self.add_curve_point(step)
+        self.show_progress(step)
+
+    def map_observation(self) -> None:
+        """Sec. III-A, mapping: the current observation into the Gaussian map (densify, optimize over the
+        keyframe window, prune), with the denser schedule while the policy asks for it (not travelling);
+        its time and the time of each of its phases counted."""
+        obs = self.obs
+        frame = self.timers.time("mapper", self.mapper.add_frame, obs.rgb, obs.depth, obs.pose,
+                                 dense=self.explorer.dense_mapping)
+        for phase, ms in frame.timings.items():
+            self.mapper_phases[phase] = self.mapper_phases.get(phase, 0.0) + ms
+
+    def choose_action(self, step: int) -> str:
+        """Sec. III-B/C, the policy: it takes in the mapped observation (high-loss samples, eq. 10), learns
+        how many actions are left (counting this one), and chooses the next action: the bootstrap
+        look-around first, then from its workspace, viewpoints and hierarchical plan. A base with its own
+        controller (`env.waypoint`) is told where the planner's path heads."""
+        explorer = self.explorer
+        explorer.observe_mapping(self.obs, self.env.K)
+        explorer.steps_left = self.steps - step + 1
+        action = explorer.act(self.obs)
+        if hasattr(self.env, "waypoint"):  # a base with its own controller: the planner's next waypoint
+            self.env.waypoint(_next_waypoint(explorer))
+        return action
+
+    def take_action(self, step: int, action: str) -> None:
+        """The environment takes `action` and observes; the action, why it was taken and the new pose go
+        to the episode folder (actions.txt, poses.txt), the new pose to the evaluation."""
+        self.obs = self.timers.time("simulator", self.env.step, action)
+        self.forward += action == "move_forward"
+        self.actions.append(action)
+        self.causes.append(getattr(self.explorer, "last_cause", "") or "policy")
+        self.writer.record(step, action, self.obs.pose)
+        if self.evaluator is not None:  # the frame after action `step`: in the curve's point at `step`
+            self.timers.time("evaluation", self.evaluator.observe, self.obs.pose)
+
+    def add_curve_point(self, step: int) -> None:
+        """A point of the completion curve (docs/protocol.md §6) at `step`: the completion of the frames up
+        to the one after action `step`, the path length and the map's size then."""
+        at_step = {"path_length_m": self.path_length_m, "n_gaussians": len(self.mapper.gaussians)}
+        self.timers.time("evaluation", self.evaluator.curve_point, step, at_step)
+
+    def show_progress(self, step: int) -> None:
+        """The progress bar: completion so far (where there is ground truth), time per step, map size."""
+        if self.bar is None:
+            return
+        self.bar.update(1)
+        elapsed = time.perf_counter() - self.t_start
+        point = self.evaluator.latest() if self.evaluator is not None else None
+        done = f"completion {point['completion_ratio_pct']:.1f}% | " if point else ""
+        self.bar.set_postfix_str(f"{done}{1000 * elapsed / step:.0f} ms/step | "
+                                 f"{len(self.mapper.gaussians)} gaussians")
+
+    def end(self) -> None:
+        """After the last action: its observation is mapped too, as every other one (the map's train views);
+        the viewer's final update; the last curve point, the episode's result with the final map's size,
+        and the evaluation's remaining work waited for (the curve)."""
+        self.map_observation()
+        if self.viewer is not None:
+            self.viewer.update(self.steps, self.obs, self.mapper, self.explorer, final=True)
+        if self.evaluator is not None:
+            self.add_curve_point(self.steps)
+            self.curve = self.timers.time("evaluation", self.evaluator.finish)
+
+    # ------------------------------------------------------------------ the end of the episode
+    def interrupted(self) -> None:
+        """Ctrl-C: the episode folder is left consistent and incomplete (the actions and poses so far, the
+        map as it is, no metrics.json), the evaluation's worker and the progress bar are stopped, and the
+        user is told how to evaluate it."""
+        self.writer.close()
+        if self.evaluator is not None:
+            self.evaluator.close()
+        if self.bar is not None:
+            self.bar.close()
+        self.save_map()
+        print(f"\ninterrupted after {len(self.actions)} steps: partial episode in {self.out_dir} "
+              f"(evaluate it with: activesplat evaluate {self.out_dir})", file=sys.stderr)
+
+    def finish(self) -> dict:
+        """The finished episode: its metrics (`metrics`), the map (`save_map`), completion.png where there is
+        a curve, coverage.npz where completion was measured, and last metrics.json, which marks the episode
+        complete. Returns the metrics."""
+        if self.bar is not None:
+            self.bar.close()
+        metrics = self.metrics(wall=time.perf_counter() - self.t_start)
+        self.save_map()
+        if self.curve:
+            from activesplat.viz.plots import draw_completion
+
+            draw_completion(self.out_dir / "completion.png", {self.run.policy: self.curve},
+                            title=f"{self.label} / {self.run.policy}")
+        if self.evaluator is not None:
+            self.evaluator.save(self.out_dir)
+        self.writer.finish(metrics)
+        return metrics
+
+    def metrics(self, wall: float) -> dict:
+        """The evaluation's metrics (completion, rooms; none without ground truth), then the behaviour
+        (actions by kind and by cause, path length) and the costs (the paper's Tab. VI timings per step,
+        the mapper's phases, the map's size, memory), and where completion was measured, the share of it
+        each action's frame brought."""
+        from activesplat.timing import peak_rss_mb
+
+        steps, run, timers, evaluator = self.steps, self.run, self.timers, self.evaluator
+        actions, causes = self.actions, self.causes
+        metrics = evaluator.metrics() if evaluator is not None else {}
+        per_step = timers.per_step(steps)
+        metrics.update({
+            "action_counts": action_counts(actions),
+            "rotation_pct": rotation_pct(actions),
+            "rotation_causes": rotation_causes(actions, causes),
+            "path_length_m": self.path_length_m,
+            "steps": steps,
+            "wall_time_s": wall,
+            "ms_per_step": 1000.0 * wall / steps,
+            "backend_setup_s": self.setup_s,
+            "evaluation_ms_per_step": per_step.get("evaluation", 0.0),
+            "simulator_ms_per_step": per_step.get("simulator", 0.0),
+            "timing_ms": {k: per_step.get(k, 0.0) for k in TIMING_KEYS},
+            "mapper_phases_ms": {k: v / steps for k, v in self.mapper_phases.items()},
+            "n_gaussians": len(self.mapper.gaussians),
+            "peak_gaussians": self.mapper.peak_gaussians,
+            "peak_rss_mb": peak_rss_mb(),
+            "scene": self.name, "policy": run.policy, "seed": run.seed,
+            "curve": self.curve,
+        })
+        if evaluator is not None:
+            metrics["evaluation_worker_ms_per_step"] = evaluator.worker_ms / steps
+            metrics["evaluation_background"] = evaluator.background
+            cov = evaluator.coverage
+            metrics["completion_gain"] = completion_gain(cov.gain_by_frame(), actions, causes, len(cov.gt))
+        return metrics
+
+    def save_map(self) -> None:
+        """gaussians.ply (+ keyframes), the policy's stops.json and topdown.png (the workspace and graph of
+        the map as it is now, with the trajectory and the current path) after `len(actions)` actions."""
+        from activesplat.planning.controller import floor_xz
+        from activesplat.workspace.draw import draw_topdown
+        from activesplat.workspace.plan import build_plan
+
+        mapper, explorer = self.mapper, self.explorer
+        mapper.save(self.out_dir)
+        if getattr(explorer, "failures", None) is not None:
+            write_json_atomic(self.out_dir / "stops.json", {"stops": getattr(explorer, "stops", []),
+                                                            "replans": getattr(explorer, "replans", []),
+                                                            "failures": explorer.failures})
+        if len(mapper.gaussians) == 0:
+            return
+        traj = np.array(explorer.visited) if explorer.visited else None
+        here = traj[-1] if traj is not None else floor_xz(np.eye(4))
+        plan = build_plan(mapper.gaussians, self.floor_height, here, explorer.cfg.workspace)
+        path = explorer.plan.path if explorer.follower is not None else None
+        draw_topdown(self.out_dir / "topdown.png", plan.grids, plan.workspace, plan.graph, path=path,
+                     trajectory=traj, scene=self.label, step=len(self.actions), policy=explorer.name)
+
+
+def _warn_if_no_choice(run, stacklevel: int) -> None:
+    """A budget that ends within the first look-around leaves the policy nothing to choose: warned about."""
     from activesplat.planning.explorer import bootstrap_actions
-    from activesplat.planning.policies import make_policy
-    from activesplat.sim.scene import scene_label
-    from activesplat.splat import Mapper
-    from activesplat.splat.raster import prepare_backend, resolve_backend
-    from activesplat.timing import Timers, peak_rss_mb
 
-    if not isinstance(run.steps, int) or run.steps <= 0:
-        raise InvalidInputError(f"an environment needs a step budget > 0 (run.steps), got {run.steps}")
-    steps, seed, policy = run.steps, run.seed, run.policy
-    out_dir = Path(out)
-    resolve_backend(run.backend)  # a backend this machine cannot run fails before the folder is touched
-    writer = EpisodeWriter(out_dir, overwrite=overwrite)
-    torch.manual_seed(seed)
-    obs = env.reset()
-    check_observation(obs, env.width, env.height, "reset()")
-    mapper = Mapper(env.K, env.width, env.height, config=run.mapper, backend=run.backend)
-    timers = Timers()
-    # the floor height comes from the agent's own start pose (its sensor height is known), not the mesh
-    floor_height = float(obs.pose[1, 3] - run.sim.sensor_height)
-    explorer = make_policy(policy, mapper, floor_height, cfg=run.explorer, timers=timers,
-                           frontier=run.frontier)
     look_around = len(bootstrap_actions(run.explorer))
-    if steps <= look_around:
-        warnings.warn(f"a budget of {steps} actions ends within the first look-around ({look_around} "
-                      f"actions, the same for every policy): no policy gets to choose anything", stacklevel=2)
-    meta = {
-        "scene": name, "scene_name": name, "seed": seed, "policy": policy, "steps": steps,
-        "start_pose": np.asarray(obs.pose).tolist(), **(meta or {}), "floor_height": floor_height,
-        "backend": mapper.backend, "config": run.to_dict(),
-        # the camera the run saw (run.sim describes the simulator's; a robot's may differ)
-        "camera": {"width": env.width, "height": env.height, "K": np.asarray(env.K).tolist()},
-    }
-    if evaluator is None:  # no ground truth: evaluate and render-eval's scene checks say so
-        meta["source"] = "environment"
-    writer.start(meta, obs.pose)
+    if run.steps <= look_around:
+        warnings.warn(f"a budget of {run.steps} actions ends within the first look-around ({look_around} "
+                      f"actions, the same for every policy): no policy gets to choose anything",
+                      stacklevel=stacklevel)
 
-    curve: list[dict] = []
-    actions: list[str] = []
-    causes: list[str] = []
-    forward = 0
-    mapper_phases: dict[str, float] = {}  # ms summed over the episode, per phase of Mapper._map_frame
-    # one-time loading / compiling of the rasterizer's kernels, kept out of the per-step timings
-    if progress and mapper.device.type == "cuda":  # gsplat's JIT build can take minutes, silently
+
+def _prepare_rasterizer(mapper, run, progress: bool) -> float:
+    """The one-time loading / compiling of the rasterizer's kernels (announced on a GPU, where gsplat's JIT
+    build can take minutes, silently); its seconds."""
+    from activesplat.splat.raster import prepare_backend
+
+    if progress and mapper.device.type == "cuda":
         print("loading gsplat's CUDA kernels (the first use after an install compiles them: 1-2 minutes)",
               file=sys.stderr)
-    setup_s = prepare_backend(mapper.backend, planar_depth=run.mapper.planar_depth)
-    t_start = time.perf_counter()
-    label = scene_label(name)  # in the progress bar and figure titles
-    bar = _progress(steps, label, policy, progress)
+    return prepare_backend(mapper.backend, planar_depth=run.mapper.planar_depth)
 
-    def add_frame() -> None:  # the current observation into the map, its phases timed
-        frame = timers.time("mapper", mapper.add_frame, obs.rgb, obs.depth, obs.pose,
-                            dense=explorer.dense_mapping)
-        for phase, ms in frame.timings.items():
-            mapper_phases[phase] = mapper_phases.get(phase, 0.0) + ms
 
-    if evaluator is not None:  # the reset's frame (poses.txt holds steps + 1 frames): the curve's step 0
-        timers.time("evaluation", evaluator.observe, obs.pose)
-        timers.time("evaluation", evaluator.curve_point, 0, {"path_length_m": 0.0, "n_gaussians": 0})
-    try:
-        for step in range(1, steps + 1):
-            add_frame()
-            explorer.observe_mapping(obs, env.K)
-            explorer.steps_left = steps - step + 1
-            action = explorer.act(obs)
-            if hasattr(env, "waypoint"):  # a base with its own controller: the planner's next waypoint
-                env.waypoint(_next_waypoint(explorer))
-            obs = timers.time("simulator", env.step, action)
-            forward += action == "move_forward"
-            actions.append(action)
-            causes.append(getattr(explorer, "last_cause", "") or "policy")
-            writer.record(step, action, obs.pose)
-            if evaluator is not None:  # the frame after action `step`: counted in the curve's point at `step`
-                timers.time("evaluation", evaluator.observe, obs.pose)
-            if viewer is not None and step < steps:  # the last update follows the last frame's mapping
-                viewer.update(step, obs, mapper, explorer, final=False)
-            if evaluator is not None and step < steps and evaluator.curve_due(step, steps):
-                at_step = {"path_length_m": forward * run.sim.forward_step,
-                           "n_gaussians": len(mapper.gaussians)}
-                timers.time("evaluation", evaluator.curve_point, step, at_step)
-            if bar is not None:
-                bar.update(1)
-                elapsed = time.perf_counter() - t_start
-                point = evaluator.latest() if evaluator is not None else None
-                done = f"completion {point['completion_ratio_pct']:.1f}% | " if point else ""
-                bar.set_postfix_str(f"{done}{1000 * elapsed / step:.0f} ms/step | "
-                                    f"{len(mapper.gaussians)} gaussians")
-        add_frame()  # the last observation is mapped too, as every other one (the map's train views)
-        if viewer is not None:
-            viewer.update(steps, obs, mapper, explorer, final=True)
-        if evaluator is not None:  # the last curve point: the episode's result, with the final map's size
-            timers.time("evaluation", evaluator.curve_point, steps, {
-                "path_length_m": forward * run.sim.forward_step, "n_gaussians": len(mapper.gaussians)})
-            curve = timers.time("evaluation", evaluator.finish)
-    except KeyboardInterrupt:
-        writer.close()
-        if evaluator is not None:
-            evaluator.close()
-        if bar is not None:
-            bar.close()
-        _save_map(mapper, explorer, out_dir, floor_height, scene=label, step=len(actions))
-        print(f"\ninterrupted after {len(actions)} steps: partial episode in {out_dir} "
-              f"(evaluate it with: activesplat evaluate {out_dir})", file=sys.stderr)
-        raise
-    if bar is not None:
-        bar.close()
-    wall = time.perf_counter() - t_start
-    metrics = evaluator.metrics() if evaluator is not None else {}
-    metrics.update({
-        "action_counts": action_counts(actions),
-        "rotation_pct": rotation_pct(actions),
-        "rotation_causes": rotation_causes(actions, causes),
-        "path_length_m": forward * run.sim.forward_step,
-        "steps": steps,
-        "wall_time_s": wall,
-        "ms_per_step": 1000.0 * wall / steps,
-        "backend_setup_s": setup_s,
-        "evaluation_ms_per_step": timers.per_step(steps).get("evaluation", 0.0),
-        "simulator_ms_per_step": timers.per_step(steps).get("simulator", 0.0),
-        "timing_ms": {k: timers.per_step(steps).get(k, 0.0) for k in TIMING_KEYS},
-        "mapper_phases_ms": {k: v / steps for k, v in mapper_phases.items()},
-        "n_gaussians": len(mapper.gaussians),
-        "peak_gaussians": mapper.peak_gaussians,
-        "peak_rss_mb": peak_rss_mb(),
-        "scene": name, "policy": policy, "seed": seed,
-        "curve": curve,
-    })
-    if evaluator is not None:
-        metrics["evaluation_worker_ms_per_step"] = evaluator.worker_ms / steps
-        metrics["evaluation_background"] = evaluator.background
-        cov = evaluator.coverage
-        metrics["completion_gain"] = completion_gain(cov.gain_by_frame(), actions, causes, len(cov.gt))
-    _save_map(mapper, explorer, out_dir, floor_height, scene=label, step=steps)
-    if curve:
-        from activesplat.viz.plots import draw_completion
+def _progress(steps: int, scene: str, policy: str, enabled: bool):
+    """The episode's progress bar on stderr (None when `enabled` is off)."""
+    if not enabled:
+        return None
+    from tqdm import tqdm
 
-        draw_completion(out_dir / "completion.png", {policy: curve}, title=f"{label} / {policy}")
-    if evaluator is not None:
-        evaluator.save(out_dir)
-    writer.finish(metrics)
-    return metrics
+    return tqdm(total=steps, desc=f"{scene} {policy}", unit="step", dynamic_ncols=True,
+                file=sys.stderr, mininterval=0.5)
 
 
 def _next_waypoint(explorer) -> np.ndarray | None:
@@ -389,50 +532,13 @@ def _curve_point(step: int, coverage, at_step: dict) -> dict:
             "completion_cm": m["completion_cm"], **at_step}
 
 
-def _save_map(mapper, explorer, out_dir: Path, floor_height: float, scene: str | None = None,
-              step: int | None = None) -> None:
-    """gaussians.ply (+ keyframes) and topdown.png of the map as it is now."""
-    from activesplat.planning.controller import floor_xz
-    from activesplat.workspace.draw import draw_topdown
-    from activesplat.workspace.plan import build_plan
-
-    mapper.save(out_dir)
-    if getattr(explorer, "failures", None) is not None:
-        write_json_atomic(out_dir / "stops.json", {"stops": getattr(explorer, "stops", []),
-                                                   "replans": getattr(explorer, "replans", []),
-                                                   "failures": explorer.failures})
-    traj = np.array(explorer.visited) if explorer.visited else None
-    here = traj[-1] if traj is not None else floor_xz(np.eye(4))
-    if len(mapper.gaussians) == 0:
-        return
-    plan = build_plan(mapper.gaussians, floor_height, here, explorer.cfg.workspace)
-    path = explorer.plan.path if explorer.follower is not None else None
-    draw_topdown(out_dir / "topdown.png", plan.grids, plan.workspace, plan.graph, path=path, trajectory=traj,
-                 scene=scene, step=step, policy=explorer.name)
-
-
-def _worker(metrics: dict) -> str:
-    if not metrics.get("evaluation_background"):
-        return ""
-    return f" (waiting; {metrics['evaluation_worker_ms_per_step']:.0f} on its worker thread)"
-
-
-def _progress(steps: int, scene: str, policy: str, enabled: bool):
-    if not enabled:
-        return None
-    from tqdm import tqdm
-
-    return tqdm(total=steps, desc=f"{scene} {policy}", unit="step", dynamic_ncols=True,
-                file=sys.stderr, mininterval=0.5)
-
-
 def format_summary(metrics: dict, out_dir: Path) -> str:
     t = metrics["timing_ms"]
     lines = [
         f"episode      {out_dir}",
         f"scene        {metrics['scene']}  policy {metrics['policy']}  seed {metrics['seed']}",
         f"steps        {metrics['steps']}  ({metrics['ms_per_step']:.0f} ms/step of which "
-        f"{metrics['evaluation_ms_per_step']:.0f} live evaluation{_worker(metrics)}; "
+        f"{metrics['evaluation_ms_per_step']:.0f} live evaluation{_worker_note(metrics)}; "
         f"{metrics['wall_time_s']:.0f} s wall{_setup(metrics)})",
         f"completion   {metrics['completion_ratio_pct']:.2f} %  |  {metrics['completion_cm']:.2f} cm "
         f"(uncapped {_fmt(metrics['completion_cm_uncapped'])} cm)",
@@ -442,6 +548,13 @@ def format_summary(metrics: dict, out_dir: Path) -> str:
         + f"  simulator {metrics.get('simulator_ms_per_step', 0.0):.1f} (ms)",
     ]
     return "\n".join(lines)
+
+
+def _worker_note(metrics: dict) -> str:
+    """The live evaluation's own time, where it ran on a worker thread (the loop waited only for part)."""
+    if not metrics.get("evaluation_background"):
+        return ""
+    return f" (waiting; {metrics['evaluation_worker_ms_per_step']:.0f} on its worker thread)"
 
 
 def _setup(metrics: dict) -> str:
