@@ -20,6 +20,7 @@ from activesplat.planning.goals import (
     bridge_toward,
     closer_on_the_way,
     last_call_first,
+    node_xz,
     rank_goals,
     reachable_first,
     select_rotation_targets,
@@ -34,6 +35,51 @@ from activesplat.planning.viewpoints import RotationTarget, rotation_candidates
 from activesplat.timing import Timers
 from activesplat.workspace.paths import path_length, plan_safe_path
 from activesplat.workspace.plan import Plan, build_plan, grown_plan
+
+
+@dataclasses.dataclass
+class _Choice:
+    """Where a replan sends the agent: the ranked `node` it chose, and the `goal` and `path` followed
+    there, the node's own or another node's on the way to it."""
+
+    node: int
+    goal: np.ndarray
+    path: np.ndarray
+    how: str = "direct"
+    """"direct": a path on the observed floor; "grown": on the floor grown into unknown (`neck_margin_m`);
+    "bridge": the goal had no path, `goal` is a node on the way to it (`bridge_gain_m`)."""
+    on_the_way: bool = False
+    """`goal` is a stop on the way to the node (`detour_m`, the release's long-path rule)."""
+    straight: bool = False
+    """Put off once for a stop on the way already: no stop this time (`postpone_once_m`)."""
+
+
+class _Floors:
+    """Safe paths from the agent for one replan (sec. III-D3: Dijkstra on the Voronoi graph, `plan_safe_path`,
+    timed as planner): on the observed floor of `plan`, or on the floor grown into unknown through narrow
+    necks (ours, `neck_margin_m`; docs/protocol.md §3), built the first time it is asked for."""
+
+    def __init__(self, plan: Plan, here: np.ndarray, cfg: ExplorerConfig, timers: Timers):
+        self.plan, self.here, self.cfg, self.timers = plan, here, cfg, timers
+        self._grown: Plan | None = None
+
+    def grown(self, timers: Timers | None = None) -> Plan:
+        """The floor grown into unknown (its build timed on `timers`, default the explorer's)."""
+        if self._grown is None:
+            self._grown = grown_plan(self.plan, self.here, self.cfg.workspace, self.cfg.neck_margin_m,
+                                     self.timers if timers is None else timers)
+        return self._grown
+
+    def grown_travel(self, pos: np.ndarray) -> np.ndarray:
+        """The graph travel to `pos` on the grown floor (`neck_travel`); its build is timed as position
+        selection, which calls this."""
+        return graph_travel(self.grown(Timers()).graph, self.here, pos)
+
+    def path(self, goal: np.ndarray, on: Plan | None = None) -> np.ndarray | None:
+        """A safe path to `goal` on the observed floor, or `on` another plan; None where there is none."""
+        on = self.plan if on is None else on
+        return self.timers.time("planner", plan_safe_path, on.graph, on.workspace, self.here, goal,
+                                self.cfg.workspace)
 
 
 class ActiveSplatExplorer(Explorer):
@@ -71,113 +117,146 @@ class ActiveSplatExplorer(Explorer):
         to see (the episode's stops.json, under "replans")."""
 
     def replan(self, pose: np.ndarray) -> None:
-        """Rebuild the workspace and graph, rank the nodes, go to the best one with a safe path."""
-        cfg = self.cfg
+        """Rebuild the workspace and graph, rank the nodes, go to the best one with a safe path:
+
+        1. the workspace and its Voronoi graph from the map (sec. III-A), cut into UPGMA subregions (sec.
+           III-C1; `build_plan`);
+        2. the candidate nodes best first (`_rank_goals`): eq. 12 scores from panoramas rendered at them
+           (sec. III-B2, III-D3), the agent's own subregion first, then the others (sec. III-C2);
+        3. the best of them the agent can set out for on a safe path (sec. III-D3; `_first_reachable`),
+           and on the way to one far away a stop at a node worth a visit (`_with_a_stop_on_the_way`);
+        4. none: look around on the spot (`_no_goal`).
+
+        The rotations toward the panorama and high-loss targets (sec. III-B3) come on arrival (`arrive`).
+        Where this project departs from the paper and the release: docs/protocol.md §4, §5, and the
+        measurements behind each option in docs/exploration.md and docs/benchmark.md."""
         here = floor_xz(pose)
-        plan = self.plan = build_plan(self.world.gaussians, self.floor_height, here, cfg.workspace,
+        plan = self.plan = build_plan(self.world.gaussians, self.floor_height, here, self.cfg.workspace,
                                       self.timers, **self.workspace_obstacles())
-        rules = goal_rules(cfg)
-        if cfg.flat_until_step is not None and len(self.visited) < cfg.flat_until_step:
+        floors = _Floors(plan, here, self.cfg, self.timers)
+        rules = self._goal_rules()
+        order = self._rank_goals(plan, here, rules, floors)
+        self._ranked = order[:self.cfg.replan_log_top]
+        choice, skipped = self._first_reachable(plan, here, order, floors)
+        if choice is None:
+            self._no_goal(pose, here, skipped)
+            return
+        if choice.how == "direct":
+            choice = self._with_a_stop_on_the_way(plan, choice, rules, floors)
+        self.go_to(choice.goal, choice.path)
+        self._commit(choice.node)
+        self._record_replan(here, choice)
+        if choice.how == "grown":  # followed and checked ahead on the grown floor
+            plan.workspace = floors.grown().workspace
+
+    def _goal_rules(self) -> GoalRules:
+        """The goal-selection knobs; flat, as `no-hp`, before step `flat_until_step` (ours, off)."""
+        rules = goal_rules(self.cfg)
+        if self.cfg.flat_until_step is not None and len(self.visited) < self.cfg.flat_until_step:
             rules = dataclasses.replace(rules, hierarchical=False)
-        grown: Plan | None = None  # the floor grown into unknown, built when a node first has no path
+        return rules
 
-        def grown_floor(timers: Timers = self.timers) -> Plan:
-            nonlocal grown
-            if grown is None:
-                grown = grown_plan(plan, here, cfg.workspace, cfg.neck_margin_m, timers)
-            return grown
-
-        def no_path_travel(pos: np.ndarray) -> np.ndarray:  # `neck_travel`; timed as position selection
-            return graph_travel(grown_floor(Timers()).graph, here, pos)
-
-        pano = cfg.planning.panorama  # scoring panoramas: a snapshot, coarser with score_lod_voxel_m
+    def _rank_goals(self, plan: Plan, here: np.ndarray, rules: GoalRules, floors: _Floors) -> list[int]:
+        """Step 2 of `replan`: the candidate nodes best first (`planning.goals.rank_goals`, timed as position
+        selection), scored on panoramas of a coarser snapshot of the map (ours, `score_lod_voxel_m`;
+        docs/protocol.md §4). Then two reorderings for the end of the step budget (ours, off): the node on
+        its last call first (`last_call_steps`), and the nodes the steps left can reach ahead of the
+        others (`out_of_reach_last`)."""
+        cfg = self.cfg
+        pano = cfg.planning.panorama
         render = snapshot_render(self.world, pano.score_lod_voxel_m, pano.score_lod_inflate)
-        goal_order = self.timers.time("position_selection", rank_goals, plan, here, render, self.floor_height,
-                                      self.visited, self.failed, cfg.planning, cfg.workspace, rules, self.rng,
-                                      self.observed, self.promises, self.commitment, self.route_memory,
-                                      no_path_travel if cfg.neck_travel else None)
-
+        order = self.timers.time("position_selection", rank_goals, plan, here, render, self.floor_height,
+                                 self.visited, self.failed, cfg.planning, cfg.workspace, rules, self.rng,
+                                 self.observed, self.promises, self.commitment, self.route_memory,
+                                 floors.grown_travel if cfg.neck_travel else None)
+        radius = cfg.planning.score.unvisited_radius_m
         if cfg.last_call_steps is not None and self.steps_left is not None and plan.stage:
-            goal_order = last_call_first(goal_order, plan, self.steps_left, self.visited, self.failed,
-                                         cfg.planning.score.unvisited_radius_m, cfg.last_call_steps,
-                                         cfg.last_call_min_info, cfg.last_call_steps_per_m)
-
+            order = last_call_first(order, plan, self.steps_left, self.visited, self.failed, radius,
+                                    cfg.last_call_steps, cfg.last_call_min_info, cfg.last_call_steps_per_m)
         if cfg.out_of_reach_last and self.steps_left is not None and plan.stage:
-            goal_order = reachable_first(goal_order, plan, self.steps_left, self.visited, self.failed,
-                                         cfg.planning.score.unvisited_radius_m, cfg.last_call_steps_per_m,
-                                         cfg.local_score_threshold)
+            order = reachable_first(order, plan, self.steps_left, self.visited, self.failed, radius,
+                                    cfg.last_call_steps_per_m, cfg.local_score_threshold)
+        return order
 
-        def find_path(goal: np.ndarray, on: Plan = plan) -> np.ndarray | None:
-            return self.timers.time("planner", plan_safe_path, on.graph, on.workspace, here, goal,
-                                    cfg.workspace)
+    def _first_reachable(self, plan: Plan, here: np.ndarray, order: list[int],
+                         floors: _Floors) -> tuple[_Choice | None, bool]:
+        """Step 3 of `replan`: the first goal of `order` with a safe path from the agent (sec. III-D3), and
+        whether a goal with no path was skipped for this replan. A goal within the arrival radius is passed
+        over: arriving again would end in a replan at once, every step (a `hull-only` agent spun on the
+        spot for 200 steps that way, replanning four times per step).
 
-        self._ranked = goal_order[:self.cfg.replan_log_top]
-        skipped = False  # a goal with no path skipped for this replan (`retry_unreachable`)
-        cut_off = False  # a goal worth a visit had no path (`leave_when_cut_off`)
-        worth = worth_a_visit(np.array([plan.info.get(n, 0.0) for n in goal_order]), True,
-                              cfg.local_score_threshold)
+        A goal with no path on the observed floor (this project's handling; docs/protocol.md §3, §5):
+        a path on the floor grown into unknown (`neck_margin_m`, on), else a bridge toward it
+        (`bridge_gain_m`, off), else it is skipped for this replan (`retry_unreachable`, on; the release
+        marks it failed). Once every goal worth a visit is cut off so, the rest, which promise nothing,
+        are left too (`leave_when_cut_off`, on): no goal, counted as skipped."""
+        cfg = self.cfg
+        info = np.array([plan.info.get(n, 0.0) for n in order])
+        worth = worth_a_visit(info, True, cfg.local_score_threshold)
         last_worth = int(np.flatnonzero(worth)[-1]) if worth.any() else -1
-        for k, node in enumerate(goal_order):
-            goal = np.asarray(plan.graph.nodes[node]["pos"], float)
+        skipped = cut_off = False
+        for k, node in enumerate(order):
             if cfg.leave_when_cut_off and cut_off and k > last_worth:
-                skipped = True  # every goal worth a visit is cut off; the rest promise nothing: leave
-                break
+                return None, True  # every goal worth a visit is cut off; the rest promise nothing: leave
+            goal = node_xz(plan.graph, node)
             if np.hypot(*(goal - here)) <= cfg.controller.arrive_radius:
-                # already there: arriving again would end in a replan at once, every step (a `hull-only`
-                # agent spun on the spot for 200 steps that way, replanning four times per step)
                 continue
-            path = find_path(goal)
-            if path is None and cfg.neck_margin_m is not None:
-                path = find_path(goal, grown_floor())
-                if path is not None:  # followed and checked ahead on the grown floor
-                    self.go_to(goal, path)
-                    self._commit(node)
-                    self._record_replan(here, node, path, False, grown=True)
-                    plan.workspace = grown_floor().workspace
-                    return
-            if path is None:
-                self._remember_cut_off(plan, node, goal)
-                bridge = self._bridge(plan, here, node, goal, find_path)
-                if bridge is None:
-                    cut_off = cut_off or bool(worth[k])
-                    if cfg.retry_unreachable:
-                        self._log_failure(goal, "no path, skipped")
-                        skipped = True
-                    else:
-                        self._mark_failed(goal, "no path")
-                    continue
+            path = floors.path(goal)
+            if path is not None:
+                return _Choice(node, goal, path), skipped
+            if cfg.neck_margin_m is not None:
+                path = floors.path(goal, floors.grown())
+                if path is not None:
+                    return _Choice(node, goal, path, how="grown"), skipped
+            self._remember_cut_off(plan, node, goal)
+            bridge = self._bridge(plan, here, node, goal, floors.path)
+            if bridge is not None:
                 # not marked failed: from the bridge node it may have a path (each bridge is a node not yet
                 # visited and nearer to the goal, so the bridges toward one goal end)
-                self.go_to(*bridge)
-                self._commit(node)
-                self._record_replan(here, node, bridge[1], False, bridge=True)
-                return
-            on_the_way, ranked_pos = False, goal
-            radius = cfg.planning.score.unvisited_radius_m
-            straight = self._put_off_before(goal)  # put off once already: no stop on the way this time
-            if not straight and cfg.detour_m is not None and plan.stage == "global":
-                stop = worth_a_detour(plan, node, self.visited, self.failed, radius, cfg.detour_m,
-                                      cfg.detour_min_info)
-                stop_pos = None if stop is None else np.asarray(plan.graph.nodes[stop]["pos"], float)
-                detour = None if stop_pos is None else find_path(stop_pos)
-                if detour is not None:
-                    goal, path, on_the_way = stop_pos, detour, True
-            if not straight and path_length(path) > cfg.long_path_m:
-                way_goal = goal
-                goal, path = closer_on_the_way(plan, goal, path, self.visited, self.failed, radius, rules,
-                                               find_path)
-                on_the_way = on_the_way or goal is not way_goal
-            self._put_off = ranked_pos if on_the_way else None
-            self.go_to(goal, path)
-            self._commit(node)
-            self._record_replan(here, node, path, on_the_way, straight=straight)
-            return
-        self._record_replan(here, None, None, False)
-        plan.goal, plan.path = None, None
-        # goals exist but none has a path from here: escape first, as when they were all marked failed (with
-        # skipped goals alone, turning on the spot would find the same graph at every replan)
+                return _Choice(node, *bridge, how="bridge"), skipped
+            cut_off = cut_off or bool(worth[k])
+            if cfg.retry_unreachable:
+                self._log_failure(goal, "no path, skipped")
+                skipped = True
+            else:
+                self._mark_failed(goal, "no path")
+        return None, skipped
+
+    def _with_a_stop_on_the_way(self, plan: Plan, choice: _Choice, rules: GoalRules,
+                                floors: _Floors) -> _Choice:
+        """Step 3 of `replan`, for a goal with a path on the observed floor: go there, or first to a node
+        worth a visit on the way (docs/protocol.md §5): a room passed on the way to a global goal (ours,
+        `detour_m`, on; `worth_a_detour`), and the release's long-path rule for a path longer than
+        `long_path_m` (`closer_on_the_way`). Neither for the goal the last replan put off so (ours,
+        `postpone_once_m`, off); the goal put off now is remembered for that."""
+        cfg = self.cfg
+        radius = cfg.planning.score.unvisited_radius_m
+        goal, path, on_the_way = choice.goal, choice.path, False
+        straight = self._put_off_before(goal)  # put off once already: no stop on the way this time
+        if not straight and cfg.detour_m is not None and plan.stage == "global":
+            stop = worth_a_detour(plan, choice.node, self.visited, self.failed, radius, cfg.detour_m,
+                                  cfg.detour_min_info)
+            stop_pos = None if stop is None else node_xz(plan.graph, stop)
+            detour = None if stop_pos is None else floors.path(stop_pos)
+            if detour is not None:
+                goal, path, on_the_way = stop_pos, detour, True
+        if not straight and path_length(path) > cfg.long_path_m:
+            way_goal = goal
+            goal, path = closer_on_the_way(plan, goal, path, self.visited, self.failed, radius, rules,
+                                           floors.path)
+            on_the_way = on_the_way or goal is not way_goal
+        self._put_off = choice.goal if on_the_way else None
+        return dataclasses.replace(choice, goal=goal, path=path, on_the_way=on_the_way, straight=straight)
+
+    def _no_goal(self, pose: np.ndarray, here: np.ndarray, skipped: bool) -> None:
+        """Step 4 of `replan`: no goal with a path. The release's fallback: forget the failed goals (the next
+        replan gives every goal a second chance) and look around on the spot. Where goals exist but none
+        has a path from here, escape first, as when they were all marked failed: with skipped goals alone,
+        turning on the spot would find the same graph at every replan."""
+        self._record_replan(here, None)
+        self.plan.goal, self.plan.path = None, None
         stuck = bool(self.failed) or skipped
-        self.forget_failures()  # fallback: the next replan gives every goal a second chance
+        self.forget_failures()
         self.idle(pose, stuck)
 
     def _put_off_before(self, goal: np.ndarray) -> bool:
@@ -190,7 +269,12 @@ class ActiveSplatExplorer(Explorer):
         """Remember the goal of a global choice (`commit_global_m`): the ranked node, not a stop on the
         way or a bridge toward it."""
         if self.commitment is not None and self.plan.stage == "global":
-            self.commitment.pos = np.asarray(self.plan.graph.nodes[node]["pos"], float).copy()
+            self.commitment.pos = node_xz(self.plan.graph, node).copy()
+
+    def _worth_a_visit(self, plan: Plan, node: int) -> bool:
+        """Whether a ranked node promises something to see (`worth_a_visit`: information above the local
+        threshold)."""
+        return bool(worth_a_visit(plan.info.get(node, 0.0), True, self.cfg.local_score_threshold))
 
     def _remember_cut_off(self, plan: Plan, node: int, goal: np.ndarray) -> None:
         """Keep a goal with no path for a look when the agent passes it (`cut_off_look_m`): one worth a
@@ -198,7 +282,7 @@ class ActiveSplatExplorer(Explorer):
         radius = self.cfg.cut_off_look_m
         if radius is None:
             return
-        if not worth_a_visit(plan.info.get(node, 0.0), True, self.cfg.local_score_threshold):
+        if not self._worth_a_visit(plan, node):
             return
         if any(np.hypot(*(goal - g)) <= radius for g in self.looked):
             return
@@ -225,8 +309,7 @@ class ActiveSplatExplorer(Explorer):
         self.rotation_cause = "look_cut_off"
         self.follower = None  # replan once the look is done: the goal may have a path now
         self.stops.append({"step": len(self.visited) - 1, "cause": self.rotation_cause,
-                           "xz": [round(float(v), 3) for v in here], "candidates": {},
-                           "toward": [round(float(v), 3) for v in goal],
+                           "xz": rounded(here), "candidates": {}, "toward": rounded(goal),
                            "targets": [target_record(target)]})
         return True
 
@@ -236,29 +319,28 @@ class ActiveSplatExplorer(Explorer):
         cfg = self.cfg
         if cfg.bridge_gain_m is None:
             return None
-        if not worth_a_visit(plan.info.get(node, 0.0), True, cfg.local_score_threshold):
+        if not self._worth_a_visit(plan, node):
             return None
         radius = cfg.planning.score.unvisited_radius_m
         return bridge_toward(plan, here, goal, self.visited, self.failed, radius, cfg.workspace,
                              cfg.bridge_gain_m, find_path)
 
-    def _record_replan(self, here: np.ndarray, node: int | None, path: np.ndarray | None,
-                       on_the_way: bool, bridge: bool = False, straight: bool = False, grown: bool = False
-                       ) -> None:
+    def _record_replan(self, here: np.ndarray, choice: _Choice | None) -> None:
         plan, thr = self.plan, self.cfg.local_score_threshold
-        rec = {"step": len(self.visited) - 1, "xz": [round(float(v), 3) for v in here], "stage": plan.stage,
+        rec = {"step": len(self.visited) - 1, "xz": rounded(here), "stage": plan.stage,
                "candidates": len(plan.scores), "promising": sum(v > thr for v in plan.info.values()),
                "max_invisible": round(plan.max_invisible, 4), "goal": None}
-        if node is not None and path is not None:
-            rec.update(goal=[round(float(v), 3) for v in self.plan.goal], on_the_way=on_the_way,
-                       committed=plan.committed,
+        if choice is not None:
+            node = choice.node
+            rec.update(goal=rounded(plan.goal), on_the_way=choice.on_the_way, committed=plan.committed,
                        score=round(plan.scores.get(node, float("nan")), 2),
-                       info=round(plan.info.get(node, float("nan")), 2), path_m=round(path_length(path), 2))
-            if bridge:  # the goal ranked first had no safe path: `plan.goal` is a node on the way to it
-                rec["bridge_to"] = [round(float(v), 3) for v in plan.graph.nodes[node]["pos"]]
-            if straight:  # put off once for a stop on the way already (`postpone_once_m`): no stop now
+                       info=round(plan.info.get(node, float("nan")), 2),
+                       path_m=round(path_length(choice.path), 2))
+            if choice.how == "bridge":  # the goal ranked first had no safe path: `plan.goal` is on the way
+                rec["bridge_to"] = rounded(plan.graph.nodes[node]["pos"])
+            if choice.straight:  # put off once for a stop on the way already (`postpone_once_m`): no stop now
                 rec["put_off_before"] = True
-            if grown:  # no path on the observed floor, one on the floor grown into unknown (`neck_margin_m`)
+            if choice.how == "grown":  # no path on the observed floor, one on the floor grown into unknown
                 rec["grown"] = True
         rec["ranked"] = [ranked_entry(plan, n) for n in self._ranked]
         self.replans.append(rec)
@@ -325,24 +407,20 @@ class ActiveSplatExplorer(Explorer):
                                          self.cfg.tilt_within_deg)
         self.stops.append({
             "step": len(self.visited) - 1, "cause": self.rotation_cause,
-            "xz": [round(float(v), 3) for v in floor_xz(pose)],
+            "xz": rounded(floor_xz(pose)),
             "candidates": {src: sum(t.source == src for t in targets) for src in sources},
             "targets": [target_record(t) for t in chosen]})
         return chosen
 
 
 def goal_rules(cfg: ExplorerConfig) -> GoalRules:
-    """The goal-selection knobs of an explorer configuration."""
-    return GoalRules(local_score_threshold=cfg.local_score_threshold,
-                     global_distance_weight=cfg.global_distance_weight, max_panoramas=cfg.max_panoramas,
-                     panorama_height_m=cfg.panorama_height_m, hierarchical=cfg.hierarchical,
-                     random_goals=cfg.random_goals, long_path_m=cfg.long_path_m,
-                     on_the_way_m=cfg.on_the_way_m, global_in_horizon=cfg.global_in_horizon,
-                     local_in_horizon=cfg.local_in_horizon,
-                     global_information_first=cfg.global_information_first,
-                     panorama_every_subregion=cfg.panorama_every_subregion,
-                     global_halving_m=cfg.global_halving_m, global_tour=cfg.global_tour,
-                     local_near_m=cfg.local_near_m, route_in_place=cfg.route_in_place)
+    """The goal-selection knobs of an explorer configuration (its fields of the same names)."""
+    return GoalRules(**{f.name: getattr(cfg, f.name) for f in dataclasses.fields(GoalRules)})
+
+
+def rounded(xz, digits: int = 3) -> list[float]:
+    """A floor position (or any vector) for stops.json, rounded to `digits`."""
+    return [round(float(v), digits) for v in xz]
 
 
 def target_record(t: RotationTarget) -> dict:
@@ -355,7 +433,7 @@ def ranked_entry(plan: Plan, node: int) -> dict:
     """One ranked candidate of a replan for stops.json: floor position, subregion, eq. 12 score, its
     information part (0 without a panorama), the graph travel to it and, with the sampled-surface term
     on, its poorly sampled share."""
-    entry = {"xz": [round(float(v), 2) for v in plan.graph.nodes[node]["pos"]],
+    entry = {"xz": rounded(plan.graph.nodes[node]["pos"], 2),
              "subregion": plan.subregions.get(node), "score": round(plan.scores.get(node, float("nan")), 2),
              "info": round(plan.info.get(node, float("nan")), 2),
              "travel_m": round(plan.travel.get(node, float("nan")), 2)}

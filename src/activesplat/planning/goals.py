@@ -65,6 +65,18 @@ def node_state(node_pos: np.ndarray, visited: Sequence[np.ndarray], failed: Sequ
     return not _any_within(node_pos, visited[-VISIT_MEMORY:], radius), _any_within(node_pos, failed, radius)
 
 
+def open_node(node_pos: np.ndarray, visited: Sequence[np.ndarray], failed: Sequence[np.ndarray],
+              radius: float) -> bool:
+    """Whether a node is open: unvisited and not failed (`node_state`)."""
+    unvisited, is_failed = node_state(node_pos, visited, failed, radius)
+    return unvisited and not is_failed
+
+
+def node_xz(graph: nx.Graph, node: int) -> np.ndarray:
+    """The floor position (x, z) of a graph node."""
+    return np.asarray(graph.nodes[node]["pos"], float)
+
+
 def _any_within(node_pos: np.ndarray, places: Sequence[np.ndarray], radius: float) -> bool:
     """Whether a floor position of `places` lies within `radius` of `node_pos` (one vectorised pass)."""
     gap = np.asarray(node_pos, float) - np.asarray(places, float).reshape(-1, 2)
@@ -151,14 +163,14 @@ def tour_first(ranked: list[int], worth: np.ndarray, travel: np.ndarray, nodes: 
 def local_then_global(scores: np.ndarray, info: np.ndarray, travel: np.ndarray, open_: np.ndarray,
                       in_local: np.ndarray, rules: GoalRules, global_scores: np.ndarray | None = None,
                       global_info: np.ndarray | None = None) -> list[int]:
-    """Indices best first (sec. III-C). Ties go to the shorter travel. Hierarchical: while an open node of
-    the agent's own subregion (`in_local`) promises something to see (information above the local
-    threshold), those nodes come first in score order; otherwise every node is ranked by its global score
-    (`global_scores`, default `scores`) minus the distance cost, with `global_information_first` the open
-    nodes that promise something to see (information above the same threshold; `global_info`, default
-    `info`) ahead of the others. Flat (`no-hp`): score order."""
-    n = len(scores)
-    order = sorted(range(n), key=lambda i: (-scores[i], travel[i]))
+    """Indices best first: the local-global goal selection of sec. III-C2, ties to the shorter travel (sec.
+    III-D3). Flat (`no-hp`, `rules.hierarchical` off): eq. 12 score order.
+
+    Local stage: while an open node of the agent's own subregion (`in_local`) promises something to see
+    (its information part `info` above `local_score_threshold`; the paper gives no value), those nodes come
+    first in score order, the others after. Global stage otherwise (`_global_order`), on `global_scores`
+    (default `scores`) and `global_info` (default `info`)."""
+    order = sorted(range(len(scores)), key=lambda i: (-scores[i], travel[i]))
     if not rules.hierarchical:
         return order
     # stay local while a node of this subregion promises something to see; the unvisited / in-horizon flags
@@ -169,16 +181,23 @@ def local_then_global(scores: np.ndarray, info: np.ndarray, travel: np.ndarray, 
         return local_best + [i for i in order if i not in local_best]
     if global_info is not None:
         worth = worth_a_visit(global_info, open_, rules.local_score_threshold)
-    base = scores if global_scores is None else global_scores
+    return _global_order(scores if global_scores is None else global_scores, travel, worth, rules)
+
+
+def _global_order(scores: np.ndarray, travel: np.ndarray, worth: np.ndarray, rules: GoalRules) -> list[int]:
+    """The global stage of sec. III-C2: every node by its score minus the distance cost,
+    `global_distance_weight` per metre of travel (the paper gives no weight), or with `global_halving_m`
+    the score per way, halved at that much travel (ours, off); ties to the shorter travel. With
+    `global_information_first` (ours, on by default; docs/protocol.md §5) the nodes that promise something
+    to see (`worth`) come ahead of the others, however near those are: the unvisited / in-horizon flags
+    alone kept the agent going from node to node of a room it had seen."""
     if rules.global_halving_m is None:
-        global_score = base - rules.global_distance_weight * travel
+        global_score = scores - rules.global_distance_weight * travel
     else:  # score per way: halved at global_halving_m of travel
-        global_score = base / (1.0 + travel / rules.global_halving_m)
-    ranked = sorted(range(n), key=lambda i: (-global_score[i], travel[i]))
+        global_score = scores / (1.0 + travel / rules.global_halving_m)
+    ranked = sorted(range(len(scores)), key=lambda i: (-global_score[i], travel[i]))
     if not rules.global_information_first:
         return ranked
-    # a node that promises something to see beats one that only has the unvisited / in-horizon flags,
-    # however near: the flags alone kept the agent going from node to node of a room it had seen (ours)
     return [i for i in ranked if worth[i]] + [i for i in ranked if not worth[i]]
 
 
@@ -197,9 +216,7 @@ def last_call_first(order: list[int], plan: Plan, steps_left: int, visited: Sequ
         after = steps_left - travel * steps_per_m
         if not look_steps <= after <= window:
             continue
-        pos = np.asarray(plan.graph.nodes[n]["pos"], float)
-        unvisited, is_failed = node_state(pos, visited, failed, radius)
-        if unvisited and not is_failed:
+        if open_node(node_xz(plan.graph, n), visited, failed, radius):
             calls.append(n)
     if not calls:
         return order
@@ -219,9 +236,7 @@ def reachable_first(order: list[int], plan: Plan, steps_left: int, visited: Sequ
     if not (worth & ~reachable).any():
         return order
     for k in np.flatnonzero(worth):
-        unvisited, is_failed = node_state(np.asarray(plan.graph.nodes[order[k]]["pos"], float), visited,
-                                          failed, radius)
-        worth[k] = unvisited and not is_failed
+        worth[k] = open_node(node_xz(plan.graph, order[k]), visited, failed, radius)
     first = worth & reachable
     if not first.any() or not (worth & ~reachable).any():
         return order
@@ -238,6 +253,36 @@ def sampled_surface_term(poor: np.ndarray, cfg: ScoreConfig) -> np.ndarray:
     return cfg.w_q * poor / poor.max() if poor.size and poor.max() > 0 else np.zeros_like(poor)
 
 
+@dataclass
+class _Candidates:
+    """The candidate nodes of one replan (sec. III-B1: Voronoi nodes as position candidates) and their state,
+    the arrays in the order of `nodes`."""
+
+    nodes: list[int]
+    pos: np.ndarray
+    """(N, 2) floor positions."""
+    unvisited: np.ndarray
+    """eq. 12's s_u: no recent position of the agent near the node (`node_state`)."""
+    failed: np.ndarray
+    """A failed goal near the node (the release's failure penalty)."""
+    open_: np.ndarray
+    """Unvisited and not failed."""
+
+
+@dataclass
+class _PanoramaTerms:
+    """What the panoramas rendered at the candidates show (sec. III-B2), 0 where none was rendered."""
+
+    invisible: np.ndarray
+    """eq. 12's s_o before normalising: the panorama's invisible share (`invisible_share`)."""
+    hull: np.ndarray
+    """eq. 12's s_c before normalising: the hull volume of its invisible regions (`hull_volume`)."""
+    scored: np.ndarray
+    """Whether a panorama was rendered at the node."""
+    poor: np.ndarray | None
+    """The share of nearby surface the agent's depth sampled poorly (ours); None when that term is off."""
+
+
 def rank_goals(plan: Plan, here: np.ndarray, render: RenderFn, floor_height: float,
                visited: Sequence[np.ndarray], failed: Sequence[np.ndarray], pcfg: PlanningConfig,
                wcfg: WorkspaceConfig, rules: GoalRules, rng: np.random.Generator,
@@ -245,95 +290,189 @@ def rank_goals(plan: Plan, here: np.ndarray, render: RenderFn, floor_height: flo
                commitment: Commitment | None = None, route_memory: RouteMemory | None = None,
                no_path_travel: Callable[[np.ndarray], np.ndarray] | None = None) -> list[int]:
     """Candidate goal nodes of `plan.graph`, best first (eq. 12 scores; local-then-global, sec. III-C).
-    Renders a panorama at up to `max_panoramas` open candidates and records every candidate's score and
-    information part in `plan.scores` / `plan.info`. `random_goals`: a random order of the open nodes,
-    then the others (no scores). With `observed` and a positive `ScoreConfig.w_q`, the information part
-    also counts the surface near each node that the agent's depth has not sampled (`planning.observed`).
+
+    1. Candidates (sec. III-B1): the view nodes and leaves of the Voronoi graph, each unvisited or not
+       (eq. 12's s_u) and failed or not (`_candidates`).
+    2. Panoramas (sec. III-B2, III-D2) at the open candidates: each one's invisible share and hull volume,
+       eq. 12's s_o and s_c before normalising (`_render_panoramas`). The paper renders one at every
+       unvisited node; this project at the nearest open node of each subregion plus the `max_panoramas`
+       nearest (`panorama_candidates`; docs/protocol.md §5).
+    3. Scores: the information part w_o s_o + w_c s_c (`_information`) and eq. 12 with the in-horizon flag
+       s_h (`_eq12_scores`); the scores of the global stage leave s_h out (ours, `global_in_horizon`).
+    4. Local then global (sec. III-C2, `local_then_global`): the nodes of the agent's own subregion (sec.
+       III-C1) first while one of them that is open promises more than `local_score_threshold`; else
+       every node by its global score, eq. 12 minus the distance cost. The threshold and the distance
+       weight are this project's (the paper gives none), nodes within `local_near_m` of travel count as
+       local, and the global stage ranks the open nodes that promise something ahead of the rest
+       (`global_information_first`): departures listed in docs/protocol.md §5.
+
+    Records every candidate's score, information part and travel in `plan.scores` / `plan.info` /
+    `plan.travel`, the stage ("local", "global" or "flat") in `plan.stage`.
+
+    Options of this project (ours, all off by default; measured in docs/exploration.md and
+    docs/benchmark.md, "Tuning log"): `random_goals`: a random order of the open nodes, then the others (no
+    scores). With `observed` and a positive `ScoreConfig.w_q`, the information part also counts the surface
+    near each node that the agent's depth has not sampled (`planning.observed`, `sampled_surface_term`).
     With `promises` (hierarchical only) a node outside the agent's subregion promises at least what it
-    promised at an earlier replan (`Promises`). With `commitment` a global stage goes on toward the
-    subregion chosen at an earlier global replan while it holds something to see (`Commitment`); whether
-    it did is `plan.committed`. With `route_memory` the global stage follows a route whose order is kept
-    across replans (`RouteMemory`, implies the route of `global_tour`). `no_path_travel` estimates the
-    travel to nodes the graph gives no path to (`travel_lengths`)."""
-    graph, ws = plan.graph, plan.workspace
-    nodes = goal_candidates(graph)
-    if not nodes:
+    promised at an earlier replan (`Promises`). With `route_memory` (or `global_tour`) the global stage
+    follows a route through the subregions whose order is kept across replans (`RouteMemory`,
+    `tour_first`). With `commitment` a global stage goes on toward the subregion chosen at an earlier
+    global replan while it holds something to see (`Commitment`); whether it did is `plan.committed`.
+    `no_path_travel` estimates the travel to nodes the graph gives no path to (`travel_lengths`)."""
+    graph, score_cfg = plan.graph, pcfg.score
+    # 1. candidates (sec. III-B1)
+    cand = _candidates(graph, visited, failed, score_cfg.unvisited_radius_m)
+    if cand is None:
         return []
-    pos = np.stack([np.asarray(graph.nodes[n]["pos"], float) for n in nodes])
-    state = [node_state(p, visited, failed, pcfg.score.unvisited_radius_m) for p in pos]
-    unvisited = np.array([s[0] for s in state])
-    is_failed = np.array([s[1] for s in state])
-    open_ = unvisited & ~is_failed
-    dist = np.hypot(*(pos - here).T)
     if rules.random_goals:
-        order = rng.permutation(len(nodes))
-        return [nodes[i] for i in order if open_[i]] + [nodes[i] for i in order if not open_[i]]
-    inv = np.zeros(len(nodes))
-    vol = np.zeros(len(nodes))
-    poor = np.zeros(len(nodes))
-    scored = np.zeros(len(nodes), bool)
-    height = floor_height + rules.panorama_height_m
-    score_cfg = pcfg.score
-    quality = observed is not None and score_cfg.w_q > 0
-    for i in panorama_candidates(nodes, dist, open_, plan.subregions, rules.max_panoramas,
-                                  rules.panorama_every_subregion):
-        pano = render_panorama(render, [pos[i][0], height, pos[i][1]], pcfg.panorama,
-                               pcfg.panorama.front_faces_scores, pcfg.panorama.scores_back_face_seen)
-        scored[i] = True
-        inv[i] = invisible_share(pano, pcfg.rotation)
-        vol[i] = hull_volume(pano, pcfg.hull)
-        if quality:
-            poor[i] = poorly_observed_share(pano, observed, score_cfg.quality_radius_m)
-    # the sampled-surface term (ours, off by default; `sampled_surface_term`), with its optional gate
-    plan.max_invisible = float(inv.max()) if scored.any() else 0.0
-    if quality:
-        plan.poor = {n: float(v) for n, v, s in zip(nodes, poor, scored, strict=True) if s}
-        gate = score_cfg.quality_below_invisible
-        quality = gate is None or plan.max_invisible < gate
-    extra = sampled_surface_term(poor, score_cfg) if quality else np.zeros(len(nodes))
-    hierarchical = rules.hierarchical and bool(plan.subregions)
-    local = agent_subregion(graph, plan.subregions, here) if hierarchical else None
-    in_local = np.array([hierarchical and plan.subregions.get(n) == local for n in nodes])
-    # the information terms (w_o s_o + w_c s_c, shares relative to the best node anywhere): what keeps
-    # planning local, and what makes a node worth a stop on a long path's way
-    info = information_scores(inv, vol, score_cfg) + extra
-    # a promise kept from an earlier replan adds to the information part and the score alike (0 in the
-    # agent's own subregion, so the local stage sees what the panoramas show)
-    kept = np.zeros(len(nodes))
-    if promises is not None and hierarchical:
-        kept = promises.keep(pos, info, scored, in_local | ~unvisited) - info
-        info = info + kept
-    if hierarchical and not rules.local_in_horizon:  # ranked without the flag in the local stage too (ours)
-        in_horizon = np.zeros(len(pos), bool)
-    else:
-        in_horizon = np.array([line_of_sight(ws, here, p, wcfg) for p in pos])
-    scores = node_scores(inv, vol, unvisited, in_horizon, is_failed, score_cfg) + extra + kept
-    # the global stage weighs what a node promises against the way there; the in-horizon flag (a node in
-    # sight of the agent) is a local preference and, counted there too, keeps the agent near (ours)
-    global_scores = None if rules.global_in_horizon else node_scores(
-        inv, vol, unvisited, np.zeros_like(in_horizon), is_failed, score_cfg) + extra + kept
-    plan.scores = {n: float(s) for n, s in zip(nodes, scores, strict=True)}
-    travel = travel_lengths(graph, here, nodes, pos, no_path_travel)
-    plan.travel = {n: float(t) for n, t in zip(nodes, travel, strict=True)}
+        return _random_order(cand, rng)
+    # 2. panoramas at the open candidates (sec. III-B2)
+    views = _render_panoramas(plan, cand, here, render, floor_height, pcfg, rules, observed)
+    extra = _sampled_surface(plan, cand, views, score_cfg)
+    # 3. eq. 12 scores and their information part; the agent's own subregion R_l (sec. III-C1)
+    hierarchical = rules.hierarchical and bool(plan.subregions)  # flat: `no-hp`, or no subregions yet
+    in_local = _in_agent_subregion(plan, cand, here, hierarchical)
+    info, kept = _information(cand, views, extra, in_local, hierarchical, score_cfg, promises)
+    in_horizon = _in_horizon(plan, cand, here, wcfg, hierarchical and not rules.local_in_horizon)
+    scores, global_scores = _eq12_scores(cand, views, in_horizon, extra, kept, score_cfg, rules)
+    travel = travel_lengths(graph, here, cand.nodes, cand.pos, no_path_travel)
     if hierarchical and rules.local_near_m is not None:  # nodes this near count as local (ours)
         in_local = in_local | (travel <= rules.local_near_m)
-    plan.info = {n: float(v) for n, v in zip(nodes, info, strict=True)}
-    # with `quality_in_local` off the sampled-surface term does not keep the agent in its subregion: it
-    # only makes poorly sampled rooms worth a trip in the global stage
+    plan.scores = {n: float(s) for n, s in zip(cand.nodes, scores, strict=True)}
+    plan.travel = {n: float(t) for n, t in zip(cand.nodes, travel, strict=True)}
+    plan.info = {n: float(v) for n, v in zip(cand.nodes, info, strict=True)}
+    # 4. local then global (sec. III-C2). With `quality_in_local` off the sampled-surface term does not keep
+    # the agent in its subregion: it only makes poorly sampled rooms worth a trip in the global stage
     local_info = info if score_cfg.quality_in_local else info - extra
-    rules = dataclasses.replace(rules, hierarchical=hierarchical)
-    promising = worth_a_visit(info, open_, rules.local_score_threshold)
-    local_promising = worth_a_visit(local_info, open_, rules.local_score_threshold)
-    plan.stage = "flat" if not hierarchical else "local" if (local_promising & in_local).any() else "global"
-    order = local_then_global(scores, local_info, travel, open_, in_local, rules, global_scores, info)
-    if (rules.global_tour or route_memory is not None) and plan.stage == "global":
-        stops = promising if route_memory is None else promising & (info > route_memory.min_info)
-        order = tour_first(order, stops, travel, nodes, plan.subregions, graph, route_memory,
-                           rules.route_in_place)
+    local_promising = worth_a_visit(local_info, cand.open_, rules.local_score_threshold) & in_local
+    plan.stage = "flat" if not hierarchical else "local" if local_promising.any() else "global"
+    order = local_then_global(scores, local_info, travel, cand.open_, in_local,
+                              dataclasses.replace(rules, hierarchical=hierarchical), global_scores, info)
     plan.committed = False
-    if commitment is not None and plan.stage == "global":
-        order, plan.committed = commitment.first(order, promising, nodes, pos, plan.subregions)
-    return [nodes[i] for i in order]
+    if plan.stage == "global":
+        order = _global_stage_options(plan, cand, order, info, travel, rules, route_memory, commitment)
+    return [cand.nodes[i] for i in order]
+
+
+def _candidates(graph: nx.Graph, visited: Sequence[np.ndarray], failed: Sequence[np.ndarray],
+                radius: float) -> _Candidates | None:
+    """Step 1 of `rank_goals` (sec. III-B1): the view-position candidates and their state; None when the
+    graph has no node."""
+    nodes = goal_candidates(graph)
+    if not nodes:
+        return None
+    pos = np.stack([node_xz(graph, n) for n in nodes])
+    state = [node_state(p, visited, failed, radius) for p in pos]
+    unvisited = np.array([s[0] for s in state])
+    is_failed = np.array([s[1] for s in state])
+    return _Candidates(nodes, pos, unvisited, is_failed, unvisited & ~is_failed)
+
+
+def _random_order(cand: _Candidates, rng: np.random.Generator) -> list[int]:
+    """The `random` ablation (`random_goals`): the open candidates in a random order, then the others."""
+    order = rng.permutation(len(cand.nodes))
+    return ([cand.nodes[i] for i in order if cand.open_[i]]
+            + [cand.nodes[i] for i in order if not cand.open_[i]])
+
+
+def _render_panoramas(plan: Plan, cand: _Candidates, here: np.ndarray, render: RenderFn,
+                      floor_height: float, pcfg: PlanningConfig, rules: GoalRules,
+                      observed: ObservedSurface | None) -> _PanoramaTerms:
+    """Step 2 of `rank_goals` (sec. III-B2, III-D2): a panorama `panorama_height_m` above the floor at each
+    node `panorama_candidates` picks, and its invisible share and hull volume; with the sampled-surface
+    term on (ours: `observed` and a positive `ScoreConfig.w_q`) also its poorly sampled share, recorded in
+    `plan.poor`. The largest invisible share is `plan.max_invisible`."""
+    n = len(cand.nodes)
+    quality = observed is not None and pcfg.score.w_q > 0
+    views = _PanoramaTerms(np.zeros(n), np.zeros(n), np.zeros(n, bool), np.zeros(n) if quality else None)
+    height = floor_height + rules.panorama_height_m
+    dist = np.hypot(*(cand.pos - here).T)
+    for i in panorama_candidates(cand.nodes, dist, cand.open_, plan.subregions, rules.max_panoramas,
+                                  rules.panorama_every_subregion):
+        pano = render_panorama(render, [cand.pos[i][0], height, cand.pos[i][1]], pcfg.panorama,
+                               pcfg.panorama.front_faces_scores, pcfg.panorama.scores_back_face_seen)
+        views.scored[i] = True
+        views.invisible[i] = invisible_share(pano, pcfg.rotation)
+        views.hull[i] = hull_volume(pano, pcfg.hull)
+        if views.poor is not None:
+            views.poor[i] = poorly_observed_share(pano, observed, pcfg.score.quality_radius_m)
+    plan.max_invisible = float(views.invisible.max()) if views.scored.any() else 0.0
+    if views.poor is not None:
+        plan.poor = {n: float(v) for n, v, s in zip(cand.nodes, views.poor, views.scored, strict=True) if s}
+    return views
+
+
+def _sampled_surface(plan: Plan, cand: _Candidates, views: _PanoramaTerms, cfg: ScoreConfig) -> np.ndarray:
+    """The sampled-surface term of the candidates (ours, off by default; `sampled_surface_term`): 0 when it
+    is off, and, with the gate `ScoreConfig.quality_below_invisible`, until no panorama is that invisible."""
+    gate = cfg.quality_below_invisible
+    if views.poor is None or not (gate is None or plan.max_invisible < gate):
+        return np.zeros(len(cand.nodes))
+    return sampled_surface_term(views.poor, cfg)
+
+
+def _in_agent_subregion(plan: Plan, cand: _Candidates, here: np.ndarray, hierarchical: bool) -> np.ndarray:
+    """Which candidates lie in the agent's own subregion R_l (sec. III-C1: UPGMA, `agent_subregion`); none
+    when ranking flat."""
+    local = agent_subregion(plan.graph, plan.subregions, here) if hierarchical else None
+    return np.array([hierarchical and plan.subregions.get(n) == local for n in cand.nodes])
+
+
+def _information(cand: _Candidates, views: _PanoramaTerms, extra: np.ndarray, in_local: np.ndarray,
+                 hierarchical: bool, cfg: ScoreConfig, promises: Promises | None
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """Step 3 of `rank_goals`: the information part of eq. 12, w_o s_o + w_c s_c with the shares relative to
+    the best candidate (`information_scores`), plus the sampled-surface term `extra`: what keeps planning
+    local, and what makes a node worth a stop on a long path's way. Returns it with what a kept promise
+    (ours, `promises`, hierarchical only) added to it, which adds to the eq. 12 score alike; 0 in the
+    agent's own subregion and at visited nodes, so the local stage sees what the panoramas show."""
+    info = information_scores(views.invisible, views.hull, cfg) + extra
+    kept = np.zeros(len(cand.nodes))
+    if promises is not None and hierarchical:
+        kept = promises.keep(cand.pos, info, views.scored, in_local | ~cand.unvisited) - info
+        info = info + kept
+    return info, kept
+
+
+def _in_horizon(plan: Plan, cand: _Candidates, here: np.ndarray, wcfg: WorkspaceConfig,
+                off: bool) -> np.ndarray:
+    """eq. 12's s_h: the straight line from the agent to the node is collision-free; none when `off` (a
+    hierarchical ranking with `local_in_horizon` off, ours)."""
+    if off:
+        return np.zeros(len(cand.pos), bool)
+    return np.array([line_of_sight(plan.workspace, here, p, wcfg) for p in cand.pos])
+
+
+def _eq12_scores(cand: _Candidates, views: _PanoramaTerms, in_horizon: np.ndarray, extra: np.ndarray,
+                 kept: np.ndarray, cfg: ScoreConfig, rules: GoalRules
+                 ) -> tuple[np.ndarray, np.ndarray | None]:
+    """Step 3 of `rank_goals`: eq. 12, S = w_o s_o + w_c s_c + w_u s_u + w_h s_h less the release's failure
+    penalty (`node_scores`), plus the sampled-surface term and kept promises; and the scores of the global
+    stage, None when they are the same (`global_in_horizon`). This project's global stage leaves the
+    in-horizon flag out: a node in sight of the agent is a local preference and, counted there too, keeps
+    the agent near (ours; docs/protocol.md §5, docs/exploration.md)."""
+
+    def eq12(s_h: np.ndarray) -> np.ndarray:
+        return node_scores(views.invisible, views.hull, cand.unvisited, s_h, cand.failed, cfg) + extra + kept
+
+    return eq12(in_horizon), None if rules.global_in_horizon else eq12(np.zeros_like(in_horizon))
+
+
+def _global_stage_options(plan: Plan, cand: _Candidates, order: list[int], info: np.ndarray,
+                          travel: np.ndarray, rules: GoalRules, route_memory: RouteMemory | None,
+                          commitment: Commitment | None) -> list[int]:
+    """The global stage's `order` with this project's two options applied (ours, both off by default;
+    docs/exploration.md): a route through the subregions worth a visit (`global_tour`, `route_memory`:
+    `tour_first`), and a global choice followed while its subregion still holds something to see
+    (`commitment`: `Commitment.first`, which sets `plan.committed`)."""
+    promising = worth_a_visit(info, cand.open_, rules.local_score_threshold)
+    if rules.global_tour or route_memory is not None:
+        stops = promising if route_memory is None else promising & (info > route_memory.min_info)
+        order = tour_first(order, stops, travel, cand.nodes, plan.subregions, plan.graph, route_memory,
+                           rules.route_in_place)
+    if commitment is not None:
+        order, plan.committed = commitment.first(order, promising, cand.nodes, cand.pos, plan.subregions)
+    return order
 
 
 def bridge_toward(plan: Plan, here: np.ndarray, goal: np.ndarray, visited: Sequence[np.ndarray],
@@ -353,10 +492,9 @@ def bridge_toward(plan: Plan, here: np.ndarray, goal: np.ndarray, visited: Seque
     limit = float(np.hypot(*(goal - here))) - gain_m
     candidates = []
     for node in component:
-        pos = np.asarray(graph.nodes[node]["pos"], float)
+        pos = node_xz(graph, node)
         gap = float(np.hypot(*(pos - goal)))
-        unvisited, is_failed = node_state(pos, visited, failed, unvisited_radius)
-        if gap <= limit and unvisited and not is_failed:
+        if gap <= limit and open_node(pos, visited, failed, unvisited_radius):
             candidates.append((gap, node, pos))
     for _, _, pos in sorted(candidates, key=lambda c: (c[0], c[1]))[:tries]:
         path = find_path(pos)
@@ -386,9 +524,8 @@ def closer_on_the_way(plan: Plan, goal: np.ndarray, path: np.ndarray, visited: S
     for node, score in plan.scores.items():
         if plan.info.get(node, 0.0) <= rules.local_score_threshold or score <= best_score:
             continue
-        pos = np.asarray(plan.graph.nodes[node]["pos"], float)
-        unvisited, is_failed = node_state(pos, visited, failed, unvisited_radius)
-        if not unvisited or is_failed or np.hypot(*(pos - goal)) < 1e-6:
+        pos = node_xz(plan.graph, node)
+        if not open_node(pos, visited, failed, unvisited_radius) or np.hypot(*(pos - goal)) < 1e-6:
             continue
         if distance_to_polyline(pos, path) <= rules.on_the_way_m:
             best, best_score = pos, score
@@ -419,9 +556,7 @@ def worth_a_detour(plan: Plan, goal_node: int, visited: Sequence[np.ndarray], fa
         travel = plan.travel.get(node, np.inf)
         if travel >= direct or travel + to_goal[node] - direct > detour_m:
             continue
-        pos = np.asarray(graph.nodes[node]["pos"], float)
-        unvisited, is_failed = node_state(pos, visited, failed, unvisited_radius)
-        if not unvisited or is_failed:
+        if not open_node(node_xz(graph, node), visited, failed, unvisited_radius):
             continue
         if travel < best_travel:
             best, best_travel = node, travel
@@ -467,5 +602,6 @@ def select_rotation_targets(targets: Sequence[RotationTarget], yaw: float, pcfg:
 
 
 __all__ = ["GoalRules", "closer_on_the_way", "distance_to_polyline", "goal_candidates", "last_call_first",
-           "local_then_global", "node_state", "panorama_candidates", "rank_goals", "reachable_first",
+           "local_then_global", "node_state", "node_xz", "open_node", "panorama_candidates", "rank_goals",
+           "reachable_first",
            "sampled_surface_term", "select_rotation_targets", "tour_first", "worth_a_detour", "worth_a_visit"]
