@@ -268,6 +268,10 @@ def build_parser() -> argparse.ArgumentParser:
                             "bags without CameraInfo (instead of --camera-info-topic)")
     p_map.add_argument("--depth-scale", type=float, default=5000.0, help="TUM folders: depth PNG units per "
                                                                         "metre (5000)")
+    p_map.add_argument("--no-depth-check", action="store_true",
+                       help="map even when the depth disagrees with the camera motion by a factor (the check "
+                            "that refuses a wrong --depth-scale or depth unit, on a few pairs of frames "
+                            ">= 10 cm apart)")
     p_map.add_argument("--world-up", default="z", choices=("z", "y"),
                        help="up axis of the pose source's world (ROS: z); the map is turned to y-up")
     p_map.add_argument("--holdout-every", type=int, default=8,

@@ -269,6 +269,7 @@ def map_from_args(args) -> int:
         max_dt=args.max_dt,
         max_pose_gap=args.max_pose_gap,
         skip_unposed=args.skip_unposed,
+        depth_check=not args.no_depth_check,
     )
     out = Path(args.out) if args.out else Path("runs") / (Path(args.recording).stem + "-map")
     m = map_recording(
@@ -287,5 +288,7 @@ def map_from_args(args) -> int:
         f"{rec.width}x{rec.height}, {m['n_gaussians']} Gaussians, {m['ms_per_frame']:.0f} ms/frame "
         f"(mapper {m['mapper_ms_per_frame']:.0f}) -> {out}"
     )
-    print(json.dumps({k: rec.info[k] for k in ("pose_source", "unpaired_colour", "unposed_dropped")}))
+    check = rec.info["depth_check"]
+    print(json.dumps({**{k: rec.info[k] for k in ("pose_source", "unpaired_colour", "unposed_dropped")},
+                      "depth_scale_check": check.get("scale") or check.get("note")}))
     return 0
