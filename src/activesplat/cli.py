@@ -277,6 +277,9 @@ def build_parser() -> argparse.ArgumentParser:
     p_map.add_argument("--holdout-every", type=int, default=8,
                        help="every N-th frame (of those --stride keeps) is kept out of the map as "
                             "render-eval ground truth (0: none)")
+    p_map.add_argument("--max-heldout", type=int, default=200,
+                       help="at most this many held-out frames, spread uniformly over the recording; the "
+                            "other every-N-th frames are mapped (default: 200; render-eval scores up to 50)")
     p_map.add_argument("--stride", type=int, default=1,
                        help="use every N-th frame (e.g. 3 for a 30 Hz camera)")
     p_map.add_argument("--max-dt", type=float, default=0.02, help="colour/depth stamp tolerance (s)")

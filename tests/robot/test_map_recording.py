@@ -1,6 +1,6 @@
 """`activesplat map`: recordings written from our simulator's frames (ROS 1 / ROS 2 / MCAP bags, a TUM
 folder) map to the same map as the same frames given to the mapper directly; bad input is one line, a
-depth unit the camera motion contradicts included."""
+depth unit the camera motion contradicts included; the held-out frames are capped (--max-heldout)."""
 
 import json
 import shutil
@@ -450,3 +450,29 @@ def test_a_recording_that_does_not_move_is_not_judged(tmp_path):
         "pairs": [], "scale": None, "note": "not checked: no two frames 0.1 m apart",
         "seconds": rec.info["depth_check"]["seconds"]}
 
+
+def test_the_held_out_frames_are_capped_and_spread_over_the_recording(tmp_path, capsys):
+    from activesplat.robot.mapping import heldout_indices, map_recording
+
+    assert heldout_indices(20, 2, 1, None).tolist() == list(range(1, 20, 2))
+    assert heldout_indices(20, 2, 1, 4).tolist() == [1, 7, 13, 19]  # the first and the last, evenly apart
+    assert heldout_indices(20, 2, 2, 3).tolist() == [2, 10, 18]  # every 2nd of the frames --stride keeps
+    assert heldout_indices(20, 2, 1, 0).tolist() == [] and heldout_indices(20, 0, 1, 5).tolist() == []
+    assert heldout_indices(1000, 8, 1, 200).tolist() == list(range(7, 1000, 8))[:125]  # 125 <= 200: all
+
+    K, fr = walk_frames(20, 32, step=0.03)
+    tum = write_tum(tmp_path / "tum", K, fr)
+    rec = open_recording(tum, intrinsics=ros_intrinsics(K))
+    out = tmp_path / "map"
+    m = map_recording(rec, out, holdout_every=2, max_heldout=4, backend="numba", progress=False)
+    assert (m["mapped_frames"], m["heldout_frames"]) == (16, 4)  # the other every-2nd frames are mapped
+    with np.load(out / "heldout.npz") as held:
+        assert held["index"].tolist() == [1, 7, 13, 19] and held["rgb"].shape == (4, 32, 32, 3)
+        assert np.array_equal(held["rgb"][1], fr[7][0]) and np.allclose(held["pose"][3], fr[19][2], atol=1e-9)
+    meta = json.loads((out / "episode.json").read_text())
+    assert (meta["max_heldout"], meta["holdout_candidates"], meta["heldout_frames"]) == (4, 10, 4)
+    assert main(["render-eval", str(out), "--backend", "numba", "--no-progress", "--no-lpips"]) == 0
+    metrics = json.loads((out / "render_metrics.json").read_text())
+    assert [v["step"] for v in metrics["train"]["views"]] == [1, 7, 13, 19]
+    assert "4 of those 10 spread over the recording" in metrics["protocol"]["train"]
+    capsys.readouterr()
