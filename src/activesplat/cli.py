@@ -268,11 +268,18 @@ def build_parser() -> argparse.ArgumentParser:
                             "bags without CameraInfo (instead of --camera-info-topic)")
     p_map.add_argument("--depth-scale", type=float, default=5000.0, help="TUM folders: depth PNG units per "
                                                                         "metre (5000)")
+    p_map.add_argument("--no-depth-check", action="store_true",
+                       help="map even when the depth disagrees with the camera motion by a factor (the check "
+                            "that refuses a wrong --depth-scale or depth unit, on a few pairs of frames "
+                            ">= 10 cm apart)")
     p_map.add_argument("--world-up", default="z", choices=("z", "y"),
                        help="up axis of the pose source's world (ROS: z); the map is turned to y-up")
     p_map.add_argument("--holdout-every", type=int, default=8,
                        help="every N-th frame (of those --stride keeps) is kept out of the map as "
                             "render-eval ground truth (0: none)")
+    p_map.add_argument("--max-heldout", type=int, default=200,
+                       help="at most this many held-out frames, spread uniformly over the recording; the "
+                            "other every-N-th frames are mapped (default: 200; render-eval scores up to 50)")
     p_map.add_argument("--stride", type=int, default=1,
                        help="use every N-th frame (e.g. 3 for a 30 Hz camera)")
     p_map.add_argument("--max-dt", type=float, default=0.02, help="colour/depth stamp tolerance (s)")

@@ -30,6 +30,20 @@ def sim_frames(n: int = 12, size: int = 48):
     return sim.K, frames
 
 
+def walk_frames(n: int = 8, size: int = 48, step: float = 0.07):
+    """(K, [(rgb, depth, pose)]) of a walk along the box room's long axis, ``step`` metres a frame (0: a
+    camera that turns on the spot), y-up world."""
+    from activesplat.geometry import camera_pose
+    from activesplat.sim import SimConfig, Simulator, box_room
+
+    sim = Simulator(box_room(), seed=0, config=SimConfig(width=size, height=size))
+    frames = []
+    for k in range(n):
+        pose = camera_pose([0.8 + step * k, 1.25, 1.4], np.pi / 2 + 0.05 * np.sin(k), -0.1)
+        frames.append((*sim.render(pose), pose))
+    return sim.K, frames
+
+
 def to_zup(pose: np.ndarray) -> np.ndarray:
     """A y-up world pose as the pose in the z-up ROS world the recording stores."""
     return np.linalg.inv(WORLD_UP["z"]) @ pose

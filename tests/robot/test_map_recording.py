@@ -1,5 +1,6 @@
 """`activesplat map`: recordings written from our simulator's frames (ROS 1 / ROS 2 / MCAP bags, a TUM
-folder) map to the same map as the same frames given to the mapper directly; bad input is one line."""
+folder) map to the same map as the same frames given to the mapper directly; bad input is one line, a
+depth unit the camera motion contradicts included; the held-out frames are capped (--max-heldout)."""
 
 import json
 import shutil
@@ -10,7 +11,7 @@ import torch
 
 pytest.importorskip("rosbags")
 
-from _bags import ARGS, ros_intrinsics, sim_frames, write_bag, write_tum  # noqa: E402
+from _bags import ARGS, ros_intrinsics, sim_frames, walk_frames, write_bag, write_tum  # noqa: E402
 
 from activesplat.cli import main  # noqa: E402
 from activesplat.robot.mapping import WORLD_UP  # noqa: E402
@@ -388,3 +389,90 @@ def test_compressed_depth_of_image_transport(frames, tmp_path, capsys):
     rec = _open_bag(write_bag(tmp_path / "big", K, big, rgb_encoding="png"))  # sizes unknown until decoded
     with pytest.raises(RecordingError, match=r"image_raw: message 0: a 64x48 image, but the camera is 32x32"):
         next(iter(rec.frames()))
+
+
+# --------------------------------------------------------------------------- the depth check
+@pytest.fixture(scope="module")
+def walk():
+    return walk_frames(8, 48)
+
+
+def test_a_tum_folder_of_another_depth_scale_is_refused(walk, tmp_path, capsys):
+    K, fr = walk
+    tum = write_tum(tmp_path / "tum", K, fr, depth_scale=1000.0)  # saved in millimetres
+    out = tmp_path / "map"
+    argv = ["map", str(tum), "--intrinsics", *(str(v) for v in ros_intrinsics(K)), "--out", str(out),
+            "--no-progress", "--backend", "numba", "--holdout-every", "0"]
+    err = _err(capsys, argv)  # read at the default 5000 units per metre: everything 5x too small
+    assert "the depth looks 5.0x too small for the camera motion" in err, err
+    assert err.endswith("is --depth-scale 5000 right for this folder? Try --depth-scale 1000 "
+                        "(--no-depth-check maps it anyway)"), err
+    assert not out.exists() and not (tmp_path / "map.partial").exists()
+
+    assert main([*argv, "--no-depth-check"]) == 0  # the rare recording where the check misfires
+    meta = json.loads((out / "episode.json").read_text())
+    assert meta["depth_check"] == {"note": "skipped (--no-depth-check)"}
+    capsys.readouterr()
+
+    rec = open_recording(tum, intrinsics=ros_intrinsics(K), depth_scale=1000.0)  # the right scale
+    check = rec.info["depth_check"]
+    assert check["confident"] and abs(check["scale"] - 1.0) < 0.05 and len(check["pairs"]) >= 2
+
+
+def test_a_right_scale_passes_and_is_recorded(walk, tmp_path, capsys):
+    K, fr = walk
+    tum = write_tum(tmp_path / "tum", K, fr)
+    out = tmp_path / "map"
+    assert main(["map", str(tum), "--intrinsics", *(str(v) for v in ros_intrinsics(K)), "--out", str(out),
+                 "--no-progress", "--backend", "numba", "--holdout-every", "0"]) == 0
+    assert '"depth_scale_check": 1.0' in capsys.readouterr().out
+    check = json.loads((out / "episode.json").read_text())["depth_check"]
+    assert check["confident"] and abs(check["scale"] - 1.0) < 0.03
+    assert all(abs(p["s"] - 1.0) < 0.05 and p["pixels"] >= 200 for p in check["pairs"])
+
+
+def test_16uc1_depth_that_is_not_millimetres_is_refused(walk, tmp_path, capsys):
+    K, fr = walk
+    tenth_mm = [(rgb, depth * 10.0, pose) for rgb, depth, pose in fr]  # 16UC1 in tenths of a millimetre
+    bag = write_bag(tmp_path / "rec", K, tenth_mm, depth_encoding="16UC1")
+    err = _err(capsys, ["map", str(bag), *ARGS, "--pose-source", "/camera_pose", "--out",
+                        str(tmp_path / "map")])
+    assert "the depth looks 10.0x too large for the camera motion" in err, err
+    assert err.endswith("/camera/depth/image_raw is read as millimetres (16UC1 / mono16) or metres (32FC1): "
+                        "is it recorded in another unit? (--no-depth-check maps it anyway)"), err
+
+
+def test_a_recording_that_does_not_move_is_not_judged(tmp_path):
+    K, fr = walk_frames(6, 32, step=0.0)  # turns on the spot: no pair of frames 10 cm apart
+    tum = write_tum(tmp_path / "tum", K, fr, depth_scale=1000.0)  # even at the wrong scale
+    rec = open_recording(tum, intrinsics=ros_intrinsics(K))
+    assert rec.info["depth_check"] == {
+        "pairs": [], "scale": None, "note": "not checked: no two frames 0.1 m apart",
+        "seconds": rec.info["depth_check"]["seconds"]}
+
+
+def test_the_held_out_frames_are_capped_and_spread_over_the_recording(tmp_path, capsys):
+    from activesplat.robot.mapping import heldout_indices, map_recording
+
+    assert heldout_indices(20, 2, 1, None).tolist() == list(range(1, 20, 2))
+    assert heldout_indices(20, 2, 1, 4).tolist() == [1, 7, 13, 19]  # the first and the last, evenly apart
+    assert heldout_indices(20, 2, 2, 3).tolist() == [2, 10, 18]  # every 2nd of the frames --stride keeps
+    assert heldout_indices(20, 2, 1, 0).tolist() == [] and heldout_indices(20, 0, 1, 5).tolist() == []
+    assert heldout_indices(1000, 8, 1, 200).tolist() == list(range(7, 1000, 8))[:125]  # 125 <= 200: all
+
+    K, fr = walk_frames(20, 32, step=0.03)
+    tum = write_tum(tmp_path / "tum", K, fr)
+    rec = open_recording(tum, intrinsics=ros_intrinsics(K))
+    out = tmp_path / "map"
+    m = map_recording(rec, out, holdout_every=2, max_heldout=4, backend="numba", progress=False)
+    assert (m["mapped_frames"], m["heldout_frames"]) == (16, 4)  # the other every-2nd frames are mapped
+    with np.load(out / "heldout.npz") as held:
+        assert held["index"].tolist() == [1, 7, 13, 19] and held["rgb"].shape == (4, 32, 32, 3)
+        assert np.array_equal(held["rgb"][1], fr[7][0]) and np.allclose(held["pose"][3], fr[19][2], atol=1e-9)
+    meta = json.loads((out / "episode.json").read_text())
+    assert (meta["max_heldout"], meta["holdout_candidates"], meta["heldout_frames"]) == (4, 10, 4)
+    assert main(["render-eval", str(out), "--backend", "numba", "--no-progress", "--no-lpips"]) == 0
+    metrics = json.loads((out / "render_metrics.json").read_text())
+    assert [v["step"] for v in metrics["train"]["views"]] == [1, 7, 13, 19]
+    assert "4 of those 10 spread over the recording" in metrics["protocol"]["train"]
+    capsys.readouterr()

@@ -359,9 +359,15 @@ def _recorded_setup(episode_dir: Path, meta: dict, cfg: RenderEvalConfig) -> _Se
         math.degrees(2.0 * math.atan(width / (2.0 * K[0, 0]))),
         {"train": pose[pick], "test": np.zeros((0, 4, 4))}, index[pick],
         lambda split, i, p: (rgb[pick[i]], depth[pick[i]]),
-        f"{len(pick)} recorded frames held out of the map (every {meta.get('holdout_every')}-th frame), "
-        f"spread uniformly",
+        f"{len(pick)} recorded frames held out of the map (every {meta.get('holdout_every')}-th frame"
+        f"{_capped(meta, len(index))}), spread uniformly",
         "none: a recording has no scene mesh to render random free-space views from")
+
+
+def _capped(meta: dict, n: int) -> str:
+    """', N of them' when `activesplat map --max-heldout` kept fewer than every N-th frame; else ''."""
+    every = meta.get("holdout_candidates")
+    return f", {n} of those {every} spread over the recording" if every is not None and every > n else ""
 
 
 def _name_of(fn) -> str:

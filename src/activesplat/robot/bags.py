@@ -330,7 +330,7 @@ class BagScan:
             np.stack(poses),
             rec_info,
         )
-        rec._frames = lambda: self._stream(indices)
+        rec._frames = lambda only=None: self._stream(indices, only)
         return rec
 
     def _pose_topics(self, topics: dict[str, str]) -> tuple[list[str], str | None, str | None]:
@@ -393,14 +393,19 @@ class BagScan:
             )
         return image
 
-    def _stream(self, indices: list[tuple[int, int]]):
-        want_rgb = {ri: k for k, (ri, _) in enumerate(indices)}
+    def _stream(self, indices: list[tuple[int, int]], only=None):
+        """The frames of ``indices`` (colour, depth message indices) in order; ``only`` (sorted frame
+        indices): just those, reading the bag no further than the last."""
+        ks = list(range(len(indices))) if only is None else list(only)
+        want_rgb = {indices[k][0]: k for k in ks}
         want_depth: dict[int, list[int]] = {}
-        for k, (_, di) in enumerate(indices):
-            want_depth.setdefault(di, []).append(k)
+        for k in ks:
+            want_depth.setdefault(indices[k][1], []).append(k)
         got_rgb: dict[int, np.ndarray] = {}
         got_depth: dict[int, np.ndarray] = {}
-        nxt = 0
+        at = 0  # position in ks of the next frame to yield
+        if not ks:
+            return
         for topic, _, index, msg in self._read([self.rgb_topic, self.depth_topic]):
             if topic == self.rgb_topic and index in want_rgb:
                 got_rgb[want_rgb[index]] = self._sized(
@@ -410,11 +415,12 @@ class BagScan:
                 d = self._sized(decode_depth(msg, topic, index, self.depth_compressed), topic, index)
                 for k in want_depth[index]:
                     got_depth[k] = d
-            while nxt < len(indices) and nxt in got_rgb and nxt in got_depth:
-                yield nxt, got_rgb.pop(nxt), got_depth.pop(nxt)
-                nxt += 1
-        if nxt < len(indices):
-            raise RecordingError(f"{self.rgb_topic}: message {indices[nxt][0]} could not be read back")
+            while at < len(ks) and ks[at] in got_rgb and ks[at] in got_depth:
+                yield ks[at], got_rgb.pop(ks[at]), got_depth.pop(ks[at])
+                at += 1
+            if at == len(ks):
+                return
+        raise RecordingError(f"{self.rgb_topic}: message {indices[ks[at]][0]} could not be read back")
 
 
 def _reader(path):

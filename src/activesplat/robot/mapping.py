@@ -2,10 +2,13 @@
 in the episode layout, readable by ``render-eval``, ``refine``, ``export`` and ``view``.
 
 Every frame goes through the same online mapper the explorer uses (``Mapper.add_frame``, the regular
-schedule), in time order, except every ``holdout_every``-th frame, which is kept out of the map and
-saved as ground truth (``heldout.npz``): ``render-eval`` scores the map on those held-out recorded views
-(its *train* split, views near the trajectory). Without a scene mesh there are no random free-space views,
-so a recorded map has no test split.
+schedule), in time order, except the held-out frames, which are kept out of the map and saved as ground
+truth (``heldout.npz``): every ``holdout_every``-th frame (of those ``stride`` keeps), at most
+``max_heldout`` of them (default 200, about 2 MB each at 640x480) spread uniformly over the recording
+(:func:`heldout_indices`, chosen before the images are read; the every-N-th frames left over are mapped).
+``render-eval`` scores the map on up to 50 of those held-out recorded views (its *train* split, views near
+the trajectory). Without a scene mesh there are no random free-space views, so a recorded map has no test
+split.
 
 World frame: the map's world is the pose source's world turned by one fixed rotation so that its up axis
 becomes +y (the project's convention, docs/protocol.md §8; the top-down workspace slices along y). ROS
@@ -40,6 +43,9 @@ from activesplat.eval.render_eval import HELDOUT_FILE
 from activesplat.robot.recording import Recording
 from activesplat.robot.transforms import matrix_tq
 
+MAX_HELDOUT = 200
+"""Default cap on the held-out frames of a recorded map (render-eval scores up to 50 of them)."""
+
 WORLD_UP = {"y": np.eye(4), "z": np.array([[1.0, 0, 0, 0], [0, 0, 1, 0], [0, -1, 0, 0], [0, 0, 0, 1]])}
 """map_T_source per up axis of the source world: z-up (x, y, z) -> (x, z, -y), a proper rotation."""
 
@@ -72,6 +78,7 @@ def map_recording(
     overwrite: bool = False,
     progress: bool = True,
     floor_height: float | None = None,
+    max_heldout: int = MAX_HELDOUT,
 ) -> dict:
     """Map a scanned recording into the folder ``out`` (module docstring); returns metrics.json's content."""
     import torch
@@ -80,9 +87,10 @@ def map_recording(
 
     if world_up not in WORLD_UP:
         raise InvalidInputError(f"--world-up must be one of {', '.join(WORLD_UP)}, got {world_up!r}")
-    if holdout_every < 0 or holdout_every == 1 or stride < 1:
+    if holdout_every < 0 or holdout_every == 1 or stride < 1 or max_heldout < 0:
         raise InvalidInputError(
-            f"--holdout-every must be 0 (none) or >= 2 and --stride >= 1, got {holdout_every} and {stride}"
+            f"--holdout-every must be 0 (none) or >= 2, --stride >= 1 and --max-heldout >= 0, got "
+            f"{holdout_every}, {stride} and {max_heldout}"
         )
     out = Path(out)
     tmp = _prepare_out(out, overwrite)
@@ -101,7 +109,13 @@ def map_recording(
             )
         torch.manual_seed(0)
         mapper = Mapper(rec.mapper_K, rec.width, rec.height, config=mapper_config, backend=backend)
-        held = {"rgb": [], "depth": [], "pose": [], "index": []}
+        h, w = rec.height, rec.width
+        every_nth = heldout_indices(len(rec), holdout_every, stride, None)
+        held_index = heldout_indices(len(rec), holdout_every, stride, max_heldout)
+        held_out = set(held_index.tolist())  # streamed in order: the n-th held-out frame is held_index[n]
+        held_rgb = np.empty((len(held_index), h, w, 3), np.uint8)  # filled in place: no list, no np.stack
+        held_depth = np.empty((len(held_index), h, w), np.float32)
+        n_held = 0
         used, mapper_ms, seen, interrupted = [], 0.0, 0, False
         bar = _progress(len(rec), progress)
         t0 = time.perf_counter()
@@ -112,9 +126,9 @@ def map_recording(
                 seen = k + 1
                 if k % stride:
                     continue
-                if holdout_every and (k // stride) % holdout_every == holdout_every - 1:
-                    for name, v in (("rgb", rgb), ("depth", depth), ("pose", poses[k]), ("index", k)):
-                        held[name].append(v)
+                if k in held_out:
+                    held_rgb[n_held], held_depth[n_held] = rgb, depth
+                    n_held += 1
                     continue
                 t1 = time.perf_counter()
                 mapper.add_frame(rgb, depth, poses[k])
@@ -132,13 +146,12 @@ def map_recording(
                 f"{rec.path}: no frame left to map (stride {stride}, holdout {holdout_every})"
             )
         mapper.save(tmp)
-        h, w = rec.height, rec.width
         write_npz(
             tmp / HELDOUT_FILE,
-            rgb=np.stack(held["rgb"]) if held["rgb"] else np.zeros((0, h, w, 3), np.uint8),
-            depth=np.stack(held["depth"]) if held["depth"] else np.zeros((0, h, w), np.float32),
-            pose=np.stack(held["pose"]) if held["pose"] else np.zeros((0, 4, 4)),
-            index=np.asarray(held["index"], dtype=np.int64),
+            rgb=held_rgb[:n_held],
+            depth=held_depth[:n_held],
+            pose=poses[held_index[:n_held]],
+            index=held_index[:n_held],
         )
         _write_trajectory(tmp, rec, poses, seen)
         floor = _floor_height(mapper, poses) if floor_height is None else float(floor_height)
@@ -158,8 +171,10 @@ def map_recording(
             "floor_height": floor,
             "frames": len(rec),
             "mapped_frames": len(used),
-            "heldout_frames": len(held["index"]),
+            "heldout_frames": n_held,
             "holdout_every": holdout_every,
+            "max_heldout": max_heldout,
+            "holdout_candidates": len(every_nth),  # every holdout_every-th frame, before max_heldout
             "stride": stride,
             "upright_pct": upright,
             "backend": mapper.backend,
@@ -169,7 +184,7 @@ def map_recording(
         metrics = {
             "frames": len(rec),
             "mapped_frames": len(used),
-            "heldout_frames": len(held["index"]),
+            "heldout_frames": n_held,
             "n_gaussians": len(mapper.gaussians),
             "wall_time_s": wall,
             "ms_per_frame": 1000.0 * wall / max(len(used), 1),
@@ -190,6 +205,21 @@ def map_recording(
               f"(map the whole recording again to complete it)", file=sys.stderr)
         raise KeyboardInterrupt
     return metrics
+
+
+def heldout_indices(n: int, holdout_every: int, stride: int, max_heldout: int | None) -> np.ndarray:
+    """The frames of a recording of ``n`` frames held out of its map: every ``holdout_every``-th of those
+    ``stride`` keeps (none for 0), at most ``max_heldout`` (None: no cap) spread uniformly over them, the
+    first and last included (as render-eval spreads its views, `eval.render_eval.train_indices`)."""
+    from activesplat.eval.render_eval import train_indices
+
+    if not holdout_every:
+        return np.zeros(0, dtype=np.int64)
+    kept = np.arange(0, n, stride, dtype=np.int64)
+    every = kept[np.arange(len(kept)) % holdout_every == holdout_every - 1]
+    if max_heldout is None or len(every) <= max_heldout:
+        return every
+    return every[train_indices(len(every), max_heldout)] if max_heldout else every[:0]
 
 
 def upright_pct(poses: np.ndarray) -> float:
@@ -269,6 +299,7 @@ def map_from_args(args) -> int:
         max_dt=args.max_dt,
         max_pose_gap=args.max_pose_gap,
         skip_unposed=args.skip_unposed,
+        depth_check=not args.no_depth_check,
     )
     out = Path(args.out) if args.out else Path("runs") / (Path(args.recording).stem + "-map")
     m = map_recording(
@@ -278,6 +309,7 @@ def map_from_args(args) -> int:
         world_up=args.world_up,
         backend=args.backend,
         stride=args.stride,
+        max_heldout=args.max_heldout,
         overwrite=args.overwrite,
         progress=not args.no_progress,
     )
@@ -287,5 +319,7 @@ def map_from_args(args) -> int:
         f"{rec.width}x{rec.height}, {m['n_gaussians']} Gaussians, {m['ms_per_frame']:.0f} ms/frame "
         f"(mapper {m['mapper_ms_per_frame']:.0f}) -> {out}"
     )
-    print(json.dumps({k: rec.info[k] for k in ("pose_source", "unpaired_colour", "unposed_dropped")}))
+    check = rec.info["depth_check"]
+    print(json.dumps({**{k: rec.info[k] for k in ("pose_source", "unpaired_colour", "unposed_dropped")},
+                      "depth_scale_check": check.get("scale") or check.get("note")}))
     return 0

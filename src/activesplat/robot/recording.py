@@ -33,6 +33,9 @@ Conventions (README, "Recorded data"):
 - **TUM RGB-D folders** (``rgb.txt``, ``depth.txt``, ``groundtruth.txt``; 16-bit PNG depth divided by
   ``depth_scale``, 5000 in TUM): intrinsics from ``intrinsics`` (fx fy cx cy), poses from the ground
   truth (``timestamp tx ty tz qx qy qz qw``, the colour camera's optical frame in the world).
+- **Depth unit**: checked against the camera motion after the scan (`robot.depth_check`): depth that a
+  few pairs of frames 10 cm apart agree is off by a factor outside [0.8, 1.25] (a wrong ``depth_scale``,
+  16UC1 depth that is not millimetres) is a RecordingError.
 """
 
 from __future__ import annotations
@@ -67,7 +70,7 @@ class Recording:
     stamps: np.ndarray
     poses: np.ndarray
     info: dict = field(default_factory=dict)
-    _frames: object = None  # callable () -> iterator of (index, rgb uint8 (H,W,3), depth float32 m (H,W))
+    _frames: object = None  # callable (only=None) -> iterator of (index, rgb uint8 (H,W,3), depth float32 m)
 
     def __len__(self) -> int:
         return len(self.stamps)
@@ -78,9 +81,10 @@ class Recording:
         mapper, render-eval and the viewer use; the principal point half a pixel more than ``K``'s."""
         return K_from_opencv(self.K)
 
-    def frames(self) -> Iterator[tuple[int, np.ndarray, np.ndarray]]:
-        """(index, rgb uint8 (H, W, 3), depth float32 metres (H, W), 0 = no depth), in time order."""
-        return self._frames()
+    def frames(self, only=None) -> Iterator[tuple[int, np.ndarray, np.ndarray]]:
+        """(index, rgb uint8 (H, W, 3), depth float32 metres (H, W), 0 = no depth), in time order; ``only``
+        (sorted frame indices): just those, the stream ending after the last."""
+        return self._frames() if only is None else self._frames(only)
 
 
 def open_recording(
@@ -95,10 +99,25 @@ def open_recording(
     max_dt: float = 0.02,
     max_pose_gap: float = 0.5,
     skip_unposed: bool = False,
+    depth_check: bool = True,
 ) -> Recording:
     """Scan a recording (module docstring): a ``.bag`` (ROS 1), a ROS 2 bag folder (``metadata.yaml``), a
     ``.mcap`` / ``.db3`` file, or a TUM RGB-D folder (``rgb.txt``). Raises RecordingError (one line naming
-    the topic or file) on anything that cannot be mapped."""
+    the topic or file) on anything that cannot be mapped, a depth unit the camera motion contradicts
+    included (`robot.depth_check`, unless ``depth_check`` is false; its result in ``info["depth_check"]``)."""
+    rec = _scan(path, rgb_topic, depth_topic, camera_info_topic, pose_source, camera_in_body, intrinsics,
+                depth_scale, max_dt, max_pose_gap, skip_unposed)
+    if depth_check:
+        from activesplat.robot.depth_check import check_depth_scale
+
+        rec.info["depth_check"] = check_depth_scale(rec)
+    else:
+        rec.info["depth_check"] = {"note": "skipped (--no-depth-check)"}
+    return rec
+
+
+def _scan(path, rgb_topic, depth_topic, camera_info_topic, pose_source, camera_in_body, intrinsics,
+          depth_scale, max_dt, max_pose_gap, skip_unposed) -> Recording:
     p = Path(path)
     if not p.exists():
         raise RecordingError(f"{p}: no such file or folder")

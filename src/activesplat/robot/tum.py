@@ -103,8 +103,9 @@ def open_tum(
         if not (folder / name).is_file():
             raise RecordingError(f"{name}: missing image file")
 
-    def stream():
-        for k, (rname, dname) in enumerate(files):
+    def stream(only=None):
+        for k in range(len(files)) if only is None else only:
+            rname, dname = files[k]
             bgr = cv2.imread(str(folder / rname), cv2.IMREAD_COLOR)
             raw = cv2.imread(str(folder / dname), cv2.IMREAD_UNCHANGED)
             if bgr is None or raw is None:
