@@ -20,6 +20,7 @@ import numpy as np
 
 from activesplat.episode import EpisodeWriter, write_json_atomic
 from activesplat.eval.behaviour import action_counts, completion_gain, rotation_causes, rotation_pct
+from activesplat.timing import progress_bar
 
 TIMING_KEYS = ("mapper", "workspace", "voronoi", "subregions", "rotation_selection", "position_selection",
                "planner")
@@ -165,7 +166,7 @@ class _Exploration:
         self.setup_s = _prepare_rasterizer(self.mapper, run, progress)  # kept out of the per-step timings
         self.t_start = time.perf_counter()
         self.label = scene_label(name)  # in the progress bar and figure titles
-        self.bar = _progress(self.steps, self.label, run.policy, progress)
+        self.bar = progress_bar(self.steps, f"{self.label} {run.policy}", "step", progress)
         if evaluator is not None:  # the reset's frame (poses.txt holds steps + 1 frames): the curve's step 0
             self.timers.time("evaluation", evaluator.observe, self.obs.pose)
             self.timers.time("evaluation", evaluator.curve_point, 0, {"path_length_m": 0.0, "n_gaussians": 0})
@@ -378,16 +379,6 @@ def _prepare_rasterizer(mapper, run, progress: bool) -> float:
         print("loading gsplat's CUDA kernels (the first use after an install compiles them: 1-2 minutes)",
               file=sys.stderr)
     return prepare_backend(mapper.backend, planar_depth=run.mapper.planar_depth)
-
-
-def _progress(steps: int, scene: str, policy: str, enabled: bool):
-    """The episode's progress bar on stderr (None when `enabled` is off)."""
-    if not enabled:
-        return None
-    from tqdm import tqdm
-
-    return tqdm(total=steps, desc=f"{scene} {policy}", unit="step", dynamic_ncols=True,
-                file=sys.stderr, mininterval=0.5)
 
 
 def _next_waypoint(explorer) -> np.ndarray | None:

@@ -9,6 +9,17 @@ from collections import defaultdict
 from collections.abc import Callable
 
 
+def progress_bar(total: int, desc: str, unit: str, enabled: bool = True, **kwargs):
+    """The progress bar every long command shows on stderr (tqdm, at most two updates a second, as wide as
+    the terminal); None when `enabled` is off (``--no-progress``)."""
+    if not enabled:
+        return None
+    from tqdm import tqdm
+
+    return tqdm(total=total, desc=desc, unit=unit, dynamic_ncols=True, file=sys.stderr, mininterval=0.5,
+                **kwargs)
+
+
 class Timers:
     """Mean milliseconds per step of each module (Tab. VI): totals divided by the step count."""
 

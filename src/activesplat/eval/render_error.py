@@ -42,6 +42,7 @@ from pathlib import Path
 import numpy as np
 
 from activesplat.errors import EpisodeError
+from activesplat.timing import progress_bar
 
 PIXEL_CLASSES = ("hole_unobserved", "hole_grazing", "hole_observed", "translucent", "depth_front",
                  "depth_behind", "depth_edge", "floor", "ceiling", "rest")
@@ -300,7 +301,8 @@ def error_budget(episode_dir: str | Path, gaussians_path: str | Path | None = No
     W, H, K = setup.width, setup.height, setup.K
     renderer = renderer or default_renderer(gaussians_path)
     rows, cols = np.mgrid[0:H, 0:W]
-    bar = _progress(sum(len(setup.poses[s]) for s in splits) + len(episode.poses), progress)
+    bar = progress_bar(sum(len(setup.poses[s]) for s in splits) + len(episode.poses),
+                       "error budget (views, then trajectory frames)", "frame", progress)
     # 1. every view: squared error and classes, holes provisionally "observed"; their surface points
     views: dict[str, list] = {s: [] for s in splits}
     shown: list[tuple] = []  # (mean squared error, split, view, ground truth, render) for the figure
@@ -380,17 +382,6 @@ def draw_budget_figure(path: Path, rows: list[tuple], title: str = "") -> Path:
                         for name, col in zip(PIXEL_CLASSES, CLASS_COLOURS, strict=True)],
                loc="outside lower center", ncol=5, fontsize=8)
     return save_view_grid(fig, path, title)
-
-
-def _progress(total: int, enabled: bool):
-    if not enabled:
-        return None
-    import sys
-
-    from tqdm import tqdm
-
-    return tqdm(total=total, desc="error budget (views, then trajectory frames)", unit="frame",
-                file=sys.stderr, dynamic_ncols=True)
 
 
 def format_budget(result: dict) -> str:

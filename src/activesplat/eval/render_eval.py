@@ -31,7 +31,6 @@ from __future__ import annotations
 import functools
 import json
 import math
-import sys
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
@@ -42,6 +41,7 @@ import torch
 
 from activesplat.episode import is_recorded_map, read_episode, read_meta, write_json_atomic
 from activesplat.errors import EpisodeError, InvalidInputError
+from activesplat.timing import progress_bar
 
 METRIC_KEYS = ("psnr", "ssim", "ms_ssim", "lpips", "depth_l1_cm", "depth_l1_cm_normalised", "unmapped_pct")
 """Per-view metrics, averaged per split into render_metrics.json."""
@@ -230,7 +230,7 @@ def render_eval(episode_dir: str | Path, gaussians_path: str | Path | None = Non
     views: dict[str, list[dict]] = {s: [] for s in SPLITS}
     grid: list[dict] = []
     clock = {"ground_truth": 0.0, "render": 0.0, "metrics": 0.0}
-    bar = _progress(sum(len(p) for p in poses.values()), progress)
+    bar = progress_bar(sum(len(p) for p in poses.values()), "render-eval", "view", progress)
     t0 = time.perf_counter()
     for split in SPLITS:
         for i, pose in enumerate(poses[split]):
@@ -433,15 +433,6 @@ def draw_render_grid(path: Path, rows: list[dict], depth_max_cm: float, title: s
 
 
 # --------------------------------------------------------------------------- command line
-def _progress(total: int, enabled: bool):
-    if not enabled:
-        return None
-    from tqdm import tqdm
-
-    return tqdm(total=total, desc="render-eval", unit="view", dynamic_ncols=True, file=sys.stderr,
-                mininterval=0.5)
-
-
 def format_table(result: dict, out: Path) -> str:
     """A short text table of both splits."""
     def fmt(v, spec):  # "n/a" right-aligned in the column's width, as the numbers are

@@ -42,6 +42,7 @@ from activesplat.errors import EpisodeError, InvalidInputError
 from activesplat.eval.render_eval import HELDOUT_FILE
 from activesplat.robot.recording import Recording
 from activesplat.robot.transforms import matrix_tq
+from activesplat.timing import progress_bar
 
 MAX_HELDOUT = 200
 """Default cap on the held-out frames of a recorded map (render-eval scores up to 50 of them)."""
@@ -117,7 +118,7 @@ def map_recording(
         held_depth = np.empty((len(held_index), h, w), np.float32)
         n_held = 0
         used, mapper_ms, seen, interrupted = [], 0.0, 0, False
-        bar = _progress(len(rec), progress)
+        bar = progress_bar(len(rec), "map", "frame", progress)
         t0 = time.perf_counter()
         try:
             for k, rgb, depth in rec.frames():
@@ -273,14 +274,6 @@ def _draw_topdown(folder: Path, mapper, poses: np.ndarray, floor: float, wcfg) -
         warnings.warn(f"topdown.png not drawn: {exc}", stacklevel=2)
         return f"not drawn: {exc}"
     return "topdown.png"
-
-
-def _progress(total: int, enabled: bool):
-    if not enabled:
-        return None
-    from tqdm import tqdm
-
-    return tqdm(total=total, desc="map", unit="frame", dynamic_ncols=True, file=sys.stderr, mininterval=0.5)
 
 
 def map_from_args(args) -> int:
