@@ -109,6 +109,15 @@ def live(tmp_path_factory):
         viewer.close()
 
 
+
+def rendered(viewer, step: int, timeout: float = 10.0) -> None:
+    """Wait until the render worker has shown the images of `step` and has nothing else queued."""
+    deadline = time.monotonic() + timeout
+    while (viewer.rendered_step != step or viewer._pending is not None) and time.monotonic() < deadline:
+        time.sleep(0.02)
+    assert viewer.rendered_step == step, f"the viewer shows step {viewer.rendered_step}, not {step}"
+
+
 def test_live_viewer_serves_the_page_and_the_scene(live):
     viewer, out, metrics = live
     assert "<html" in fetch_page(viewer.port).lower()
@@ -388,11 +397,8 @@ def test_a_recorded_map_shows_its_trajectory_and_the_held_out_frames_beside_the_
         assert list(held) == [2, 5, 8] and "6 mapped, 3 held out" in viewer.draw.status.content
 
         def images_at(frame: int) -> dict:
-            before = viewer.draw.sent.get("image:map RGB", 0)
             viewer.slider.value = frame
-            deadline = time.monotonic() + 10
-            while viewer.draw.sent.get("image:map RGB", 0) == before and time.monotonic() < deadline:
-                time.sleep(0.05)
+            rendered(viewer, frame)
             return {k: h for k, h in viewer.draw.image_handles.items() if h.visible}
 
         shown = images_at(5)
@@ -526,6 +532,7 @@ def test_a_broken_map_or_render_leaves_the_viewer_working(live, tmp_path, capsys
         assert viewer.map_name == viewer.map_choice.value == "online"
         assert "**map refined_3dgs not shown**: " in viewer.draw.status.content
         assert "viewer: map refined_3dgs not shown: " in capsys.readouterr().err
+        rendered(viewer, viewer.slider.value)  # the first render is done before the renderer is replaced
         gmap, render = viewer._map("online")
         calls = []
 
@@ -542,8 +549,7 @@ def test_a_broken_map_or_render_leaves_the_viewer_working(live, tmp_path, capsys
             time.sleep(0.05)
         sent = viewer.draw.sent.get("image:map RGB", 0)
         viewer.slider.value = 3
-        while viewer.draw.sent.get("image:map RGB", 0) == sent and time.monotonic() < deadline:
-            time.sleep(0.05)
+        rendered(viewer, 3)
         assert viewer.draw.sent["image:map RGB"] > sent and viewer._worker.is_alive()
         assert "viewer: no images at step 2 (RuntimeError: out of memory)" in capsys.readouterr().err
     finally:

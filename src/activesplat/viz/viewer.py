@@ -292,6 +292,8 @@ class EpisodeViewer:
         self.port = self.server.get_port()
         self.url = f"http://{self.cfg.host}:{self.port}"
         self._pending: int | None = None
+        self.rendered_step: int | None = None
+        """The step whose images the page shows (the render worker's last finished render)."""
         self._wake = threading.Condition()
         self._stop = False
         self._worker = threading.Thread(target=self._render_loop, name="activesplat-view-render", daemon=True)
@@ -486,6 +488,7 @@ class EpisodeViewer:
                 step, self._pending = self._pending, None
             try:
                 self.render_images(step)
+                self.rendered_step = step
             except Exception as exc:  # the worker lives on: the next slider position renders again
                 print(f"viewer: no images at step {step} ({type(exc).__name__}: {exc})", file=sys.stderr)
 
