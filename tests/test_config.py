@@ -4,6 +4,7 @@ geometry, episode.json written and read back by --config (same actions), benchma
 import dataclasses
 import json
 import re
+from pathlib import Path
 
 import pytest
 
@@ -285,3 +286,62 @@ def test_refine_takes_the_recorded_settings_then_the_options(capsys, tmp_path, m
     assert main(["refine", str(ep)]) == 0 and seen[-1].refine == RunConfig().refine
     code, _, err = _run(capsys, "refine", str(ep), "--refine.lambda-dssim", "2")
     assert code == 2 and "--refine.lambda-dssim must be in [0, 1]" in err and len(err.splitlines()) == 1
+
+
+# --------------------------------------------------------------------------- files of older versions
+def _old_episode(tmp_path, edit) -> Path:
+    """An episode.json as an older version wrote it: today's record edited by ``edit``."""
+    data = RunConfig(steps=5, refine=dataclasses.replace(RunConfig().refine, lambda_dssim=0.3)).to_dict()
+    edit(data)
+    ep = tmp_path / "old"
+    ep.mkdir(exist_ok=True)
+    (ep / "episode.json").write_text(json.dumps({"scene": "small-0", "start_pose": [], "config": data}))
+    return ep
+
+
+def test_a_removed_field_at_its_off_value_reads_and_any_other_value_is_refused(capsys, tmp_path):
+    ep = _old_episode(tmp_path, lambda d: (d["mapper"].update(area_budget_slack=None, area_budget_cell_m=0.4),
+                                           d["explorer"]["planning"]["score"].update(w_entry=0.0)))
+    assert load_run_config(ep) == RunConfig(steps=5, refine=load_run_config(ep).refine)
+    ep = _old_episode(tmp_path, lambda d: d["explorer"].update(front_faces_scores_after=0.5))
+    code, _, err = _run(capsys, "explore", "--config", str(ep), "--out", str(tmp_path / "never"))
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert "explorer.front_faces_scores_after was removed" in err and "0.5" in err
+    assert not (tmp_path / "never").exists()
+
+
+def test_an_old_episode_reruns_with_the_values_of_its_version_for_later_fields(tmp_path):
+    def old(d):
+        del d["explorer"]["leave_when_cut_off"], d["explorer"]["way_back_m"], d["sim"]["texture_filter"]
+    ep = _old_episode(tmp_path, old)
+    with pytest.warns(UserWarning, match="way_back_m=null, explorer.leave_when_cut_off=false"):
+        run = load_run_config(ep)
+    assert (run.explorer.leave_when_cut_off, run.explorer.way_back_m, run.sim.texture_filter) == (
+        False, None, "nearest")
+    with pytest.warns(UserWarning):  # the options still override the file
+        cmd = parse_command(ExploreCommand, ["--config", str(ep), "--explorer.leave-when-cut-off"], "t")
+    assert cmd.run.explorer.leave_when_cut_off and cmd.run.explorer.way_back_m is None
+    # a config file that is not an episode's record: what it leaves out takes today's defaults
+    partial = tmp_path / "partial.json"
+    partial.write_text(json.dumps({"version": CONFIG_VERSION, "seed": 2}))
+    assert load_run_config(partial) == RunConfig(seed=2)
+
+
+def test_refine_keeps_an_old_episodes_settings_when_another_group_cannot_be_read(capsys, tmp_path,
+                                                                                 monkeypatch):
+    import activesplat.refine as refine_module
+
+    seen = []
+    monkeypatch.setattr(refine_module, "refine_from_command", lambda cmd: seen.append(cmd) or 0)
+    ep = _old_episode(tmp_path, lambda d: d["explorer"].update(multi_stop_new_m=1.0))
+    assert main(["refine", str(ep)]) == 0 and seen[-1].refine.lambda_dssim == 0.3
+    ep = _old_episode(tmp_path, lambda d: d["refine"].update(lambda_dssim="x"))
+    code, _, err = _run(capsys, "refine", str(ep))
+    assert code == 2 and "refine.lambda_dssim must be a number" in err and len(err.strip().splitlines()) == 1
+
+
+def test_an_old_maps_settings_with_a_removed_field_still_read():
+    d = dataclasses.asdict(MapperConfig())
+    d.update(area_budget_slack=0.2, area_budget_cell_m=0.2)
+    del d["planar_depth"]
+    assert MapperConfig.from_dict(d) == MapperConfig(planar_depth=False)

@@ -45,9 +45,43 @@ from activesplat.splat.config import MapperConfig
 from activesplat.splat.rasterize import BACKENDS
 
 CONFIG_VERSION = 1
-"""Version of the configuration recorded in episode.json. Bump it when a field is renamed, removed or changes
-meaning, so that an old file is refused rather than replayed differently. A field added later needs no
-bump if its default keeps the old behaviour: a file that lacks it reads as that default."""
+"""Version of the configuration recorded in episode.json. Every release so far writes 1: a field removed
+since goes in `REMOVED`, a field added with a default that changes what a run does goes in `ADDED`, so that
+an old episode.json reads as the run it recorded or is refused with a line saying why. Bump it only for a
+change these two tables cannot describe (a field whose meaning changed)."""
+
+_ANY = object()  # a removed field that only tuned another removed one: any value reads
+
+REMOVED: dict[str, tuple[Any, str]] = {
+    "mapper.area_budget_slack": (None, "2026-12-02, measured and reverted"),
+    "mapper.area_budget_cell_m": (_ANY, "2026-12-02, with area_budget_slack"),
+    "explorer.planning.score.w_entry": (0.0, "2026-11-27, measured and reverted"),
+    "explorer.planning.score.entry_radius_m": (_ANY, "2026-11-27, with w_entry"),
+    "explorer.multi_stop_new_m": (None, "2026-11-29, measured and reverted"),
+    "explorer.multi_stop_frontier_m": (None, "2026-11-29, measured and reverted"),
+    "explorer.multi_stop_frontier_cells": (_ANY, "2026-11-29, with multi_stop_frontier_m"),
+    "explorer.front_faces_scores_after": (None, "2026-12-02, measured and removed"),
+}
+"""Fields removed from RunConfig: dotted path -> (the value that behaves as today's code, when and why). An
+old file holding that value (or any value, for a field that only tuned a removed one) reads without it; any
+other value is refused, since this version cannot run it."""
+
+ADDED: dict[str, Any] = {
+    "sim.texture_filter": "nearest",
+    "mapper.planar_depth": False,
+    "explorer.fewest_action_tour": False,
+    "explorer.global_in_horizon": True,
+    "explorer.global_information_first": False,
+    "explorer.panorama_every_subregion": False,
+    "explorer.way_back_m": None,
+    "explorer.start_blocks": None,
+    "explorer.leave_when_cut_off": False,
+    "explorer.planning.panorama.front_faces_targets": False,
+    "explorer.planning.panorama.score_lod_voxel_m": None,
+}
+"""Fields added to RunConfig with a default that is not what runs did before them: dotted path -> the value
+that does what the code did before the field existed. An episode.json that lacks one (written before it)
+reads as that value, with a warning naming it; a hand-written partial config file takes today's defaults."""
 
 DERIVED: dict[str, str] = {
     "explorer.workspace.agent_radius": "agent_radius",
@@ -157,6 +191,7 @@ class RunConfig:
             raise InvalidInputError(f"{source}: config version {version} (this activesplat reads version "
                                     f"{CONFIG_VERSION}); rerun with options instead")
         derived = {path: _pop_path(data, path.split(".")) for path in DERIVED}
+        _drop_removed(data, source)
         config = _build(cls, data, "", source)
         for path, value in derived.items():
             want = _get_path(config, path.split("."))
@@ -250,12 +285,19 @@ class RefineCommand:
 
 
 def recorded_refine_config(episode_dir: str | Path) -> RefineConfig | None:
-    """The ``refine`` settings an episode's episode.json records, None when it records none readable (an
-    episode of an older version)."""
+    """The ``refine`` settings an episode's episode.json records, None when it records none (an episode of
+    a version before RunConfig, or no episode.json). Only the ``refine`` group is read, so a field of
+    another group that this version removed does not keep the recorded settings from counting; a
+    ``refine`` group this version cannot read is an InvalidInputError naming the field."""
+    p = Path(episode_dir) / "episode.json"
     try:
-        return load_run_config(Path(episode_dir) / "episode.json").refine
-    except InvalidInputError:
+        data = json.loads(p.read_text())
+    except (OSError, ValueError):
+        return None  # the refine command names a missing or unreadable episode itself
+    config = data.get("config") if isinstance(data, dict) else None
+    if not isinstance(config, dict) or "refine" not in config:
         return None
+    return _build(RefineConfig, config["refine"], "refine.", str(p))
 
 
 def load_run_config(path: str | Path) -> RunConfig:
@@ -272,9 +314,35 @@ def load_run_config(path: str | Path) -> RunConfig:
         raise InvalidInputError(f"--config: {p} is not readable JSON: {exc}") from None
     if isinstance(data, dict) and "start_pose" in data:  # an episode.json: the config is one of its keys
         if not isinstance(data.get("config"), dict):
-            raise InvalidInputError(f"--config: {p} records no configuration")
-        data = data["config"]
+            raise InvalidInputError(f"--config: {p} records no configuration (an episode of a version "
+                                    f"before RunConfig); rerun it with options instead")
+        data = _fill_added(data["config"], p)
     return RunConfig.from_dict(data, source=str(p))
+
+
+def _fill_added(config: dict, path: Path) -> dict:
+    """An episode.json's recorded config with each `ADDED` field it lacks set to the value its version ran
+    with, and a warning naming them (episode.json records every field, so a missing one is younger than
+    the file)."""
+    import copy
+
+    config = copy.deepcopy(config)
+    filled = []
+    for dotted, old in ADDED.items():
+        *groups, name = dotted.split(".")
+        inner = config
+        for g in groups:
+            inner = inner.get(g) if isinstance(inner, dict) else None
+        if isinstance(inner, dict) and name not in inner:
+            inner[name] = old
+            filled.append(f"{dotted}={json.dumps(old)}")
+    if filled:
+        import warnings
+
+        warnings.warn(f"{path} was written before {len(filled)} field(s) whose default has changed; it runs "
+                      f"with the values of its version: {', '.join(filled)} (options override them)",
+                      stacklevel=3)
+    return config
 
 
 def option_paths(cls=RunConfig, prefix: str = "") -> dict[str, type]:
@@ -340,6 +408,18 @@ def _pop_path(data: dict, path: list[str]):
     for name in path[:-1]:
         data = data.get(name) if isinstance(data, dict) else None
     return data.pop(path[-1], _ABSENT) if isinstance(data, dict) else _ABSENT
+
+
+def _drop_removed(data: dict, source: str) -> None:
+    """Take the `REMOVED` fields out of a config dictionary (in place): those at the value that behaves as
+    today's code go silently, any other value is an InvalidInputError naming the field."""
+    for dotted, (same, when) in REMOVED.items():
+        value = _pop_path(data, dotted.split("."))
+        if value is _ABSENT or same is _ANY or value == same:
+            continue
+        raise InvalidInputError(f"{source}: {dotted} was removed ({when}); this activesplat cannot run "
+                                f"{dotted} = {value!r}. Use the activesplat version that wrote the file, or "
+                                f"remove the key from a copy of the file to run without it")
 
 
 def strip_annotated(tp):

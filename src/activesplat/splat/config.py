@@ -498,8 +498,15 @@ class MapperConfig:
     @classmethod
     def from_dict(cls, d: dict) -> MapperConfig:
         """The config back from `dataclasses.asdict` output (mapper.json, checkpoints). A config written
-        before ``planar_depth`` existed made its map with centre depths, so a missing key reads False."""
+        before ``planar_depth`` existed made its map with centre depths, so a missing key reads False. A
+        field removed since (`activesplat.config.REMOVED`) only shaped how the map was built: it is left
+        out, so the map of an older version can still be evaluated, refined and viewed."""
+        from activesplat.config import REMOVED
+
         d = dict(d)
+        for path in REMOVED:
+            if path.startswith("mapper."):
+                d.pop(path.removeprefix("mapper."), None)
         d.setdefault("planar_depth", False)
         d["lr"] = LearningRates(**d["lr"])
         d["schedule"] = Schedule(**d["schedule"])
