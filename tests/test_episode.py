@@ -83,3 +83,16 @@ def test_a_recorded_map_is_told_apart_by_its_json_not_its_spacing(tmp_path):
     assert not recorded_map(tmp_path)
     with pytest.raises(EpisodeError, match="not an episode"):
         read_episode(tmp_path)
+
+
+def test_an_episode_records_the_code_that_wrote_it():
+    """episode.json's `software`: the package version, and the git commit when run from a checkout."""
+    import re
+
+    import activesplat
+    from activesplat.episode import software
+
+    info = software()
+    assert info["activesplat"] == activesplat.__version__
+    assert info["commit"] is None or re.fullmatch(r"[0-9a-f]{40}", info["commit"])
+    assert info["modified"] in (None, True, False)

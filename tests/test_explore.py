@@ -33,6 +33,7 @@ def test_episode_folder_is_complete(episode):
     ep = read_episode(out)
     assert ep.complete and len(ep.actions) == 90 and ep.poses.shape == (91, 4, 4)
     assert ep.actions[:2] == ["turn_left", "look_down"]  # the bootstrap look-around comes first
+    assert set(ep.meta["software"]) == {"activesplat", "commit", "modified"}  # which code wrote it
     saved = json.loads((out / "metrics.json").read_text())
     for key in ("completion_ratio_pct", "completion_cm", "completion_cm_uncapped", "path_length_m", "steps",
                 "wall_time_s", "timing_ms"):

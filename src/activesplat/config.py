@@ -47,8 +47,9 @@ from activesplat.splat.rasterize import BACKENDS
 CONFIG_VERSION = 1
 """Version of the configuration recorded in episode.json. Every release so far writes 1: a field removed
 since goes in `REMOVED`, a field added with a default that changes what a run does goes in `ADDED`, so that
-an old episode.json reads as the run it recorded or is refused with a line saying why. Bump it only for a
-change these two tables cannot describe (a field whose meaning changed)."""
+an old episode.json reads as the run it recorded or is refused with a line saying why
+(tests/test_config_fields.py fails until a removed or added field is described). Bump it only for a change
+these two tables cannot describe (a field whose meaning changed)."""
 
 _ANY = object()  # a removed field that only tuned another removed one: any value reads
 

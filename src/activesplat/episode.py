@@ -30,6 +30,29 @@ nothing of the previous run is left beside the new one."""
 DERIVED_DIRS = "refined_*"
 
 
+def software() -> dict:
+    """Which code wrote an episode, for episode.json: the package version and, when the package runs from a
+    git checkout (an editable install), the commit and whether files differ from it (``None`` otherwise)."""
+    import subprocess
+
+    from activesplat import __version__
+
+    here = Path(__file__).resolve().parent
+    out: dict = {"activesplat": __version__, "commit": None, "modified": None}
+    try:
+        def git(*args):
+            return subprocess.run(["git", "-C", str(here), *args], capture_output=True, text=True, timeout=5)
+
+        head = git("rev-parse", "HEAD")
+        if head.returncode == 0:
+            status = git("status", "--porcelain", "--untracked-files=no", "--", ".")
+            out["commit"] = head.stdout.strip()
+            out["modified"] = bool(status.stdout.strip()) if status.returncode == 0 else None
+    except (OSError, subprocess.SubprocessError):  # no git, or it hangs: the version alone
+        pass
+    return out
+
+
 def write_json_atomic(path: Path, data: dict) -> None:
     """Write JSON through a temporary file and a rename, so readers never see half a file."""
     tmp = path.with_suffix(path.suffix + ".tmp")

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from activesplat.episode import EpisodeWriter, write_json_atomic
+from activesplat.episode import EpisodeWriter, software, write_json_atomic
 from activesplat.eval.behaviour import action_counts, completion_gain, rotation_causes, rotation_pct
 from activesplat.timing import progress_bar
 
@@ -181,6 +181,7 @@ class _Exploration:
             "floor_height": self.floor_height, "backend": self.mapper.backend, "config": run.to_dict(),
             # the camera the run saw (run.sim describes the simulator's; a robot's may differ)
             "camera": {"width": env.width, "height": env.height, "K": np.asarray(env.K).tolist()},
+            "software": software(),  # the package version, and the git commit of a checkout
         }
         if self.evaluator is None:  # no ground truth: evaluate and render-eval's scene checks say so
             meta["source"] = "environment"

@@ -37,7 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
-from activesplat.episode import write_json_atomic, write_npz
+from activesplat.episode import software, write_json_atomic, write_npz
 from activesplat.errors import EpisodeError, InvalidInputError
 from activesplat.eval.render_eval import HELDOUT_FILE
 from activesplat.robot.recording import Recording
@@ -178,6 +178,7 @@ def map_recording(
             "holdout_candidates": len(every_nth),  # every holdout_every-th frame, before max_heldout
             "stride": stride,
             "upright_pct": upright,
+            "software": software(),
             "backend": mapper.backend,
             "config": {"mapper": asdict(mapper.config)},
         }
