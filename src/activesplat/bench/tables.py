@@ -393,7 +393,8 @@ def markdown_report(records: Sequence[RunRecord], cfg: TableConfig | None = None
     if any(r.metrics and "n_gaussians" in r.metrics for r in res.records):
         out += ["## The map", "", *map_table(res), "",
                 "Gaussians in the online map at the end and at its largest; peak RSS: the peak resident "
-                "memory of the process that ran it (a benchmark worker's peak over all its runs so far).", ""]
+                "memory of the process that ran it (with --workers 1 every run is in one process: its "
+                "peak over all the runs so far; a worker of --workers N runs one episode).", ""]
     if curves:
         out += ["## Completion curves", "", *(f"![{Path(c).stem}]({Path(c).name})" for c in curves), ""]
     broken = [r for r in res.records if r.status != "complete"]
