@@ -326,3 +326,22 @@ def test_a_tie_is_bold_nowhere_and_without_a_ceiling_its_columns_are_not_explain
     assert "**5.00**" in tab1  # a difference is still bold
     multi = md.split("## Multi-room behaviour")[1].split("##")[0]
     assert "Sweep ceiling" not in multi and "steps to 90" not in multi and "rotations:" in multi
+
+
+def test_an_average_that_leaves_out_a_scene_is_not_bold(tmp_path):
+    # fbe failed on the hard scene: its average (70, small-0 only) is higher than activesplat's over both
+    # scenes (60), but it is over other scenes: neither is bold (one average over every scene is no contest)
+    specs = plan_runs(["small-0", "small-1"], ["activesplat", "fbe"], [0], None, tmp_path)
+    ratios = {("small-0", "activesplat"): 65.0, ("small-1", "activesplat"): 55.0, ("small-0", "fbe"): 70.0}
+    for spec in specs:
+        if (spec.label, spec.policy) in ratios:
+            _write(spec, _metrics(ratios[(spec.label, spec.policy)], cm=1.0 if spec.policy == "fbe" else 2.0))
+        else:
+            spec.out.mkdir(parents=True)
+            (spec.out / "error.txt").write_text("RuntimeError: boom\n")
+    md = markdown_report(collect(specs))
+    tab1 = md.split("## Tab. I:")[1].split("## Tab. III")[0]
+    assert "| **average (2 scenes)** | fbe | 70.00 † | 1.00 † |" in tab1
+    assert "| **average (2 scenes)** | activesplat | 60.00 | 2.00 |" in tab1
+    assert "| small-0 | fbe | **70.00** | **1.00** |" in tab1  # per scene, both ran
+    assert "| **fbe** | % ↑ | **70.00** | n/a | 70.00 † |" in md  # the per-scene table's Avg. column

@@ -117,3 +117,19 @@ def test_the_mean_row_averages_both_sides_over_the_same_pairs(tmp_path):
     # seeds 0 and 2: 27.5 → 29.5 (NEW over all three would be 26.33)
     assert "| 27.50 → 29.50 (2 of 3) |" in md
     assert "| **mean of 3** |  | 80.00 → 81.00 |" in md  # complete columns: no count
+
+
+def test_settings_that_differ_between_the_roots_are_listed(tmp_path):
+    # two roots run with other image sizes and another rule: the completion differences come with them
+    base, new = tmp_path / "base", tmp_path / "new"
+    for root, width, threshold in ((base, 64, 5.0), (new, 256, 10.0)):
+        for seed in (0, 1):
+            out = _run(root, "small-0", "activesplat", seed, 50.0 + width / 64)
+            config = {"version": 1, "scene": "small-0", "policy": "activesplat", "seed": seed, "steps": 2000,
+                      "sim": {"width": width, "height": 64}, "explorer": {"local_score_threshold": threshold}}
+            (out / "episode.json").write_text(json.dumps({"config": config}))
+    md = compare_report(pair_runs(base, new)[0])
+    assert ("Settings that differ (BASE → NEW): explorer.local_score_threshold 5.0 → 10.0; "
+            "sim.width 64 → 256.") in md
+    same = compare_report(pair_runs(base, base)[0])
+    assert "Settings that differ" not in same

@@ -17,6 +17,7 @@ room's own points.
 Runs with a render_metrics.json (`activesplat render-eval`) add the test and train PSNR, the test LPIPS
 and depth L1 of their maps. The mean row averages each measure over the pairs that have it on both sides
 (and says how many when not all), so that BASE's and NEW's means are over the same runs.
+Settings of the runs' episode.json that differ between the sides are listed above the table.
 """
 
 from __future__ import annotations
@@ -48,6 +49,9 @@ class Pair:
     base_render: dict | None = None
     new_render: dict | None = None
     """The runs' render_metrics.json (`activesplat render-eval`), where there is one."""
+    base_settings: dict | None = None
+    new_settings: dict | None = None
+    """The runs' settings (episode.json's config, flattened to GROUP.FIELD), where recorded."""
 
     @property
     def delta(self) -> float:
@@ -102,7 +106,7 @@ def pair_runs(base_root: str | Path, new_root: str | Path, policy: str = "active
             raise InvalidInputError(f"{scene} seed {seed}: BASE ran {b.get('steps')} steps and NEW "
                                     f"{n.get('steps')}; compare runs of the same budget")
         pairs.append(Pair(scene, seed, b, n, _same_actions(b_out, n_out), _render_metrics(b_out),
-                          _render_metrics(n_out)))
+                          _render_metrics(n_out), _settings(b_out), _settings(n_out)))
     unpaired = [f"only in BASE: {s} seed {d}" for s, d in sorted(set(base) - set(new))]
     unpaired += [f"only in NEW: {s} seed {d}" for s, d in sorted(set(new) - set(base))]
     return pairs, unpaired
@@ -114,6 +118,33 @@ def _render_metrics(out: Path) -> dict | None:
         return json.loads(path.read_text()) if path.is_file() else None
     except ValueError:
         return None
+
+
+RUN_KEYS = ("version", "scene", "policy", "seed", "steps")
+"""Recorded settings that name the run rather than configure it (pairs share scene, seed and steps)."""
+
+
+def _settings(out: Path) -> dict | None:
+    """A run's recorded configuration as GROUP.FIELD -> value, without what names the run."""
+    from activesplat.bench.runner import _flat
+
+    try:
+        config = json.loads((out / "episode.json").read_text())["config"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    return {k: v for k, v in _flat(config).items() if k not in RUN_KEYS} if isinstance(config, dict) else None
+
+
+def differing_settings(pairs: list[Pair]) -> list[str]:
+    """'GROUP.FIELD base -> new' for each setting recorded on both sides of some pair with other values."""
+    found: dict[str, list[str]] = {}
+    for p in pairs:
+        b, n = p.base_settings or {}, p.new_settings or {}
+        for key in sorted(set(b) & set(n)):
+            text = f"{b[key]!r} → {n[key]!r}"
+            if b[key] != n[key] and text not in found.setdefault(key, []):
+                found[key].append(text)
+    return [f"{key} {', '.join(values)}" for key, values in sorted(found.items()) if values]
 
 
 def _names(runs: dict) -> str:
@@ -217,6 +248,8 @@ def compare_report(pairs: list[Pair], ceilings: dict[str, dict] | None = None, b
              "Each cell: BASE → NEW. Worst room: "
              + ("the lowest share of a room's own sweep ceiling." if ceilings else
                 "the lowest share of a room's own points (no sweep ceiling found)."), "",
+             *([f"Settings that differ (BASE → NEW): {'; '.join(differ)}.", ""]
+               if (differ := differing_settings(pairs)) else []),
              "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for p, b, n in rows:
         same = {True: "yes", False: "no", None: "n/a"}[p.same_actions]
@@ -259,5 +292,5 @@ def compare_from_args(args) -> int:
     return 0
 
 
-__all__ = ["Pair", "at_step", "compare_from_args", "compare_report", "find_runs", "pair_runs",
-           "read_ceilings"]
+__all__ = ["Pair", "at_step", "compare_from_args", "compare_report", "differing_settings", "find_runs",
+           "pair_runs", "read_ceilings"]

@@ -141,6 +141,10 @@ class Results:
         v = self.values(scene, policy, key)
         return float(v.mean()) if len(v) else None
 
+    def covers_every_scene(self, policy: str, key: str) -> bool:
+        """Whether the average of `policy` is over every scene (no '†')."""
+        return all(self.mean(s, policy, key) is not None for s in self.scenes)
+
     def cell(self, scene: str, policy: str, key: str, decimals: int) -> str:
         """mean ± std over the complete trials; one trial: the value; none: n/a."""
         v = self.values(scene, policy, key)
@@ -152,7 +156,6 @@ class Results:
         mean = self.mean(None, policy, key)
         if mean is None:
             return "n/a"
-        n_scenes = sum(self.mean(s, policy, key) is not None for s in self.scenes)
         per_seed: dict[int, dict[str, float]] = {}
         for r in self.records:
             if r.status == "complete" and r.spec.policy == policy:
@@ -160,7 +163,7 @@ class Results:
         paired = np.array([np.mean(list(d.values())) for d in per_seed.values()
                            if len(d) == len(self.scenes)])
         std = _std(paired, self.cfg.std_ddof) if with_std else None
-        return _pm(mean, std, decimals) + ("" if n_scenes == len(self.scenes) else " †")
+        return _pm(mean, std, decimals) + ("" if self.covers_every_scene(policy, key) else " †")
 
     def trials(self, scene: str | None, policy: str) -> str:
         planned = [r for r in self.records
@@ -205,12 +208,15 @@ BETTER = {"completion_ratio_pct": max, "completion_cm": min}
 def _cell(res: Results, scene: str | None, policy: str, policies: Sequence[str], key: str, decimals: int,
           with_std: bool = True) -> str:
     """The cell of a scene (None: the average over scenes), in bold when `policy` alone has the best mean of
-    `key` (at the printed decimals) among at least two of `policies` with results: a tie is bold nowhere."""
+    `key` (at the printed decimals) among at least two of `policies` with results: a tie is bold nowhere.
+    An average that leaves out a scene (†) is over other scenes than the rest: it is neither bold nor
+    what the others are measured against."""
     if scene is None:
         text = res.average(policy, key, decimals, with_std)
     else:
         text = res.cell(scene, policy, key, decimals)
-    means = {p: round(m, decimals) for p in policies if (m := res.mean(scene, p, key)) is not None}
+    means = {p: round(m, decimals) for p in policies if (m := res.mean(scene, p, key)) is not None
+             and (scene is not None or res.covers_every_scene(p, key))}
     best = False
     if key in BETTER and len(means) > 1 and policy in means:
         top = BETTER[key](means.values())
@@ -387,7 +393,8 @@ def markdown_report(records: Sequence[RunRecord], cfg: TableConfig | None = None
     if any(r.metrics and "n_gaussians" in r.metrics for r in res.records):
         out += ["## The map", "", *map_table(res), "",
                 "Gaussians in the online map at the end and at its largest; peak RSS: the peak resident "
-                "memory of the process that ran it (a benchmark worker's peak over all its runs so far).", ""]
+                "memory of the process that ran it (with --workers 1 every run is in one process: its "
+                "peak over all the runs so far; a worker of --workers N runs one episode).", ""]
     if curves:
         out += ["## Completion curves", "", *(f"![{Path(c).stem}]({Path(c).name})" for c in curves), ""]
     broken = [r for r in res.records if r.status != "complete"]
