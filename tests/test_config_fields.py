@@ -33,6 +33,12 @@ def test_every_removed_or_added_field_is_described_for_old_episode_files():
     assert not unknown, f"config.ADDED names fields RunConfig does not have: {unknown}"
 
 
+def test_the_mapper_drops_the_same_removed_fields_from_an_old_mapper_json():
+    from activesplat.splat.config import REMOVED_FIELDS
+
+    assert {"mapper." + name for name in REMOVED_FIELDS} == {p for p in REMOVED if p.startswith("mapper.")}
+
+
 if __name__ == "__main__" and sys.argv[1:] == ["--write"]:
     header = "# RunConfig's settable fields (tests/test_config_fields.py)\n"
     LIST.write_text(header + "\n".join(current_fields()) + "\n")

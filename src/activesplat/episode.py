@@ -34,10 +34,11 @@ def software() -> dict:
     """Which code wrote an episode, for episode.json: the package version and, when the package runs from a
     git checkout (an editable install), the commit and whether files differ from it (``None`` otherwise)."""
     import subprocess
+    from importlib.resources import files
 
     from activesplat import __version__
 
-    here = Path(__file__).resolve().parent
+    here = Path(str(files("activesplat")))
     out: dict = {"activesplat": __version__, "commit": None, "modified": None}
     try:
         def git(*args):

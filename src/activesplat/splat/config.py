@@ -11,6 +11,10 @@ from dataclasses import dataclass, field, fields
 
 from activesplat.errors import InvalidInputError
 
+REMOVED_FIELDS = ("area_budget_slack", "area_budget_cell_m")
+"""MapperConfig fields removed since (each with its reason in `activesplat.config.REMOVED`): an older
+mapper.json that holds them still loads."""
+
 
 @dataclass(frozen=True)
 class Schedule:
@@ -499,14 +503,9 @@ class MapperConfig:
     def from_dict(cls, d: dict) -> MapperConfig:
         """The config back from `dataclasses.asdict` output (mapper.json, checkpoints). A config written
         before ``planar_depth`` existed made its map with centre depths, so a missing key reads False. A
-        field removed since (`activesplat.config.REMOVED`) only shaped how the map was built: it is left
-        out, so the map of an older version can still be evaluated, refined and viewed."""
-        from activesplat.config import REMOVED
-
-        d = dict(d)
-        for path in REMOVED:
-            if path.startswith("mapper."):
-                d.pop(path.removeprefix("mapper."), None)
+        field removed since (`REMOVED_FIELDS`) only shaped how the map was built: it is left out, so the
+        map of an older version can still be evaluated, refined and viewed."""
+        d = {k: v for k, v in d.items() if k not in REMOVED_FIELDS}
         d.setdefault("planar_depth", False)
         d["lr"] = LearningRates(**d["lr"])
         d["schedule"] = Schedule(**d["schedule"])
