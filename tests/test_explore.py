@@ -43,6 +43,9 @@ def test_episode_folder_is_complete(episode):
     assert {"render_masks", "densify", "window", "optimize", "prune"} <= set(phases)
     assert 0 < sum(phases.values()) <= saved["timing_ms"]["mapper"]
     assert 0 <= saved["backend_setup_s"] < saved["wall_time_s"] + 60  # kernels loaded before the clock
+    # numba compiling inside the loop (none once the kernels are cached on disk), by module, within the wall
+    assert 0 <= saved["jit_compile_s"] <= saved["wall_time_s"]
+    assert sum(saved["jit_compile_s_by_module"].values()) == pytest.approx(saved["jit_compile_s"])
     assert saved["path_length_m"] == pytest.approx(0.065 * ep.actions.count("move_forward"))
     assert 0 < saved["completion_ratio_pct"] < 100
     # multi-room measures: action shares, rooms of the built-in house, per-point coverage, trajectory figure
@@ -359,3 +362,18 @@ def test_evaluate_with_a_corrupt_metrics_file_is_one_line_error(capsys, episode,
 def test_a_budget_inside_the_first_look_around_is_warned_about(tmp_path):
     with pytest.warns(UserWarning, match="within the first look-around"):
         run_exploration("small-0", steps=4, seed=0, out=tmp_path / "short", **TINY)
+
+
+def test_summary_says_when_the_timings_include_numba_compiling(tmp_path):
+    from activesplat.explore import format_summary
+
+    metrics = {"scene": "small-0", "policy": "activesplat", "seed": 0, "steps": 150, "ms_per_step": 213.0,
+               "evaluation_ms_per_step": 26.0, "wall_time_s": 32.0, "backend_setup_s": 18.0,
+               "completion_ratio_pct": 63.0, "completion_cm": 12.4, "completion_cm_uncapped": 12.5,
+               "path_length_m": 2.2, "n_gaussians": 1, "timing_ms": dict.fromkeys(TIMING_KEYS, 1.0)}
+    cold = format_summary({**metrics, "jit_compile_s": 17.2}, tmp_path)
+    assert ("(213 ms/step of which 26 live evaluation; 32 s wall, after 18 s loading the rasterizer's "
+            "kernels; 17 s of the wall time compiling numba kernels: the first run after an install or a "
+            "code change, later runs are faster)") in cold
+    for warm in ({**metrics, "jit_compile_s": 0.2}, metrics):  # little or none; an episode from before
+        assert "compiling" not in format_summary(warm, tmp_path)

@@ -23,3 +23,44 @@ def test_timers_divide_totals_by_steps():
     per = timers.per_step(4)
     assert set(per) == {"m"} and per["m"] == timers.total_ms["m"] / 4
     assert timers.per_step(0)["m"] == timers.total_ms["m"]
+
+
+def _fresh_kernels():
+    """Two new numba kernels (one calling the other), not yet compiled and not cached on disk."""
+    from numba import njit
+
+    @njit(cache=False)
+    def inner(x):
+        return x * 2.0
+
+    @njit(cache=False)
+    def outer(x):
+        return inner(x) + 1.0
+
+    return inner, outer
+
+
+def test_jit_compile_clock_charges_compiling_to_the_running_module():
+    import threading
+
+    from activesplat.timing import OTHER_THREAD, UNTIMED, JitCompileClock
+
+    timers = Timers()
+    inner, outer = _fresh_kernels()
+    with JitCompileClock(timers) as clock:
+        t0 = time.perf_counter()
+        assert timers.time("mapper", outer, 1.0) == 3.0  # compiles outer and, inside it, inner: counted once
+        wall = time.perf_counter() - t0
+        first = clock.total_s
+        assert 0 < first <= wall and dict(clock.by_module) == {"mapper": first}
+        timers.time("mapper", outer, 2.0)  # compiled already: nothing more
+        assert clock.total_s == first
+        inner(1)  # a new signature (int64) compiles, outside every timed module
+        worker = threading.Thread(target=inner, args=(1j,))  # and one on another thread
+        worker.start()
+        worker.join()
+        assert set(clock.by_module) == {"mapper", UNTIMED, OTHER_THREAD}
+        assert clock.total_s == sum(clock.by_module.values())
+    done = clock.total_s
+    inner(True)  # after the clock is closed: not counted
+    assert clock.total_s == done and timers.running == []

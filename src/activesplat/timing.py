@@ -1,9 +1,10 @@
-"""Per-module timing of the closed loop (the paper's Tab. VI): mean milliseconds per step; the process's
-peak memory."""
+"""Per-module timing of the closed loop (the paper's Tab. VI): mean milliseconds per step; the seconds of
+it that numba spent compiling kernels; the process's peak memory."""
 
 from __future__ import annotations
 
 import sys
+import threading
 import time
 from collections import defaultdict
 from collections.abc import Callable
@@ -25,13 +26,17 @@ class Timers:
 
     def __init__(self) -> None:
         self.total_ms: dict[str, float] = defaultdict(float)
+        self.running: list[str] = []
+        """The modules being timed now, innermost last (what a :class:`JitCompileClock` charges)."""
 
     def time(self, name: str, fn: Callable, *args, **kwargs):
         """Call ``fn(*args, **kwargs)`` and add its wall time to module ``name``."""
         t0 = time.perf_counter()
+        self.running.append(name)
         try:
             return fn(*args, **kwargs)
         finally:
+            self.running.pop()
             self.total_ms[name] += 1000.0 * (time.perf_counter() - t0)
 
     def per_step(self, steps: int) -> dict[str, float]:
@@ -54,6 +59,74 @@ class LapClock:
         self.t = now
 
 
+UNTIMED = "untimed"
+"""`JitCompileClock.by_module` key of compiles on the timing thread outside every timed module."""
+OTHER_THREAD = "other_thread"
+"""`JitCompileClock.by_module` key of compiles on another thread (e.g. the live evaluation's worker)."""
+
+
+class JitCompileClock:
+    """Seconds numba spends compiling kernels while installed (``with clock:``), from its
+    ``"numba:compile"`` events: in total and by the module of `timers` that was running on the thread that
+    installed it (:data:`UNTIMED`, :data:`OTHER_THREAD` otherwise). A kernel loaded from numba's on-disk
+    cache raises no such event, so after the first run following an install or a change of the code this
+    stays at 0. A compile that compiles the kernels it calls counts once (the outermost event); compiles
+    do not overlap, numba holds one lock over them."""
+
+    def __init__(self, timers: Timers | None = None):
+        self.timers = timers
+        self.total_s = 0.0
+        self.by_module: dict[str, float] = defaultdict(float)
+        self._thread = threading.get_ident()
+        self._depth, self._t0, self._listener = 0, 0.0, None
+
+    def _start(self) -> None:
+        if self._depth == 0:
+            self._t0 = time.perf_counter()
+        self._depth += 1
+
+    def _end(self) -> None:
+        self._depth -= 1
+        if self._depth:
+            return
+        seconds = time.perf_counter() - self._t0
+        self.total_s += seconds
+        if threading.get_ident() != self._thread:
+            module = OTHER_THREAD
+        else:
+            running = self.timers.running if self.timers is not None else []
+            module = running[-1] if running else UNTIMED
+        self.by_module[module] += seconds
+
+    def __enter__(self) -> JitCompileClock:
+        from numba.core import event
+
+        clock = self
+
+        class _Listener(event.Listener):
+            def on_start(self, ev) -> None:
+                clock._start()
+
+            def on_end(self, ev) -> None:
+                clock._end()
+
+        self._thread = threading.get_ident()
+        self._listener = _Listener()
+        event.register("numba:compile", self._listener)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def close(self) -> None:
+        """Stop listening (again: nothing)."""
+        if self._listener is not None:
+            from numba.core import event
+
+            event.unregister("numba:compile", self._listener)
+            self._listener = None
+
+
 def peak_rss_mb() -> float | None:
     """Peak resident memory of this process so far, in MB (None where the OS does not report it)."""
     try:
@@ -64,4 +137,4 @@ def peak_rss_mb() -> float | None:
     return peak / 1024.0 ** (2 if sys.platform == "darwin" else 1)
 
 
-__all__ = ["LapClock", "Timers", "peak_rss_mb"]
+__all__ = ["OTHER_THREAD", "UNTIMED", "JitCompileClock", "LapClock", "Timers", "peak_rss_mb"]

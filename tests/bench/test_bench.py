@@ -345,3 +345,24 @@ def test_an_average_that_leaves_out_a_scene_is_not_bold(tmp_path):
     assert "| **average (2 scenes)** | activesplat | 60.00 | 2.00 |" in tab1
     assert "| small-0 | fbe | **70.00** | **1.00** |" in tab1  # per scene, both ran
     assert "| **fbe** | % ↑ | **70.00** | n/a | 70.00 † |" in md  # the per-scene table's Avg. column
+
+
+def test_runs_whose_timing_includes_numba_compiling_are_marked(tmp_path):
+    # a first run after an install compiled kernels inside its timed loop: its ms/step and Tab. VI row say so
+    specs = plan_runs(["small-0"], ["activesplat", "fbe"], [0], None, tmp_path)
+    for spec in specs:
+        metrics = _metrics(60.0, ms=249.0 if spec.policy == "activesplat" else 30.0)
+        metrics["jit_compile_s"] = 17.0 if spec.policy == "activesplat" else 0.0
+        _write(spec, metrics)
+    md = markdown_report(collect(specs))
+    tab1 = md.split("## Tab. I:")[1].split("## Tab. III")[0]
+    assert "| small-0 | activesplat | 60.00 | 2.00 | 10.0 | 249 ‡ |" in tab1
+    assert "| small-0 | fbe | 60.00 | 2.00 | 10.0 | 30 |" in tab1
+    assert "‡ = it includes 1 s or more of some run compiling numba kernels" in md
+    tab6 = md.split("## Tab. VI")[1].split("##")[0]
+    assert "| activesplat ‡ |" in tab6 and "| fbe |" in tab6
+    from activesplat.bench.tables import write_csv
+
+    with open(write_csv(tmp_path / "runs.csv", collect(specs)), encoding="utf-8") as f:
+        rows = list(csv.DictReader(f))
+    assert sorted(float(r["jit_compile_s"]) for r in rows) == [0.0, 17.0]

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from activesplat.bench.runner import ERROR_FILE, RunSpec, read_metrics
-from activesplat.explore import TIMING_KEYS
+from activesplat.explore import JIT_NOTE_S, TIMING_KEYS
 
 PAPER_TAB6_MS = {"mapper": 45.14, "workspace": 43.87, "voronoi": 0.69, "subregions": 1.56,
                  "rotation_selection": 2.76, "position_selection": 6.46, "planner": 0.20}
@@ -165,6 +165,12 @@ class Results:
         std = _std(paired, self.cfg.std_ddof) if with_std else None
         return _pm(mean, std, decimals) + ("" if self.covers_every_scene(policy, key) else " †")
 
+    def compiled(self, scene: str | None, policy: str) -> bool:
+        """Whether a complete run of `policy` on `scene` (None: any scene) spent `JIT_NOTE_S` or more of its
+        timed loop compiling numba kernels (the first run after an install or a code change): its ms/step
+        and module times include that ('‡')."""
+        return any((m.get("jit_compile_s") or 0.0) >= JIT_NOTE_S for m in self.complete(scene, policy))
+
     def trials(self, scene: str | None, policy: str) -> str:
         planned = [r for r in self.records
                    if r.spec.policy == policy and (scene is None or r.spec.label == scene)]
@@ -215,6 +221,8 @@ def _cell(res: Results, scene: str | None, policy: str, policies: Sequence[str],
         text = res.average(policy, key, decimals, with_std)
     else:
         text = res.cell(scene, policy, key, decimals)
+    if key == "ms_per_step" and res.compiled(scene, policy):
+        text += " ‡"
     means = {p: round(m, decimals) for p in policies if (m := res.mean(scene, p, key)) is not None
              and (scene is not None or res.covers_every_scene(p, key))}
     best = False
@@ -250,7 +258,9 @@ def timing_table(res: Results) -> list[str]:
     keys = [*(f"timing_ms.{k}" for k in TIMING_KEYS), "evaluation_ms_per_step", "ms_per_step"]
     header = ["policy", *(k.replace("_", " ") for k in TIMING_KEYS), "evaluation", "total"]
     rows = [["paper (RTX 3090)", *(f"{PAPER_TAB6_MS[k]:.2f}" for k in TIMING_KEYS), "–", "–"]]
-    return _table(header, rows + _policy_means(res, keys, d))
+    means = [[row[0] + (" ‡" if res.compiled(None, row[0]) else ""), *row[1:]]
+             for row in _policy_means(res, keys, d)]
+    return _table(header, rows + means)
 
 
 def _policy_means(res: Results, keys: Sequence[str], decimals: int) -> list[list[str]]:
@@ -355,7 +365,9 @@ def markdown_report(records: Sequence[RunRecord], cfg: TableConfig | None = None
            "over scenes (seeds complete on every scene); † = some scene has no complete run. Completion "
            "ratio and completion follow the paper's protocol (docs/protocol.md §6); path length is the "
            "forward step times the move_forward actions, blocked ones included (the paper's definition); "
-           "ms/step is the wall time of the whole step including the live evaluation.", ""]
+           "ms/step is the wall time of the whole step including the live evaluation; ‡ = it includes "
+           f"{JIT_NOTE_S:.0f} s or more of some run compiling numba kernels (`jit_compile_s` in the CSV: "
+           "the first run after an install or a code change), so it is slower than later runs.", ""]
     main = [p for p in res.policies if p not in ABLATION_POLICIES]
     ablations = [p for p in res.policies if p in ABLATION_POLICIES]
     if main:
@@ -389,7 +401,8 @@ def markdown_report(records: Sequence[RunRecord], cfg: TableConfig | None = None
     out += ["## Per scene (supplementary Tab. S1 / S2 style)", "", *per_scene_table(res), "",
             "## Tab. VI: mean processing time per step (ms)", "", *timing_table(res), "",
             "Module times are means over all complete runs of a policy; `evaluation` is the live completion "
-            "measurement (not part of the robot's work), `total` the whole step.", ""]
+            "measurement (not part of the robot's work), `total` the whole step; ‡ = some run's times "
+            "include numba compiling its kernels, as marked in the exploration tables.", ""]
     if any(r.metrics and "n_gaussians" in r.metrics for r in res.records):
         out += ["## The map", "", *map_table(res), "",
                 "Gaussians in the online map at the end and at its largest; peak RSS: the peak resident "
