@@ -290,15 +290,16 @@ def recorded_refine_config(episode_dir: str | Path) -> RefineConfig | None:
     a version before RunConfig, or no episode.json). Only the ``refine`` group is read, so a field of
     another group that this version removed does not keep the recorded settings from counting; a
     ``refine`` group this version cannot read is an InvalidInputError naming the field."""
-    p = Path(episode_dir) / "episode.json"
+    from activesplat.episode import read_meta
+    from activesplat.errors import EpisodeError
+
     try:
-        data = json.loads(p.read_text())
-    except (OSError, ValueError):
+        config = read_meta(episode_dir).get("config")
+    except EpisodeError:
         return None  # the refine command names a missing or unreadable episode itself
-    config = data.get("config") if isinstance(data, dict) else None
     if not isinstance(config, dict) or "refine" not in config:
         return None
-    return _build(RefineConfig, config["refine"], "refine.", str(p))
+    return _build(RefineConfig, config["refine"], "refine.", str(Path(episode_dir) / "episode.json"))
 
 
 def load_run_config(path: str | Path) -> RunConfig:

@@ -183,6 +183,31 @@ def is_recorded_map(meta: dict) -> bool:
     return meta.get("source") == "recording"
 
 
+ENVIRONMENT_SOURCE = "environment"
+"""episode.json's ``source`` of an exploration in an environment without ground truth (a robot, a user's
+own ``Environment``)."""
+
+
+def has_no_ground_truth(meta: dict) -> bool:
+    """Whether an episode.json describes an exploration without ground truth (`ENVIRONMENT_SOURCE`)."""
+    return meta.get("source") == ENVIRONMENT_SOURCE
+
+
+def episode_and_map(path: str | Path) -> tuple[Path, Path | None]:
+    """(episode folder, map folder inside it or None) of a command's DIR: an episode folder (a map of a
+    recording too), or a map folder inside one (``DIR/refined_<method>/`` with its gaussians.ply).
+    EpisodeError otherwise."""
+    d = Path(path)
+    if not d.is_dir():
+        raise EpisodeError(f"{d} is not a folder")
+    if (d / "episode.json").is_file():
+        return d, None
+    if (d / "gaussians.ply").is_file() and (d.parent / "episode.json").is_file():
+        return d.parent, d
+    raise EpisodeError(f"{d} is not an episode folder (no episode.json), nor a map folder inside one "
+                       f"(DIR/refined_<method>/ with its gaussians.ply)")
+
+
 def read_episode(path: str | Path) -> Episode:
     """Read an episode folder; a partial (interrupted) one is cut to its last complete step."""
     d = Path(path)

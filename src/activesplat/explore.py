@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from activesplat.episode import EpisodeWriter, software, write_json_atomic
+from activesplat.episode import ENVIRONMENT_SOURCE, EpisodeWriter, software, write_json_atomic
 from activesplat.eval.behaviour import action_counts, completion_gain, rotation_causes, rotation_pct
 from activesplat.timing import progress_bar
 
@@ -194,7 +194,7 @@ class _Exploration:
             "software": software(),  # the package version, and the git commit of a checkout
         }
         if self.evaluator is None:  # no ground truth: evaluate and render-eval's scene checks say so
-            meta["source"] = "environment"
+            meta["source"] = ENVIRONMENT_SOURCE
         return meta
 
     @property

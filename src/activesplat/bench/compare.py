@@ -127,10 +127,12 @@ RUN_KEYS = ("version", "scene", "policy", "seed", "steps")
 def _settings(out: Path) -> dict | None:
     """A run's recorded configuration as GROUP.FIELD -> value, without what names the run."""
     from activesplat.bench.runner import _flat
+    from activesplat.episode import read_meta
+    from activesplat.errors import EpisodeError
 
     try:
-        config = json.loads((out / "episode.json").read_text())["config"]
-    except (OSError, ValueError, KeyError, TypeError):
+        config = read_meta(out).get("config")
+    except EpisodeError:
         return None
     return {k: v for k, v in _flat(config).items() if k not in RUN_KEYS} if isinstance(config, dict) else None
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from activesplat.episode import Episode, read_episode, write_json_atomic
+from activesplat.episode import Episode, has_no_ground_truth, read_episode, write_json_atomic
 from activesplat.errors import EpisodeError
 from activesplat.eval.coverage import CoverageConfig
 from activesplat.eval.replay import replay_coverage
@@ -46,7 +46,7 @@ def simulated_scene(meta: dict, folder):
     without ground truth (a robot, a user's own ``Environment``) or naming no scene."""
     from activesplat.sim import load_scene
 
-    if meta.get("source") == "environment":
+    if has_no_ground_truth(meta):
         raise EpisodeError(f"{folder} was explored in an environment without ground truth "
                            f"({meta.get('scene')}: a robot or a user's own Environment): this needs a "
                            f"simulated episode")

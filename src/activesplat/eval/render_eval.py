@@ -39,7 +39,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from activesplat.episode import is_recorded_map, read_episode, read_meta, write_json_atomic
+from activesplat.episode import episode_and_map, is_recorded_map, read_episode, read_meta, write_json_atomic
 from activesplat.errors import EpisodeError, InvalidInputError
 from activesplat.timing import progress_bar
 
@@ -80,16 +80,9 @@ def locate(path: str | Path, gaussians_path: str | Path | None = None,
            out_dir: str | Path | None = None) -> tuple[Path, Path, Path]:
     """(episode folder, gaussians.ply, output folder) of DIR: an episode folder, or a folder holding a
     gaussians.ply inside an episode folder (``DIR/refined_<method>/``)."""
-    d = Path(path)
-    if not d.is_dir():
-        raise EpisodeError(f"{d} is not a folder")
-    if (d / "episode.json").is_file():
-        episode_dir = d
-    elif (d / "gaussians.ply").is_file() and (d.parent / "episode.json").is_file():
-        episode_dir = d.parent  # a refined map inside an episode
-        gaussians_path = gaussians_path or d / "gaussians.ply"
-    else:
-        raise EpisodeError(f"{d} is not an episode folder (no episode.json), nor a map folder inside one")
+    episode_dir, map_dir = episode_and_map(path)
+    if map_dir is not None:  # a refined map inside an episode
+        gaussians_path = gaussians_path or map_dir / "gaussians.ply"
     gaussians = Path(gaussians_path) if gaussians_path is not None else episode_dir / "gaussians.ply"
     if not gaussians.is_file():
         raise EpisodeError(f"{gaussians} does not exist: the episode has no map to evaluate")

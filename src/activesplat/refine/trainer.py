@@ -396,13 +396,13 @@ def evaluation_blocker(episode_dir: Path) -> str | None:
     explored in an environment without ground truth, e.g. a robot: refined without evaluation), None when
     it can. EpisodeError when the evaluation would fail on a broken episode (no or an unreadable
     episode.json, a scene that does not load), which used to surface only after the last iteration."""
-    from activesplat.episode import is_recorded_map, read_meta
+    from activesplat.episode import has_no_ground_truth, is_recorded_map, read_meta
     from activesplat.eval.evaluate import simulated_scene
     from activesplat.eval.render_eval import locate
 
     locate(episode_dir)
     meta = read_meta(episode_dir)
-    if meta.get("source") == "environment":
+    if has_no_ground_truth(meta):
         return (f"{episode_dir} was explored in an environment without ground truth ({meta.get('scene')}), "
                 f"so there is nothing to render-evaluate the refined map against")
     if not is_recorded_map(meta):

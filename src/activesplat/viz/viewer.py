@@ -35,7 +35,15 @@ from pathlib import Path
 
 import numpy as np
 
-from activesplat.episode import DERIVED_DIRS, _complete, _read_poses, is_recorded_map, read_episode, read_meta
+from activesplat.episode import (
+    DERIVED_DIRS,
+    _complete,
+    _read_poses,
+    episode_and_map,
+    is_recorded_map,
+    read_episode,
+    read_meta,
+)
 from activesplat.errors import EpisodeError, InvalidInputError
 from activesplat.viz.drawing import SceneDrawer, depth_image, panorama_image, splat_arrays, splat_count_text
 
@@ -236,15 +244,8 @@ def view_folder(path: str | Path) -> tuple[Path, str]:
     """(episode folder, name of the map to show first) of `activesplat view DIR`: DIR an episode or a
     recorded map's folder (its online map), or a map folder inside one (``DIR/refined_<method>/``: that
     map). EpisodeError otherwise."""
-    d = Path(path)
-    if not d.is_dir():
-        raise EpisodeError(f"{d} is not a folder")
-    if (d / "episode.json").is_file():
-        return d, ONLINE
-    if (d / "gaussians.ply").is_file() and (d.parent / "episode.json").is_file():
-        return d.parent, d.name
-    raise EpisodeError(f"{d} is not an episode folder (no episode.json), nor a map folder inside one "
-                       f"(DIR/refined_<method>/ with its gaussians.ply)")
+    episode_dir, map_dir = episode_and_map(path)
+    return episode_dir, ONLINE if map_dir is None else map_dir.name
 
 
 def map_files(episode_dir: Path) -> dict[str, Path]:
