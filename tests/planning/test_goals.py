@@ -17,23 +17,23 @@ from activesplat.planning.activesplat import goal_rules  # noqa: E402
 from activesplat.planning.config import PlanningConfig, ScoreConfig  # noqa: E402
 from activesplat.planning.controller import ControllerConfig, tour_actions  # noqa: E402
 from activesplat.planning.explorer_config import ExplorerConfig  # noqa: E402
-from activesplat.planning.goals import (  # noqa: E402
+from activesplat.planning.goals import rank_goals  # noqa: E402
+from activesplat.planning.hierarchical import (  # noqa: E402
+    last_call_first,
+    local_then_global,
+    reachable_first,
+    tour_first,
+)
+from activesplat.planning.observed import ObservedSurface  # noqa: E402
+from activesplat.planning.on_the_way import (  # noqa: E402
     bridge_toward,
     closer_on_the_way,
     distance_to_polyline,
-    last_call_first,
-    local_then_global,
-    panorama_candidates,
-    rank_goals,
-    reachable_first,
-    sampled_surface_term,
-    select_rotation_targets,
-    tour_first,
     worth_a_detour,
 )
-from activesplat.planning.observed import ObservedSurface  # noqa: E402
+from activesplat.planning.panorama_scores import panorama_candidates, sampled_surface_term  # noqa: E402
 from activesplat.planning.replan_memory import Commitment, Promises, RouteMemory  # noqa: E402
-from activesplat.planning.viewpoints import RotationTarget  # noqa: E402
+from activesplat.planning.viewpoints import RotationTarget, select_rotation_targets  # noqa: E402
 from activesplat.workspace.clean import extract_workspace  # noqa: E402
 from activesplat.workspace.config import WorkspaceConfig  # noqa: E402
 from activesplat.workspace.paths import plan_safe_path  # noqa: E402

@@ -12,26 +12,18 @@ import math
 import numpy as np
 
 from activesplat.geometry import pose_yaw_pitch
+from activesplat.planning.candidates import node_xz, worth_a_visit
 from activesplat.planning.controller import floor_xz, yaw_toward
 from activesplat.planning.explorer import Explorer, WorldModel, snapshot_render
-from activesplat.planning.explorer_config import ExplorerConfig
-from activesplat.planning.goals import (
-    GoalRules,
-    bridge_toward,
-    closer_on_the_way,
-    last_call_first,
-    node_xz,
-    rank_goals,
-    reachable_first,
-    select_rotation_targets,
-    worth_a_detour,
-    worth_a_visit,
-)
+from activesplat.planning.explorer_config import ExplorerConfig, GoalRules
+from activesplat.planning.goals import rank_goals
+from activesplat.planning.hierarchical import last_call_first, reachable_first
 from activesplat.planning.observed import unsampled_views
+from activesplat.planning.on_the_way import bridge_toward, closer_on_the_way, worth_a_detour
 from activesplat.planning.panorama import render_panorama
 from activesplat.planning.replan_memory import Commitment, Promises, RouteMemory
 from activesplat.planning.travel import graph_travel
-from activesplat.planning.viewpoints import RotationTarget, rotation_candidates
+from activesplat.planning.viewpoints import RotationTarget, rotation_candidates, select_rotation_targets
 from activesplat.timing import Timers
 from activesplat.workspace.paths import path_length, plan_safe_path
 from activesplat.workspace.plan import Plan, build_plan, grown_plan

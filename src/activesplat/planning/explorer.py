@@ -5,8 +5,9 @@
 re-check of the path ahead, on-the-spot rotations toward targets, and the escape after a collision. A
 policy subclasses it and decides where to go (`replan`), what to do on arrival (`arrive`) and where to stop
 on the way (`stop_on_the_way`): `planning.activesplat.ActiveSplatExplorer` goes to Voronoi nodes ranked by
-`planning.goals` (eq. 12 scores, local-then-global, the long-path rule) and turns toward panorama and
-high-loss targets on arrival; `planning.frontier.FrontierExplorer` goes to the nearest frontier.
+`planning.goals` (eq. 12 scores, local-then-global), with the release's long-path rule
+(`planning.on_the_way`), and turns toward panorama and high-loss targets on arrival;
+`planning.frontier.FrontierExplorer` goes to the nearest frontier.
 
 The policy sees the world only through the online map (`WorldModel`: the Gaussians, a renderer and the
 latest high-loss mask) and its own observations; it never reads the ground-truth mesh.

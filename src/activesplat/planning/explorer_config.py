@@ -1,6 +1,7 @@
 """The explorer's own configuration (`ExplorerConfig`): the knobs of `planning.explorer.Explorer` and its
 policies that are not the paper's planning constants (those are in `planning.config`), with the planning,
-workspace and controller configs nested in it. Every field says where its value comes from."""
+workspace and controller configs nested in it. Every field says where its value comes from. `GoalRules`
+is the part of it that goal selection (`planning.goals`) reads."""
 
 from __future__ import annotations
 
@@ -162,8 +163,8 @@ class ExplorerConfig:
     global_tour: bool = False
     """In the global stage, go first to the subregion that comes first on the shortest open route from the
     agent through every subregion with a node worth a visit (information above `local_score_threshold`;
-    each subregion's best such node stands for it, graph path lengths; `goals.tour_first`), instead of to
-    the best score minus distance (ours; the paper names a distance cost, not a route). medium-0..3 x 2
+    each subregion's best such node stands for it, graph path lengths; `hierarchical.tour_first`), instead
+    of to the best score minus distance (ours; the paper names a distance cost, not a route). medium-0..3 x 2
     seeds: 86.02 -> 85.75 %, at step 1000 71.0 -> 65.3 % of the ceiling, so off (docs/benchmark.md "A route
     through the subregions"). With the later defaults: tuning 85.87 -> 86.42 %, fresh medium-100..109 seed
     0 86.13 -> 83.42 % (medium-103 58 %: the route is re-planned at every replan and its first stop keeps
@@ -189,12 +190,12 @@ class ExplorerConfig:
     route_in_place: bool = False
     """With `global_tour` or `route_memory_m`: the route only reorders the stops among themselves, each taking
     the place of a stop in the global stage's own ranking, instead of putting every stop ahead of the rest
-    (ours; `goals.tour_first`). A near subregion that promises too little to be a stop (`route_min_info`)
-    and that the ranking puts first stays first, rather than waiting behind stops across the house.
-    With `route_memory_m` 2 and `route_min_info` 20 on held-out medium-150..159 x 2 seeds: 94.02 -> 95.09 %
-    of the sweep ceiling (standard error 1.14; both collapses rescued, medium-153 s0 91.4 -> 86.0, the other
-    sixteen runs -0.23), shaped on these runs; fresh medium-100..109 seed 1: 95.13 -> 95.20 % (eight of ten
-    runs the same); so off (docs/benchmark.md "A route that keeps its order, on the houses whose far end
+    (ours; `hierarchical.tour_first`). A near subregion that promises too little to be a stop
+    (`route_min_info`) and that the ranking puts first stays first, rather than waiting behind stops across
+    the house. With `route_memory_m` 2 and `route_min_info` 20 on held-out medium-150..159 x 2 seeds: 94.02 ->
+    95.09 % of the sweep ceiling (standard error 1.14; both collapses rescued, medium-153 s0 91.4 -> 86.0, the
+    other sixteen runs -0.23), shaped on these runs; fresh medium-100..109 seed 1: 95.13 -> 95.20 % (eight of
+    ten runs the same); so off (docs/benchmark.md "A route that keeps its order, on the houses whose far end
     was left for last")."""
     last_call_steps: int | None = None
     """A node's last call: once the steps left after walking to an open node that promises at least
@@ -275,15 +276,15 @@ class ExplorerConfig:
     on_the_way_m: float = 0.5
     """A node lies on the way of a long path when it is within this of the path (ours)."""
     detour_m: float | None = 5.0
-    """In the global stage, go first to the nearest open node whose information exceeds
-    `detour_min_info`, if it is nearer than the chosen goal and costs at most this many metres of extra
-    travel on the way to it (graph lengths, `goals.worth_a_detour`), instead of straight to the goal (ours;
-    None = off, the paper's rule). The door of an unseen room shows little of the room in a panorama, so a
-    node with a large unseen area behind it elsewhere outranks it and the agent walked past the door and
-    never came back (fresh medium-104 and medium-109, seed 0). Measured with 5 m (docs/benchmark.md "Rooms
-    passed on the way"): tuning houses 85.94 -> 86.21 % (with the mapper's colour detail, 86.49 %), fresh
-    medium-100..109 seed 0 84.76 -> 86.31 % (with the colour detail 85.03 %), held-out medium-110..119
-    seed 0 85.39 -> 86.45 % (with the colour detail); rotations rise from 44-46 % to 49-50 %."""
+    """In the global stage, go first to the nearest open node whose information exceeds `detour_min_info`, if
+    it is nearer than the chosen goal and costs at most this many metres of extra travel on the way to it
+    (graph lengths, `on_the_way.worth_a_detour`), instead of straight to the goal (ours; None = off, the
+    paper's rule). The door of an unseen room shows little of the room in a panorama, so a node with a large
+    unseen area behind it elsewhere outranks it and the agent walked past the door and never came back (fresh
+    medium-104 and medium-109, seed 0). Measured with 5 m (docs/benchmark.md "Rooms passed on the way"):
+    tuning houses 85.94 -> 86.21 % (with the mapper's colour detail, 86.49 %), fresh medium-100..109 seed 0
+    84.76 -> 86.31 % (with the colour detail 85.03 %), held-out medium-110..119 seed 0 85.39 -> 86.45 % (with
+    the colour detail); rotations rise from 44-46 % to 49-50 %."""
     detour_min_info: float = 10.0
     """The information a node must promise to be worth a detour (ours: a third of the best node's 30; a
     node just above `local_score_threshold` is a corner of a room already seen)."""
@@ -411,3 +412,25 @@ class ExplorerConfig:
         if self.global_halving_m is not None and self.global_halving_m <= 0:
             raise InvalidInputError(f"ExplorerConfig.global_halving_m must be > 0 (or None = the distance "
                                     f"weight's difference), got {self.global_halving_m}")
+
+
+@dataclass(frozen=True)
+class GoalRules:
+    """The explorer's goal-selection knobs (see `ExplorerConfig` for their meaning and origin)."""
+
+    local_score_threshold: float
+    global_distance_weight: float
+    max_panoramas: int
+    panorama_height_m: float
+    hierarchical: bool
+    random_goals: bool
+    long_path_m: float
+    on_the_way_m: float
+    global_in_horizon: bool = False
+    local_in_horizon: bool = True
+    global_information_first: bool = True
+    panorama_every_subregion: bool = True
+    global_halving_m: float | None = None
+    global_tour: bool = False
+    local_near_m: float | None = None
+    route_in_place: bool = False

@@ -82,7 +82,7 @@ class Commitment:
 @dataclass
 class RouteMemory:
     """The order of the last global route through the subregions, kept across replans (ours,
-    `ExplorerConfig.route_memory_m`). `goals.tour_first` re-plans the shortest route at every global
+    `ExplorerConfig.route_memory_m`). `hierarchical.tour_first` re-plans the shortest route at every global
     replan; the map grows in between, and the route's first stop could jump to the other side of the house
     and back (fresh medium-103: six crossings of 8-13 m). With this memory the stops of the last route that
     are still there (a subregion's representative within `radius` of a remembered stop) keep their order,

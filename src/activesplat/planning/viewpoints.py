@@ -1,23 +1,28 @@
 """Viewpoint selection (paper sec. III-B): rotation candidates, invisible share, convex-hull volume,
-high-loss samples (eq. 10) and the node score (eq. 12)."""
+high-loss samples (eq. 10), the node score (eq. 12) and the choice of the on-arrival rotation targets
+(sec. III-B3, `select_rotation_targets`)."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import cv2
 import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
-from activesplat.geometry import yaw_pitch_of
+from activesplat.geometry import wrap_angle, yaw_pitch_of
 from activesplat.planning.clusters import grid_dbscan
 from activesplat.planning.config import (
     HighLossConfig,
     HullConfig,
+    PlanningConfig,
     RotationCandidateConfig,
     ScoreConfig,
 )
+from activesplat.planning.controller import ControllerConfig, fewest_actions_order
 from activesplat.planning.panorama import Panorama
 
 
@@ -296,3 +301,42 @@ def node_scores(inv_share, hull_vol, unvisited, in_horizon, failed,
     if cfg.preset == "release":
         return info + 20 * s_u + 10 * s_h - pen
     return info + cfg.w_u * s_u + cfg.w_h * s_h - pen
+
+
+# ------------------------------------------------------------------------- rotations on arrival (sec. III-B3)
+def select_rotation_targets(targets: Sequence[RotationTarget], yaw: float, pcfg: PlanningConfig,
+                            max_views: int, pitch: float = 0.0, ctrl: ControllerConfig | None = None,
+                            final_yaw: float | None = None,
+                            tilt_within_deg: float | None = None) -> list[RotationTarget]:
+    """On-arrival rotation targets (sec. III-B3): the heaviest panorama / high-loss targets, skipping those
+    lighter than `RotationCandidateConfig.min_relative_weight` of their source's heaviest, those already in
+    view (within their source's minimum offset of the heading, and less than 20 deg off level) and those
+    within 20 deg of a chosen one, at most `max_views`. Returned in counter-clockwise order from
+    the heading, or, given the controller `ctrl`, in the order that visits them in the fewest turns and
+    tilts from (`yaw`, `pitch`), levelling and the turn back to `final_yaw` (if given) included
+    (`controller.fewest_actions_order`). Given `tilt_within_deg`, each chosen target's pitch is brought that
+    much closer to level (never past it): the tilt that puts the target that far from the image centre."""
+    chosen: list[RotationTarget] = []
+    heaviest: dict[str, float] = {}
+    for t in targets:
+        heaviest[t.source] = max(heaviest.get(t.source, 0.0), t.weight)
+    for t in sorted(targets, key=lambda t: -t.weight):
+        if t.weight < pcfg.rotation.min_relative_weight * heaviest[t.source]:
+            continue
+        limit = pcfg.high_loss.min_offset_deg if t.source == "high_loss" else pcfg.rotation.min_offset_deg
+        if abs(math.degrees(float(wrap_angle(t.yaw - yaw)))) <= limit and abs(math.degrees(t.pitch)) < 20:
+            continue
+        if any(abs(float(wrap_angle(t.yaw - c.yaw))) < math.radians(20) for c in chosen):
+            continue
+        chosen.append(t)
+        if len(chosen) >= max_views:
+            break
+    if tilt_within_deg is not None:
+        within = math.radians(tilt_within_deg)
+        chosen = [dataclasses.replace(t, pitch=math.copysign(max(0.0, abs(t.pitch) - within), t.pitch))
+                  for t in chosen]
+    chosen.sort(key=lambda t: float(wrap_angle(t.yaw - yaw)) % (2 * math.pi))
+    if ctrl is None:
+        return chosen
+    order = fewest_actions_order(yaw, pitch, [(t.yaw, t.pitch) for t in chosen], ctrl, final_yaw)
+    return [chosen[i] for i in order]
