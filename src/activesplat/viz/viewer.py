@@ -37,12 +37,12 @@ import numpy as np
 
 from activesplat.episode import (
     DERIVED_DIRS,
-    _complete,
-    _read_poses,
     episode_and_map,
+    is_complete,
     is_recorded_map,
     read_episode,
     read_meta,
+    read_poses,
 )
 from activesplat.errors import EpisodeError, InvalidInputError
 from activesplat.viz.drawing import SceneDrawer, depth_image, panorama_image, splat_arrays, splat_count_text
@@ -278,8 +278,8 @@ class EpisodeViewer:
         self.dir, first_map = view_folder(episode_dir)
         self.recorded = is_recorded_map(read_meta(self.dir))
         if self.recorded:
-            self.meta, self.complete = read_meta(self.dir), _complete(self.dir)
-            self.poses, self.actions = np.stack(_read_poses(self.dir / "poses.txt")), None
+            self.meta, self.complete = read_meta(self.dir), is_complete(self.dir)
+            self.poses, self.actions = np.stack(read_poses(self.dir / "poses.txt")), None
         else:  # EpisodeError when it is not an episode folder
             ep = read_episode(self.dir)
             self.meta, self.complete, self.poses, self.actions = ep.meta, ep.complete, ep.poses, ep.actions
