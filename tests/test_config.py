@@ -70,7 +70,7 @@ def test_help_documents_each_field_with_its_default_and_source(capsys, monkeypat
     assert "--mapper.pixel-stride" in text and "one Gaussian per stride x stride pixels" in text
     assert "--explorer.workspace.agent-radius" not in text and "--sim.agent-radius" in text
     for legacy in ("--scene", "--steps", "--policy", "--seed", "--out", "--overwrite", "--backend",
-                   "--viewer", "--viewer-port", "--z-up", "--no-progress", "--config"):
+                   "--viewer", "--viewer-port", "--max-splats", "--z-up", "--no-progress", "--config"):
         assert re.search(rf"^\s+(--[\w-]+, )?{legacy}\b", text, re.M), legacy
     # every configuration field: a doc with its default and where the value comes from
     blocks, current = {}, None

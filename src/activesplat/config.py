@@ -234,8 +234,16 @@ class ExploreCommand:
     """Serve a live viser web viewer of the run on localhost."""
     viewer_port: int = 8080
     """Port of --viewer."""
+    max_splats: int = 400_000
+    """With --viewer, the most Gaussians sent to the browser: a larger map is cut to its most opaque ones,
+    and the page and the terminal say so (as `activesplat view --max-splats`). The run itself is the same."""
     run: Annotated[RunConfig, tyro.conf.arg(name="")] = field(default_factory=RunConfig)
     """The run's configuration: its fields are options of their own."""
+
+    def __post_init__(self) -> None:
+        if isinstance(self.max_splats, bool) or not isinstance(self.max_splats, int) or self.max_splats < 1:
+            raise InvalidInputError(f"--max-splats must be a positive number of Gaussians, got "
+                                    f"{self.max_splats!r}")
 
 
 @dataclass(frozen=True)
