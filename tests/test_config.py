@@ -12,6 +12,7 @@ from activesplat import explore
 from activesplat.cli import main
 from activesplat.cli_options import parse_command
 from activesplat.config import (
+    ADDED,
     CONFIG_VERSION,
     DERIVED,
     BenchmarkCommand,
@@ -69,7 +70,7 @@ def test_help_documents_each_field_with_its_default_and_source(capsys, monkeypat
     assert "--mapper.pixel-stride" in text and "one Gaussian per stride x stride pixels" in text
     assert "--explorer.workspace.agent-radius" not in text and "--sim.agent-radius" in text
     for legacy in ("--scene", "--steps", "--policy", "--seed", "--out", "--overwrite", "--backend",
-                   "--viewer", "--viewer-port", "--z-up", "--no-progress", "--config"):
+                   "--viewer", "--viewer-port", "--max-splats", "--z-up", "--no-progress", "--config"):
         assert re.search(rf"^\s+(--[\w-]+, )?{legacy}\b", text, re.M), legacy
     # every configuration field: a doc with its default and where the value comes from
     blocks, current = {}, None
@@ -325,6 +326,36 @@ def test_an_old_episode_reruns_with_the_values_of_its_version_for_later_fields(t
     partial = tmp_path / "partial.json"
     partial.write_text(json.dumps({"version": CONFIG_VERSION, "seed": 2}))
     assert load_run_config(partial) == RunConfig(seed=2)
+
+
+FIRST_RECORDED = Path(__file__).with_name("first_recorded_config.json")
+"""The configuration an episode.json of the first version that recorded one (2026-11-23) holds: its defaults,
+with a 1000-step budget."""
+
+
+def test_the_first_recorded_configuration_reads_as_the_run_it_recorded(tmp_path):
+    """Every field added since reads as that version ran: a field added with its new rule on, or added off
+    and turned on later, is in `ADDED` with its off value. Several were missing and read as today's
+    defaults: the mapper's flat Gaussians, back faces, depth edges, colour detail and occlusion culling,
+    and the explorer's multi-stop spacing, detour, near nodes, retries, grown floor and high-loss cap."""
+    ep = tmp_path / "first"
+    ep.mkdir()
+    config = json.loads(FIRST_RECORDED.read_text())
+    (ep / "episode.json").write_text(json.dumps({"scene": "small-0", "start_pose": [], "config": config}))
+    with pytest.warns(UserWarning, match=f"written before {len(ADDED)} field"):
+        run = load_run_config(ep)
+    for dotted, old in ADDED.items():
+        value = run
+        for name in dotted.split("."):
+            value = getattr(value, name)
+        assert value == old, dotted
+    m, ex = run.mapper, run.explorer
+    assert (m.init_normal_scale, m.densify_front_faces_only, m.edge_band_px, m.detail_colour_range,
+            m.cull_occluded_margin_m, m.planar_depth) == (1.0, False, 0, None, None, False)
+    assert (ex.multi_stop_spacing_m, ex.detour_m, ex.local_near_m, ex.retry_unreachable, ex.neck_margin_m,
+            ex.planning.high_loss.max_targets) == (0.0, None, None, False, None, 0)
+    # that version's mapper.json holds the same mapper settings, and reads as the same map's
+    assert MapperConfig.from_dict(config["mapper"]) == m
 
 
 def test_refine_keeps_an_old_episodes_settings_when_another_group_cannot_be_read(capsys, tmp_path,

@@ -39,6 +39,13 @@ def test_the_mapper_drops_the_same_removed_fields_from_an_old_mapper_json():
     assert {"mapper." + name for name in REMOVED_FIELDS} == {p for p in REMOVED if p.startswith("mapper.")}
 
 
+def test_the_mapper_reads_the_same_added_fields_of_an_old_mapper_json():
+    from activesplat.splat.config import ADDED_FIELDS
+
+    assert {"mapper." + name: old for name, old in ADDED_FIELDS.items()} == {
+        p: old for p, old in ADDED.items() if p.startswith("mapper.")}
+
+
 if __name__ == "__main__" and sys.argv[1:] == ["--write"]:
     header = "# RunConfig's settable fields (tests/test_config_fields.py)\n"
     LIST.write_text(header + "\n".join(current_fields()) + "\n")

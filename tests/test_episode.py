@@ -5,7 +5,7 @@ import json
 import numpy as np
 import pytest
 
-from activesplat.episode import EpisodeWriter, read_episode
+from activesplat.episode import EpisodeWriter, is_complete, read_episode, read_poses
 from activesplat.errors import EpisodeError
 
 
@@ -68,6 +68,24 @@ def test_a_crash_may_cut_only_the_last_line(tmp_path):
     (ep / "poses.txt").write_text(text[:-10])  # the last pose line cut half-way
     got = read_episode(ep)
     assert not got.complete and len(got.actions) == 4 and len(got.poses) == 5
+
+
+def test_completeness_and_poses_of_a_folder_without_actions(tmp_path):
+    """`is_complete` and `read_poses` read any folder with a metrics.json / poses.txt, such as a map of a
+    recording (no actions.txt, which `read_episode` needs): the viewer's timeline of a recording uses them."""
+    ep = _write(tmp_path / "ep", 3, complete=False)
+    (ep / "actions.txt").unlink()
+    assert not is_complete(ep) and not is_complete(str(tmp_path / "nowhere"))
+    (ep / "metrics.json").write_text("{not json")
+    assert not is_complete(ep)
+    (ep / "metrics.json").write_text(json.dumps({"steps": 3}))
+    assert is_complete(str(ep))
+    text = (ep / "poses.txt").read_text()
+    (ep / "poses.txt").write_text(text[:-10])  # the last line cut by a crash
+    poses = read_poses(str(ep / "poses.txt"))
+    assert len(poses) == 3 and all(np.array_equal(p, np.eye(4)) for p in poses)
+    with pytest.raises(EpisodeError, match="no poses.txt"):
+        read_poses(tmp_path / "poses.txt")
 
 
 def test_a_recorded_map_is_told_apart_by_its_json_not_its_spacing(tmp_path):

@@ -69,20 +69,34 @@ other value is refused, since this version cannot run it."""
 
 ADDED: dict[str, Any] = {
     "sim.texture_filter": "nearest",
+    "mapper.init_normal_scale": 1.0,
+    "mapper.densify_front_faces_only": False,
+    "mapper.edge_band_px": 0,
+    "mapper.detail_colour_range": None,
+    "mapper.cull_occluded_margin_m": None,
     "mapper.planar_depth": False,
     "explorer.fewest_action_tour": False,
     "explorer.global_in_horizon": True,
     "explorer.global_information_first": False,
     "explorer.panorama_every_subregion": False,
+    "explorer.multi_stop_spacing_m": 0.0,
+    "explorer.detour_m": None,
+    "explorer.local_near_m": None,
+    "explorer.retry_unreachable": False,
+    "explorer.neck_margin_m": None,
     "explorer.way_back_m": None,
     "explorer.start_blocks": None,
     "explorer.leave_when_cut_off": False,
+    "explorer.planning.high_loss.max_targets": 0,
     "explorer.planning.panorama.front_faces_targets": False,
     "explorer.planning.panorama.score_lod_voxel_m": None,
 }
-"""Fields added to RunConfig with a default that is not what runs did before them: dotted path -> the value
-that does what the code did before the field existed. An episode.json that lacks one (written before it)
-reads as that value, with a warning naming it; a hand-written partial config file takes today's defaults."""
+"""Fields added to RunConfig with a default that is not what runs did before them (a rule added on, or added
+off and turned on later): dotted path -> the value that does what the code did before the field existed. A
+field whose default keeps the old behaviour (an option added off and still off, or one that only tunes an
+option whose entry here turns it off) needs none. An episode.json that lacks one (written before it) reads
+as that value, with a warning naming it; a hand-written partial config file takes today's defaults. The
+``mapper`` entries are also `activesplat.splat.config.ADDED_FIELDS`, for an older mapper.json."""
 
 DERIVED: dict[str, str] = {
     "explorer.workspace.agent_radius": "agent_radius",
@@ -220,8 +234,16 @@ class ExploreCommand:
     """Serve a live viser web viewer of the run on localhost."""
     viewer_port: int = 8080
     """Port of --viewer."""
+    max_splats: int = 400_000
+    """With --viewer, the most Gaussians sent to the browser: a larger map is cut to its most opaque ones,
+    and the page and the terminal say so (as `activesplat view --max-splats`). The run itself is the same."""
     run: Annotated[RunConfig, tyro.conf.arg(name="")] = field(default_factory=RunConfig)
     """The run's configuration: its fields are options of their own."""
+
+    def __post_init__(self) -> None:
+        if isinstance(self.max_splats, bool) or not isinstance(self.max_splats, int) or self.max_splats < 1:
+            raise InvalidInputError(f"--max-splats must be a positive number of Gaussians, got "
+                                    f"{self.max_splats!r}")
 
 
 @dataclass(frozen=True)

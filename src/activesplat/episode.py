@@ -76,10 +76,11 @@ def write_npz(path: Path, compresslevel: int = 1, **arrays: np.ndarray) -> None:
     os.replace(tmp, path)
 
 
-def _complete(d: Path) -> bool:
-    """Whether `d` holds a complete episode: a metrics.json that is readable and not marked
-    ``"complete": false`` (what `evaluate` writes for a partial one)."""
-    metrics = d / "metrics.json"
+def is_complete(folder: str | Path) -> bool:
+    """Whether an episode or map folder holds a complete run: its metrics.json, written when the run ends, is
+    readable and not marked ``"complete": false`` (what `evaluate` writes for a partial episode). False for
+    an interrupted run, and for a folder without metrics.json."""
+    metrics = Path(folder) / "metrics.json"
     if not metrics.exists():
         return False
     try:
@@ -91,7 +92,7 @@ def _complete(d: Path) -> bool:
 def _held_episode(d: Path) -> str:
     """What episode ``d`` holds, in words ("a complete episode", "a partial episode (N actions)"), or ""
     when it holds none."""
-    if _complete(d):
+    if is_complete(d):
         return "a complete episode"
     actions = d / "actions.txt"
     if actions.exists() or (d / "metrics.json").exists():
@@ -229,8 +230,8 @@ def read_episode(path: str | Path) -> Episode:
     text = (d / "actions.txt").read_text()
     lines = text.split("\n")
     actions = [a.strip() for a in (lines if text.endswith("\n") else lines[:-1]) if a.strip()]
-    poses = _read_poses(d / "poses.txt")
-    complete = _complete(d)
+    poses = read_poses(d / "poses.txt")
+    complete = is_complete(d)
     # poses.txt holds the reset and one pose per action; an interrupted run may lack the last action's pose
     short = len(actions) + 1 - len(poses)
     if short < 0 or short > (0 if complete else 1):
@@ -241,9 +242,12 @@ def read_episode(path: str | Path) -> Episode:
     return Episode(d, meta, actions[:n], np.stack(poses[: n + 1]), complete)
 
 
-def _read_poses(path: Path) -> list[np.ndarray]:
-    """The poses of ``poses.txt``, one per line. A crash can cut only the last line, which is dropped;
-    a line that cannot be read anywhere else is corruption, and an EpisodeError names it."""
+def read_poses(path: str | Path) -> list[np.ndarray]:
+    """The 4x4 camera-to-world poses of a ``poses.txt`` (an episode's, or a map of a recording's), one per
+    line, in order (the step index that starts each line is not checked). A crash can cut only the last
+    line, which is dropped; a line that cannot be read anywhere else is corruption, and an EpisodeError
+    names it, as it does a missing file or one without a pose."""
+    path = Path(path)
     if not path.exists():
         raise EpisodeError(f"{path.parent} has no poses.txt (one line per observation, README \"The episode "
                            f"folder\"): the episode cannot be replayed or checked without it")

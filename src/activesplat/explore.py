@@ -591,9 +591,9 @@ def explore_from_command(cmd) -> int:
     out = Path(cmd.out) if cmd.out else _default_out(run.scene, run.policy, run.seed)
     viewer = None
     if cmd.viewer:  # viser is imported only here
-        from activesplat.viz.viewer import LiveViewer
+        from activesplat.viz.viewer import LiveViewer, ViewerConfig
 
-        viewer = LiveViewer(port=cmd.viewer_port)
+        viewer = LiveViewer(port=cmd.viewer_port, config=ViewerConfig(max_splats=cmd.max_splats))
     try:
         metrics = explore_episode(run, out=out, overwrite=cmd.overwrite, progress=cmd.progress, viewer=viewer)
         print(format_summary(metrics, out))

@@ -22,6 +22,7 @@ import zstandard
 from websockets.sync.client import connect
 
 from activesplat.cli import main
+from activesplat.config import ExploreCommand
 from activesplat.errors import EpisodeError, InvalidInputError
 from activesplat.eval.coverage import CoverageConfig
 from activesplat.explore import run_exploration
@@ -436,6 +437,35 @@ def test_a_map_too_large_for_the_browser_says_what_it_sends(live, tmp_path, caps
         live_viewer.close()
     assert main(["view", str(out), "--max-splats", "0", "--port", str(free_port())]) == 2
     assert "--max-splats must be a positive number" in capsys.readouterr().err
+
+
+@pytest.mark.filterwarnings("ignore:a budget of 6 actions")
+def test_explore_viewer_takes_the_browser_budget_from_max_splats(tmp_path, capsys, monkeypatch):
+    """`explore --viewer --max-splats N`: the live page gets at most N Gaussians of the growing map and says
+    so, and the terminal says it once (explore had no such option: the live page always took 400 000). A
+    budget below 1 is a one-line error before the run."""
+    seen = {}
+
+    def hold(viewer):  # instead of serving until Ctrl-C: what the page shows at the end of the run
+        seen.update(budget=viewer.cfg.max_splats, sent=splats_sent(viewer.port),
+                    status=viewer.draw.status.content)
+
+    monkeypatch.setattr(LiveViewer, "hold", hold)
+    tiny = ["explore", "--steps", "6", "--sim.width", "48", "--sim.height", "48", "--coverage.n-gt-points",
+            "1000", "--coverage.resolution", "32", "--coverage.batch-frames", "5", "--backend", "numba",
+            "--no-progress"]
+    assert main([*tiny, "--out", str(tmp_path / "ep"), "--viewer", "--viewer-port", str(free_port()),
+                 "--max-splats", "7"]) == 0
+    n = len(load_ply(tmp_path / "ep" / "gaussians.ply"))
+    assert n > 7 and (seen["budget"], seen["sent"]) == (7, 7)
+    assert f"**map** {n} gaussians, the 7 most opaque drawn" in seen["status"]
+    err = capsys.readouterr().err
+    assert err.count("the browser is sent the 7 most opaque (--max-splats to change)") == 1
+    assert main([*tiny, "--out", str(tmp_path / "never"), "--viewer", "--max-splats", "0"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == "activesplat: error: --max-splats must be a positive number of Gaussians, got 0"
+    assert not (tmp_path / "never").exists()
+    assert ExploreCommand().max_splats == ViewerConfig().max_splats  # the same default as the viewers'
 
 
 def test_an_episode_without_a_map_or_graph_shows_what_it_has(live, tmp_path, capsys, monkeypatch):

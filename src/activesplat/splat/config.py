@@ -15,6 +15,18 @@ REMOVED_FIELDS = ("area_budget_slack", "area_budget_cell_m")
 """MapperConfig fields removed since (each with its reason in `activesplat.config.REMOVED`): an older
 mapper.json that holds them still loads."""
 
+ADDED_FIELDS = {
+    "init_normal_scale": 1.0,
+    "densify_front_faces_only": False,
+    "edge_band_px": 0,
+    "detail_colour_range": None,
+    "cull_occluded_margin_m": None,
+    "planar_depth": False,
+}
+"""MapperConfig fields added with a default that is not what the mapper did before them -> the value that
+maps as it did (the ``mapper`` entries of `activesplat.config.ADDED`): an older mapper.json that lacks one
+was written before it and reads as that value."""
+
 
 @dataclass(frozen=True)
 class Schedule:
@@ -501,12 +513,14 @@ class MapperConfig:
 
     @classmethod
     def from_dict(cls, d: dict) -> MapperConfig:
-        """The config back from `dataclasses.asdict` output (mapper.json, checkpoints). A config written
-        before ``planar_depth`` existed made its map with centre depths, so a missing key reads False. A
-        field removed since (`REMOVED_FIELDS`) only shaped how the map was built: it is left out, so the
-        map of an older version can still be evaluated, refined and viewed."""
+        """The config back from `dataclasses.asdict` output (mapper.json, checkpoints). A field added since
+        the file was written (`ADDED_FIELDS`) reads as the value the map was built with (a config written
+        before ``planar_depth`` existed made its map with centre depths: False). A field removed since
+        (`REMOVED_FIELDS`) only shaped how the map was built: it is left out, so the map of an older
+        version can still be evaluated, refined and viewed."""
         d = {k: v for k, v in d.items() if k not in REMOVED_FIELDS}
-        d.setdefault("planar_depth", False)
+        for name, old in ADDED_FIELDS.items():
+            d.setdefault(name, old)
         d["lr"] = LearningRates(**d["lr"])
         d["schedule"] = Schedule(**d["schedule"])
         d["dense_schedule"] = Schedule(**d["dense_schedule"])

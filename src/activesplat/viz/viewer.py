@@ -37,12 +37,12 @@ import numpy as np
 
 from activesplat.episode import (
     DERIVED_DIRS,
-    _complete,
-    _read_poses,
     episode_and_map,
+    is_complete,
     is_recorded_map,
     read_episode,
     read_meta,
+    read_poses,
 )
 from activesplat.errors import EpisodeError, InvalidInputError
 from activesplat.viz.drawing import SceneDrawer, depth_image, panorama_image, splat_arrays, splat_count_text
@@ -65,7 +65,8 @@ class ViewerConfig:
     image_interval_s: float = 0.5
     """Live: RGB-D and panorama images at most this often (2 Hz)."""
     max_splats: int = 400_000
-    """More Gaussians than this: only the most opaque are sent (a browser's budget)."""
+    """More Gaussians than this: only the most opaque are sent (a browser's budget; `--max-splats` of
+    `explore --viewer` and `view`)."""
     depth_max_m: float = 8.0
     """Depth images are coloured over 0 .. this many metres."""
     graph_lift_m: float = 0.05
@@ -142,6 +143,7 @@ class LiveViewer:
         self.updates = 0
         self.failed: str | None = None
         """Why the page stopped updating (the first error of `update`), None while it updates."""
+        self._said_cut = False
         print(f"viewer: {self.url}", file=sys.stderr)
 
     @property
@@ -175,6 +177,12 @@ class LiveViewer:
             t_map = time.perf_counter()
             self._map_frames = frames
             self.draw.draw_map(mapper.gaussians)
+            # over the budget: the terminal says so once (the page's status at every send)
+            if len(mapper.gaussians) > self.cfg.max_splats and not self._said_cut:
+                self._said_cut = True
+                budget = self.cfg.max_splats
+                print(f"viewer: the map has grown past {budget} Gaussians; the browser is sent the {budget} "
+                      f"most opaque (--max-splats to change)", file=sys.stderr)
             spent = time.perf_counter() - t_map
             self._next_map = now + max(self.cfg.map_interval_s, spent / self.cfg.max_map_share)
         self.time_ms += 1000.0 * (time.perf_counter() - t0)
@@ -278,8 +286,8 @@ class EpisodeViewer:
         self.dir, first_map = view_folder(episode_dir)
         self.recorded = is_recorded_map(read_meta(self.dir))
         if self.recorded:
-            self.meta, self.complete = read_meta(self.dir), _complete(self.dir)
-            self.poses, self.actions = np.stack(_read_poses(self.dir / "poses.txt")), None
+            self.meta, self.complete = read_meta(self.dir), is_complete(self.dir)
+            self.poses, self.actions = np.stack(read_poses(self.dir / "poses.txt")), None
         else:  # EpisodeError when it is not an episode folder
             ep = read_episode(self.dir)
             self.meta, self.complete, self.poses, self.actions = ep.meta, ep.complete, ep.poses, ep.actions
