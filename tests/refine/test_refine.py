@@ -220,6 +220,7 @@ def test_an_output_folder_that_cannot_be_written_is_refused_before_training(fres
         raise PermissionError(13, "Permission denied")
 
     monkeypatch.setattr(tempfile, "TemporaryFile", read_only)
-    with pytest.raises(InvalidInputError, match="cannot write into .*refined_3dgs .*Permission denied"):
+    with pytest.raises(InvalidInputError,
+                       match=r"cannot write into .*refined_3dgs: .*ep is not writable \(Permission denied\)"):
         refine(fresh, "3dgs", 4, backend="numba", progress=False, evaluate=False)
     assert trained == []
