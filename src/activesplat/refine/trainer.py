@@ -48,6 +48,7 @@ from activesplat.splat.gaussians import GaussianMap
 from activesplat.splat.losses import mapping_loss
 from activesplat.splat.ply import save_ply
 from activesplat.splat.raster import backend_device
+from activesplat.timing import progress_bar
 
 CHECKPOINT = "checkpoint.pt"
 CHECKPOINT_VERSION = 1
@@ -292,23 +293,22 @@ class Refiner:
 
     def train(self, stop_at: int | None = None) -> None:
         """Run the remaining iterations (up to ``stop_at`` if given), checkpointing on the way."""
-        from tqdm import tqdm
-
         end = self.iters if stop_at is None else min(self.iters, int(stop_at))
         if self.iteration >= end:
             return
-        bar = tqdm(total=self.iters, initial=self.iteration, desc=f"refine {self.method_name}", unit="it",
-                   disable=not self.progress, dynamic_ncols=True)
+        bar = progress_bar(self.iters, f"refine {self.method_name}", "it", self.progress,
+                           initial=self.iteration)
         try:
             with _DeferredInterrupt() as interrupt:
                 t0 = time.perf_counter()
                 while self.iteration < end:
                     loss, psnr = self.step()
                     self._track(loss, psnr)
-                    bar.update(1)
-                    if self.iteration % 10 == 0 or self.iteration == end:
-                        bar.set_postfix(loss=f"{self.ema_loss:.4f}", psnr=f"{self.ema_psnr:.2f}",
-                                        n=len(self.gmap), refresh=False)
+                    if bar is not None:
+                        bar.update(1)
+                        if self.iteration % 10 == 0 or self.iteration == end:
+                            bar.set_postfix(loss=f"{self.ema_loss:.4f}", psnr=f"{self.ema_psnr:.2f}",
+                                            n=len(self.gmap), refresh=False)
                     checkpoint = self.iteration % self.cfg.checkpoint_every == 0 or self.iteration == end
                     if checkpoint or interrupt.requested:
                         now = time.perf_counter()
@@ -321,7 +321,8 @@ class Refiner:
                               f"over)", file=sys.stderr)
                         raise KeyboardInterrupt
         finally:
-            bar.close()
+            if bar is not None:
+                bar.close()
 
     def keyframe_metrics(self, indices=None) -> dict:
         """Mean PSNR (dB), depth L1 (m) and loss of the current map over keyframes (all by default),
