@@ -194,3 +194,13 @@ def test_labels_name_the_option(tmp_path):
     (tmp_path / "x.md" / "y").write_text("")
     with pytest.raises(InvalidInputError, match=r"^cannot write into --root .*x\.md/y: it is a file"):
         check_output_folder(tmp_path / "x.md" / "y", "--root")
+
+
+def test_a_folder_that_takes_no_files_is_one_line(tmp_path, monkeypatch):
+    """/proc refuses new files with "No such file or directory": a one-line error too, not a traceback."""
+    def refuse(*args, **kwargs):
+        raise FileNotFoundError(errno.ENOENT, "No such file or directory")
+
+    monkeypatch.setattr(tempfile, "TemporaryFile", refuse)
+    with pytest.raises(InvalidInputError, match=r"x\.glb: .* is not writable \(No such file or directory\)"):
+        check_output_file(tmp_path / "x.glb")

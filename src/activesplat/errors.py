@@ -106,7 +106,7 @@ def cannot_write(path, exc: OSError, label: str = "") -> Exception:
 
 
 _BAD_PATH = (FileExistsError, FileNotFoundError, NotADirectoryError, IsADirectoryError, PermissionError)
-_READ_ONLY = (errno.EACCES, errno.EPERM, errno.EROFS)
+_FULL = (errno.ENOSPC, errno.EDQUOT)
 
 
 def _file_above(path):
@@ -130,15 +130,15 @@ def _check_above(path, where: str) -> None:
 
 
 def _check_writable(folder, where: str, name: str) -> None:
-    """A file can be made in `folder` (tried with an unnamed temporary file, which leaves nothing behind);
-    a read-only folder or file system is an InvalidInputError, any other OSError (a full disk) is raised
-    as it is, for the command line's own message."""
+    """A file can be made in `folder` (tried with an unnamed temporary file, which leaves nothing behind):
+    an InvalidInputError when not (a read-only folder or file system, a folder such as /proc), except for a
+    full disk, raised as it is for the command line's own message."""
     import tempfile
 
     try:
         with tempfile.TemporaryFile(dir=folder):
             pass
     except OSError as exc:
-        if exc.errno in _READ_ONLY:
-            raise InvalidInputError(f"{where}: {name} is not writable ({exc.strerror})") from None
-        raise
+        if exc.errno in _FULL:
+            raise
+        raise InvalidInputError(f"{where}: {name} is not writable ({exc.strerror})") from None
