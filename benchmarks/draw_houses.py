@@ -20,7 +20,7 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch, Rectangle
 
-from activesplat.errors import SceneError
+from activesplat.errors import InvalidInputError, SceneError, check_output_file
 from activesplat.sim import load_scene
 from activesplat.sim.rooms import HouseConfig
 from activesplat.viz.trajectory import largest_part
@@ -119,6 +119,10 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.columns < 1:
         parser.error("--columns must be at least 1")
+    try:
+        check_output_file(args.out, "--out")  # before the houses are built
+    except InvalidInputError as err:
+        parser.error(str(err))
     try:
         fig = houses_figure(args.houses, args.columns)
     except SceneError as err:  # an unknown name: the loader's message says what is expected

@@ -38,6 +38,7 @@ import numpy as np
 import torch
 
 from activesplat.episode import read_episode
+from activesplat.errors import InvalidInputError, check_output_folder
 from activesplat.eval.evaluate import parse_sim_overrides
 from activesplat.geometry import backproject
 from activesplat.sim import SimConfig, Simulator, load_scene
@@ -154,6 +155,11 @@ def main() -> None:
                         help="SimConfig overrides of the replayed (or scripted) camera and of render-eval's "
                              "ground truth, e.g. texture_filter=nearest")
     args = parser.parse_args()
+    if args.out is not None:
+        try:
+            check_output_folder(args.out, "--out")  # before the mapping
+        except InvalidInputError as exc:
+            parser.error(str(exc))
     torch.set_num_threads(args.threads)
     numba.set_num_threads(min(args.threads, numba.config.NUMBA_NUM_THREADS))  # the kernels' threads too
     config = config_with(args.set)

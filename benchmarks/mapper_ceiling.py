@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from activesplat.episode import EpisodeWriter
+from activesplat.errors import InvalidInputError, check_output_folder
 from activesplat.eval.sweep import SweepConfig, sweep_poses
 from activesplat.sim import SimConfig, load_scene
 
@@ -82,6 +83,10 @@ def main() -> None:
                     help="mapper config overrides, passed to benchmarks/mapper.py")
     ap.add_argument("--no-map", action="store_true", help="only write the tour episodes")
     args = ap.parse_args()
+    try:
+        check_output_folder(args.out, "--out")  # before the tours
+    except InvalidInputError as exc:
+        ap.error(str(exc))
     cfg = SweepConfig(spacing_m=args.spacing, yaw_step_deg=args.yaw_step, pitches_deg=tuple(args.pitches))
     for name in args.scenes:
         tour = args.out / name / "tour"

@@ -28,6 +28,7 @@ from matplotlib.figure import Figure
 
 from activesplat.cli_options import CommandLineError, parse_command
 from activesplat.config import ExploreCommand, RunConfig
+from activesplat.errors import InvalidInputError, check_output_folder
 from activesplat.explore import explore_episode
 from activesplat.sim import load_scene
 from activesplat.viz.trajectory import draw_navigable
@@ -109,6 +110,10 @@ def main() -> None:
     except CommandLineError as exc:
         raise SystemExit(f"plan_snapshots.py: error: {exc}") from None
     out = Path(args.out)
+    try:
+        check_output_folder(out, "--out")  # before the scene is built
+    except InvalidInputError as exc:
+        raise SystemExit(f"plan_snapshots.py: error: {exc}") from None
     scene = load_scene(run.scene, z_up=run.z_up, floor=run.floor)
     budget = run.steps or scene.default_steps
     late = [s for s in args.at if not 1 <= s <= budget]

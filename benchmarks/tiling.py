@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from activesplat.errors import InvalidInputError, check_output_folder
 from activesplat.sim import Simulator, load_scene
 from activesplat.sim.gltf import write_glb
 from activesplat.sim.materials import CLAMP_TO_EDGE, MIRRORED_REPEAT, REPEAT, Material, Surface
@@ -127,6 +128,10 @@ def main() -> None:
     parser.add_argument("--frames-only", action="store_true", help="only compare simulator frames")
     args = parser.parse_args()
     out = Path(args.out)
+    try:
+        check_output_folder(out, "--out")  # before the scenes are written
+    except InvalidInputError as exc:
+        parser.error(str(exc))
     tiling, baked = room_glbs(out)
     print(f"identical pixels, tiling vs baked, 20 frames: {100 * frame_agreement(tiling, baked):.3f} %")
     if args.frames_only:

@@ -23,6 +23,7 @@ import networkx as nx
 import numpy as np
 import torch
 
+from activesplat.errors import InvalidInputError, check_output_folder
 from activesplat.workspace.clean import extract_workspace
 from activesplat.workspace.config import WorkspaceConfig
 from activesplat.workspace.paths import plan_safe_path
@@ -112,6 +113,11 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--backend", default="auto")
     args = parser.parse_args()
+    if args.out is not None:
+        try:
+            check_output_folder(args.out, "--out")  # before the exploration
+        except InvalidInputError as exc:
+            parser.error(str(exc))
     cfg = WorkspaceConfig()
     with tempfile.TemporaryDirectory() as tmp:
         if args.ply is not None:

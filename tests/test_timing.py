@@ -64,3 +64,16 @@ def test_jit_compile_clock_charges_compiling_to_the_running_module():
     done = clock.total_s
     inner(True)  # after the clock is closed: not counted
     assert clock.total_s == done and timers.running == []
+
+
+def test_the_progress_bar_goes_to_stderr_and_starts_where_a_resumed_run_is(capsys):
+    from activesplat.timing import progress_bar
+
+    assert progress_bar(10, "job", "it", enabled=False) is None  # --no-progress
+    bar = progress_bar(10, "job", "it", initial=3)
+    assert bar.n == 3 and bar.mininterval == 0.5
+    bar.update(7)
+    bar.close()
+    captured = capsys.readouterr()
+    assert captured.out == "" and "job: " in captured.err and "3/10" in captured.err
+    assert "10/10" in captured.err

@@ -49,26 +49,16 @@ def _cmd_scenes_list(args: argparse.Namespace) -> int:
 def _cmd_scenes_export(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from activesplat.errors import InvalidInputError
+    from activesplat.errors import InvalidInputError, check_output_file
     from activesplat.sim import load_scene
 
     if Path(args.file).suffix.lower() != ".glb":  # checked before the (slow) scene build
         raise InvalidInputError(f"export file must end in .glb: {args.file}")
-    check_output_path(args.file)
+    check_output_file(args.file)
     scene = load_scene(args.name, z_up=args.z_up, floor=args.floor)
     path = scene.export(args.file)
     print(f"wrote {path}")
     return 0
-
-
-def check_output_path(path) -> None:
-    """Fail early, in one line, when `path` cannot be a file to write: it is a folder, or a file stands where
-    one of the folders above it would be (:func:`activesplat.errors.blocked_path`)."""
-    from activesplat.errors import InvalidInputError, blocked_path
-
-    blocked = blocked_path(path)
-    if blocked:
-        raise InvalidInputError(f"cannot write {path}: {blocked}")
 
 
 # --------------------------------------------------------------------------- explore
@@ -421,9 +411,10 @@ def _main(argv: Sequence[str] | None) -> int:
         if exc.errno not in _CANNOT_WRITE:
             raise
         where = f": {exc.filename}" if exc.filename else ""
-        print(f"activesplat: error: cannot write{where} ({exc.strerror}). Free some space or choose another "
-              "--out / --root, then run the same command again: a benchmark keeps its complete runs and "
-              "resumes after them.", file=sys.stderr)
+        free = "Choose" if exc.errno == errno.EROFS else "Free some space or choose"
+        print(f"activesplat: error: cannot write{where} ({exc.strerror}). {free} another --out / --root, "
+              "then run the same command again: a benchmark keeps its complete runs and resumes after "
+              "them.", file=sys.stderr)
         return 1
     return int(code or 0)
 

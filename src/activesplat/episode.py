@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from activesplat.errors import EpisodeError
+from activesplat.errors import EpisodeError, check_output_folder
 
 EPISODE_FILES = ("episode.json", "actions.txt", "poses.txt", "metrics.json", "gaussians.ply", "topdown.png",
                  "completion.png", "keyframes.npz", "mapper.json", "stops.json", "trajectory.png",
@@ -110,12 +110,7 @@ class EpisodeWriter:
 
     def __init__(self, out_dir: str | Path, overwrite: bool = False):
         self.dir = Path(out_dir)
-        if self.dir.exists() and not self.dir.is_dir():
-            raise EpisodeError(f"output path {self.dir} exists and is not a folder")
-        if not overwrite:
-            held = _held_episode(self.dir)
-            if held:
-                raise EpisodeError(f"{self.dir} already holds {held}; pass --overwrite to replace it")
+        self.check(self.dir, overwrite)
         self.dir.mkdir(parents=True, exist_ok=True)
         for name in EPISODE_FILES:
             (self.dir / name).unlink(missing_ok=True)
@@ -124,6 +119,18 @@ class EpisodeWriter:
                 shutil.rmtree(derived)
         self._actions = None
         self._poses = None
+
+    @staticmethod
+    def check(out_dir: str | Path, overwrite: bool = False) -> None:
+        """What the writer checks first, for a command to call before its slow work (a scene build, a
+        connection to a robot): `out_dir` can be written into, and holds no episode unless `overwrite`.
+        InvalidInputError / EpisodeError, in one line."""
+        out_dir = Path(out_dir)
+        check_output_folder(out_dir)
+        if not overwrite:
+            held = _held_episode(out_dir)
+            if held:
+                raise EpisodeError(f"{out_dir} already holds {held}; pass --overwrite to replace it")
 
     def start(self, meta: dict, pose: np.ndarray) -> None:
         """Write episode.json and the reset pose (step 0)."""

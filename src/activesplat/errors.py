@@ -1,4 +1,7 @@
-"""Exceptions for bad input. The command line turns these into a one-line error and exit code 2."""
+"""Exceptions for bad input, and the checks of output paths. The command line turns these into a one-line
+error and exit code 2."""
+
+import errno
 
 
 class ActiveSplatError(Exception):
@@ -48,32 +51,94 @@ def check_fields(obj, *, positive: tuple[str, ...] = (), non_negative: tuple[str
                 raise InvalidInputError(f"{type(obj).__name__}.{name} must be {text}{off}, got {value}")
 
 
-_BAD_PATH = (FileExistsError, FileNotFoundError, NotADirectoryError, IsADirectoryError, PermissionError)
+# --------------------------------------------------------------------------- output paths
+# Every command that writes a file or folder the user names checks it with check_output_file /
+# check_output_folder before any slow work (scene build, mapping, training), and turns an OSError of the
+# write itself into the same one-line message with cannot_write.
 
-
-def cannot_write(path, exc: OSError, label: str = "") -> Exception:
-    """The one-line InvalidInputError of an output path that cannot be written (a file where a folder should
-    be, a folder in the file's place, a missing or read-only location), ``label`` (e.g. an option name)
-    before the path; any other OSError (a full disk) is returned as it is, for the command line's own
-    message."""
-    if not isinstance(exc, _BAD_PATH):
-        return exc
-    where = f"{label} {path}: cannot write it" if label else f"cannot write {path}"
-    blocked = blocked_path(path)
-    if blocked:
-        return InvalidInputError(f"{where}{', ' if label else ': '}{blocked}")
-    return InvalidInputError(f"{where} ({exc.strerror or type(exc).__name__})")
-
-
-def blocked_path(path) -> str:
-    """Why no file can be written at `path`, before trying: "it is a folder", or "X is a file, not a folder"
-    for the nearest existing folder above it that is a file; "" when nothing stands in the way."""
+def check_output_file(path, label: str = "") -> None:
+    """Refuse, in one line (InvalidInputError), an output file that cannot be written: a folder stands in
+    its place, a file stands where a folder above it should be, or the folder it would be written in (or
+    the nearest existing folder above it: missing folders are made) is not writable. ``label`` (e.g. an
+    option name, ``--mcap``) is put before the path. Nothing is created."""
     from pathlib import Path
 
     path = Path(path)
+    where = f"cannot write {label} {path}" if label else f"cannot write {path}"
     if path.is_dir():
-        return "it is a folder"
+        raise InvalidInputError(f"{where}: it is a folder")
+    _check_above(path, where)
+
+
+def check_output_folder(path, label: str = "") -> None:
+    """Refuse, in one line (InvalidInputError), an output folder that cannot be written into: a file
+    stands in its place or where a folder above it should be, or it (or, when it does not exist yet, the
+    nearest existing folder above it, where it would be made) is not writable. ``label`` as in
+    :func:`check_output_file`. Nothing is created."""
+    from pathlib import Path
+
+    path = Path(path)
+    where = f"cannot write into {label} {path}" if label else f"cannot write into {path}"
+    if path.exists() and not path.is_dir():
+        raise InvalidInputError(f"{where}: it is a file, not a folder")
+    if path.is_dir():
+        _check_writable(path, where, "it")
+    else:
+        _check_above(path, where)
+
+
+def cannot_write(path, exc: OSError, label: str = "") -> Exception:
+    """The one-line InvalidInputError of an output file whose writing failed with `exc` (a file where a
+    folder should be, a folder in the file's place, a missing or read-only location), worded as
+    :func:`check_output_file` words it; any other OSError (a full disk) is returned as it is, for the
+    command line's own message."""
+    if not isinstance(exc, _BAD_PATH):
+        return exc
+    from pathlib import Path
+
+    where = f"cannot write {label} {path}" if label else f"cannot write {path}"
+    if Path(path).is_dir():
+        return InvalidInputError(f"{where}: it is a folder")
+    blocker = _file_above(Path(path))
+    if blocker is not None:
+        return InvalidInputError(f"{where}: {blocker} is a file, not a folder")
+    return InvalidInputError(f"{where} ({exc.strerror or type(exc).__name__})")
+
+
+_BAD_PATH = (FileExistsError, FileNotFoundError, NotADirectoryError, IsADirectoryError, PermissionError)
+_FULL = (errno.ENOSPC, errno.EDQUOT)
+
+
+def _file_above(path):
+    """The nearest existing path above `path` when it is a file (no folder can be made under it), else
+    None."""
     for parent in path.parents:
         if parent.exists():
-            return "" if parent.is_dir() else f"{parent} is a file, not a folder"
-    return ""
+            return None if parent.is_dir() else parent
+    return None
+
+
+def _check_above(path, where: str) -> None:
+    """`path` does not exist (or is a file to replace): the nearest existing folder above it must be a
+    folder, and writable."""
+    for parent in path.parents:
+        if parent.exists():
+            if not parent.is_dir():
+                raise InvalidInputError(f"{where}: {parent} is a file, not a folder")
+            _check_writable(parent, where, str(parent))
+            return
+
+
+def _check_writable(folder, where: str, name: str) -> None:
+    """A file can be made in `folder` (tried with an unnamed temporary file, which leaves nothing behind):
+    an InvalidInputError when not (a read-only folder or file system, a folder such as /proc), except for a
+    full disk, raised as it is for the command line's own message."""
+    import tempfile
+
+    try:
+        with tempfile.TemporaryFile(dir=folder):
+            pass
+    except OSError as exc:
+        if exc.errno in _FULL:
+            raise
+        raise InvalidInputError(f"{where}: {name} is not writable ({exc.strerror})") from None

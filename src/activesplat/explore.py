@@ -70,6 +70,8 @@ def explore_episode(run, out: str | Path | None = None, overwrite: bool = False,
     from activesplat.sim import Simulator, load_scene
     from activesplat.sim.scene import BUILTIN_PATTERN, scene_label
 
+    out_dir = Path(out) if out is not None else _default_out(run.scene, run.policy, run.seed)
+    EpisodeWriter.check(out_dir, overwrite)  # before the scene is built
     scene_obj = scene if scene is not None else load_scene(run.scene, z_up=run.z_up, floor=run.floor)
     steps = int(run.steps or scene_obj.default_steps)
     run = run.replace(steps=steps)
@@ -77,7 +79,6 @@ def explore_episode(run, out: str | Path | None = None, overwrite: bool = False,
         # a mesh file by its absolute path: evaluate, render-eval and --config work from any folder
         run = run.replace(scene=str(Path(run.scene).resolve()))
     sim = Simulator(scene_obj, seed=run.seed, config=run.sim)
-    out_dir = Path(out) if out is not None else _default_out(run.scene, run.policy, run.seed)
     cov_cfg = run.coverage
     coverage = CoverageAccumulator(scene_obj.sample_surface(cov_cfg.n_gt_points, seed=cov_cfg.seed), cov_cfg)
     meta = {"scene": run.scene, "scene_name": scene_obj.name, "z_up": run.z_up,

@@ -10,15 +10,16 @@ from collections import defaultdict
 from collections.abc import Callable
 
 
-def progress_bar(total: int, desc: str, unit: str, enabled: bool = True, **kwargs):
+def progress_bar(total: int, desc: str, unit: str, enabled: bool = True, initial: int = 0, **kwargs):
     """The progress bar every long command shows on stderr (tqdm, at most two updates a second, as wide as
-    the terminal); None when `enabled` is off (``--no-progress``)."""
+    the terminal), `total` `unit`s long, starting at `initial` (a resumed run); None when `enabled` is off
+    (``--no-progress``). Other keyword arguments go to tqdm."""
     if not enabled:
         return None
     from tqdm import tqdm
 
-    return tqdm(total=total, desc=desc, unit=unit, dynamic_ncols=True, file=sys.stderr, mininterval=0.5,
-                **kwargs)
+    return tqdm(total=total, desc=desc, unit=unit, initial=initial, dynamic_ncols=True, file=sys.stderr,
+                mininterval=0.5, **kwargs)
 
 
 class Timers:

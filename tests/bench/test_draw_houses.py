@@ -36,3 +36,15 @@ def test_an_unknown_house_is_a_clear_error(draw_houses, tmp_path, capsys):
     with pytest.raises(SystemExit):
         draw_houses.main(["--out", str(tmp_path / "x.png"), "--houses", "medium-x"])
     assert "unknown scene 'medium-x'" in capsys.readouterr().err
+
+
+def test_an_output_that_cannot_be_written_is_refused_before_the_houses_are_built(draw_houses, tmp_path,
+                                                                                 capsys, monkeypatch):
+    def slow(*args, **kwargs):
+        raise AssertionError("the houses were built before the output was checked")
+
+    monkeypatch.setattr(draw_houses, "houses_figure", slow)
+    (tmp_path / "x.png").mkdir()
+    with pytest.raises(SystemExit):
+        draw_houses.main(["--out", str(tmp_path / "x.png"), "--houses", "small-0"])
+    assert f"cannot write --out {tmp_path / 'x.png'}: it is a folder" in capsys.readouterr().err

@@ -35,3 +35,19 @@ def test_snapshots_of_a_tiny_exploration(snapshots, tmp_path):
     explore_episode(run, out=tmp_path / "episode", progress=False, viewer=snaps, scene=scene)
     assert [p.name for p in snaps.written] == ["step3.png", "step50.png"]
     assert all(p.stat().st_size > 10_000 for p in snaps.written)
+
+
+def test_an_output_folder_that_cannot_be_written_is_refused_before_the_scene_is_built(snapshots, tmp_path,
+                                                                                      monkeypatch):
+    import re
+    import sys
+
+    def slow(*args, **kwargs):
+        raise AssertionError("the scene was built before the output was checked")
+
+    monkeypatch.setattr(snapshots, "load_scene", slow)
+    (tmp_path / "file").write_text("")
+    monkeypatch.setattr(sys, "argv", ["plan_snapshots.py", "--at", "3", "--out", str(tmp_path / "file")])
+    message = f"plan_snapshots.py: error: cannot write into --out {tmp_path}/file: it is a file, not a folder"
+    with pytest.raises(SystemExit, match=re.escape(message)):
+        snapshots.main()

@@ -61,3 +61,25 @@ def test_the_mapping_ceiling_tour_is_an_episode_of_neighbouring_look_arounds(tmp
     # back and forth along the rows: half the long moves of the sweep's own row-major order
     grid = sweep_poses(load_scene("small-0"), cfg=cfg)[::8, [0, 2], 3]
     assert (steps > 1.5).sum() <= (np.linalg.norm(np.diff(grid, axis=0), axis=1) > 1.5).sum() // 2
+
+
+def test_the_sweep_shows_the_progress_bar_of_every_long_command(monkeypatch):
+    """`timing.progress_bar`: one step per view, closed at the end; none without `progress`."""
+    from activesplat import timing
+    from activesplat.eval import sweep
+
+    bars = []
+
+    def recorded(*args, **kwargs):
+        bars.append((args, kwargs, timing.progress_bar(*args, **kwargs)))
+        return bars[-1][2]
+
+    monkeypatch.setattr(sweep, "progress_bar", recorded)
+    cfg = SweepConfig(spacing_m=2.0, yaw_step_deg=180.0, pitches_deg=(0.0,))
+    scene = box_room(4.0, 3.0)
+    m = exhaustive_sweep(scene, cfg=cfg, coverage_config=CoverageConfig(n_gt_points=1000), progress=True)
+    (args, _, bar), = bars
+    assert args == (m["n_views"], f"sweep {scene.name}", "view", True)
+    assert bar.n == m["n_views"] and bar.disable  # closed
+    exhaustive_sweep(box_room(4.0, 3.0), cfg=cfg, coverage_config=CoverageConfig(n_gt_points=1000))
+    assert bars[-1][2] is None

@@ -220,6 +220,30 @@ def test_an_output_folder_that_cannot_be_written_is_refused_before_training(fres
         raise PermissionError(13, "Permission denied")
 
     monkeypatch.setattr(tempfile, "TemporaryFile", read_only)
-    with pytest.raises(InvalidInputError, match="cannot write into .*refined_3dgs .*Permission denied"):
+    with pytest.raises(InvalidInputError,
+                       match=r"cannot write into .*refined_3dgs: .*ep is not writable \(Permission denied\)"):
         refine(fresh, "3dgs", 4, backend="numba", progress=False, evaluate=False)
     assert trained == []
+
+
+def test_a_resumed_run_shows_the_progress_bar_from_its_iteration(fresh, monkeypatch, capsys):
+    """`timing.progress_bar` (stderr, two updates a second): "refine 3dgs", in iterations, from the
+    checkpoint's iteration; none with progress=False."""
+    from activesplat import timing
+    from activesplat.refine import trainer
+
+    bars = []
+
+    def recorded(*args, **kwargs):
+        bars.append((args, kwargs, timing.progress_bar(*args, **kwargs)))
+        return bars[-1][2]
+
+    monkeypatch.setattr(trainer, "progress_bar", recorded)
+    refine(fresh, "3dgs", 6, config=FAST, backend="numba", progress=False, evaluate=False, stop_at=2)
+    assert bars[-1][2] is None
+    refine(fresh, "3dgs", 6, config=FAST, backend="numba", progress=True, evaluate=False)
+    args, kwargs, bar = bars[-1]
+    assert args == (6, "refine 3dgs", "it", True) and kwargs == {"initial": 2}
+    assert bar.n == 6 and bar.disable  # closed
+    err = capsys.readouterr().err
+    assert "refine 3dgs:" in err and "2/6" in err and "6/6" in err and "psnr=" in err

@@ -86,8 +86,8 @@ def test_export_refuses_bad_point_counts_and_paths(map_folder, tmp_path, capsys)
     assert len(base64.b64decode(clouds[0]["data"])) == 16  # one point
     inside = out / "e1.mcap"  # out is a file
     assert main(["export", str(map_folder), "--mcap", str(inside)]) == 2
-    assert capsys.readouterr().err == (f"activesplat: error: --mcap {inside}: cannot write it, {out} is a "
-                                       f"file, not a folder\n")
+    assert capsys.readouterr().err == (f"activesplat: error: cannot write --mcap {inside}: {out} is a file, "
+                                       f"not a folder\n")
     nested = tmp_path / "new" / "sub" / "e.mcap"  # missing folders are made
     assert main(["export", str(map_folder), "--mcap", str(nested)]) == 0 and nested.is_file()
     assert not list(tmp_path.rglob("*.partial"))

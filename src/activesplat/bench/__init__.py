@@ -35,7 +35,7 @@ from activesplat.bench.runner import (
     run_serial,
 )
 from activesplat.bench.tables import RunRecord, TableConfig, add_derived, collect, markdown_report, write_csv
-from activesplat.errors import InvalidInputError
+from activesplat.errors import InvalidInputError, check_output_file, check_output_folder
 
 __all__ = ["BenchmarkConfig", "BenchmarkReport", "RunSpec", "TableConfig", "benchmark_from_command",
            "run_benchmark", "write_report"]
@@ -100,6 +100,9 @@ def run_benchmark(scenes: Sequence[str], policies: Sequence[str], trials: int = 
     if (run_options or {}).get("config") is not None:
         check_configs(specs, run_options["config"])
     root = Path(root).resolve()
+    check_output_folder(root)  # before the runs, and the tables after them
+    for name in ("results.csv", "results.md"):
+        check_output_file(root / name)
     root.mkdir(parents=True, exist_ok=True)
     todo = [s for s in specs if read_metrics(s.out) is None]
     where = f"Ray ({ray_address or 'default address'})" if executor == "ray" else (

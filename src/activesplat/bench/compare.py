@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from activesplat.bench.runner import read_metrics
-from activesplat.errors import InvalidInputError
+from activesplat.errors import InvalidInputError, cannot_write, check_output_file
 
 SAME_TOL_PCT = 0.005
 """Completion differences smaller than this (percentage points) count as the same."""
@@ -280,6 +280,8 @@ def compare_report(pairs: list[Pair], ceilings: dict[str, dict] | None = None, b
 
 def compare_from_args(args) -> int:
     """`activesplat compare BASE NEW` (argparse namespace: base, new, policy, base_policy, ceilings, out)."""
+    if args.out:  # before the report is printed (missing folders above it are made)
+        check_output_file(args.out, "--out")
     pairs, unpaired = pair_runs(args.base, args.new, args.policy, args.base_policy)
     roots = [args.new, args.base, *([args.ceilings] if args.ceilings else [])]
     ceilings = read_ceilings({p.scene for p in pairs}, roots)
@@ -288,9 +290,10 @@ def compare_from_args(args) -> int:
     print(report, end="")
     if args.out:
         try:
+            Path(args.out).parent.mkdir(parents=True, exist_ok=True)
             Path(args.out).write_text(report, encoding="utf-8")
         except OSError as exc:
-            raise InvalidInputError(f"cannot write --out {args.out}: {exc.strerror}") from exc
+            raise cannot_write(args.out, exc, "--out") from None
     return 0
 
 

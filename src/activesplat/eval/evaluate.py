@@ -6,7 +6,7 @@ import json
 from pathlib import Path
 
 from activesplat.episode import Episode, has_no_ground_truth, read_episode, write_json_atomic
-from activesplat.errors import EpisodeError
+from activesplat.errors import EpisodeError, check_output_file
 from activesplat.eval.coverage import CoverageConfig
 from activesplat.eval.replay import replay_coverage
 
@@ -71,8 +71,10 @@ def evaluate_episode(path: str | Path, write: bool = True) -> dict:
     """Replay DIR/actions.txt from the recorded start pose, measure completion (docs/protocol.md §6) and
     update DIR/metrics.json (a partial episode gets one marked `"complete": false`)."""
     episode = read_episode(path)
-    result = replay_episode(episode)
     metrics_path = episode.dir / "metrics.json"
+    if write:  # before the replay (a read-only folder failed after it)
+        check_output_file(metrics_path)
+    result = replay_episode(episode)
     metrics = {"complete": False}
     if metrics_path.exists():
         try:

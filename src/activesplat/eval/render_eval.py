@@ -40,12 +40,14 @@ import numpy as np
 import torch
 
 from activesplat.episode import episode_and_map, is_recorded_map, read_episode, read_meta, write_json_atomic
-from activesplat.errors import EpisodeError, InvalidInputError
+from activesplat.errors import EpisodeError, InvalidInputError, check_output_file
 from activesplat.timing import progress_bar
 
 METRIC_KEYS = ("psnr", "ssim", "ms_ssim", "lpips", "depth_l1_cm", "depth_l1_cm_normalised", "unmapped_pct")
 """Per-view metrics, averaged per split into render_metrics.json."""
 SPLITS = ("train", "test")
+OUTPUTS = ("render_metrics.json", "render_grid.png")
+"""What render_eval writes into its output folder."""
 TEST_POSE_STREAM = 0x7E57
 """First entropy word of the test-pose generator; seed alone would replay the agent's start draw."""
 Renderer = Callable[..., tuple[np.ndarray, np.ndarray, np.ndarray]]
@@ -207,6 +209,8 @@ def render_eval(episode_dir: str | Path, gaussians_path: str | Path | None = Non
     cfg = RenderEvalConfig(**{**asdict(config or RenderEvalConfig()), "n_train": int(n_train),
                               "n_test": int(n_test), "seed": int(seed)})
     episode_dir, gaussians_path, out = locate(episode_dir, gaussians_path, out_dir)
+    for name in OUTPUTS:  # before the renders (a read-only folder failed after all of them)
+        check_output_file(out / name)
     renderer = renderer or default_renderer(gaussians_path)
     # fails early, with the pip command, when the weights are not installed
     lpips_model = LPIPS() if lpips else None

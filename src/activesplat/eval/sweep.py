@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from activesplat.errors import InvalidInputError
+from activesplat.timing import progress_bar
 
 
 @dataclass
@@ -81,13 +82,13 @@ def exhaustive_sweep(scene, sim_config=None, cfg: SweepConfig | None = None, cov
     sensor = scene.sensor_for(sim_config)
     K = intrinsics(cov_cfg.resolution, cov_cfg.resolution, sim_config.hfov_deg)
     coverage = CoverageAccumulator(scene.sample_surface(cov_cfg.n_gt_points, seed=cov_cfg.seed), cov_cfg)
-    it = poses
-    if progress:
-        from tqdm import tqdm
-
-        it = tqdm(poses, desc=f"sweep {scene.name}", unit="view", mininterval=0.5)
-    for pose in it:
+    bar = progress_bar(len(poses), f"sweep {scene.name}", "view", progress)
+    for pose in poses:
         coverage.add_frame(sensor.depth(pose, K, cov_cfg.resolution, cov_cfg.resolution), pose, K)
+        if bar is not None:
+            bar.update(1)
+    if bar is not None:
+        bar.close()
     out = coverage.metrics()
     if getattr(scene, "house", None) is not None:
         from activesplat.eval.behaviour import room_completion

@@ -31,7 +31,12 @@ def render_options(folder: Path) -> dict:
 
 def render_eval_from_args(args: argparse.Namespace) -> int:
     """The `render-eval` command: evaluate the map of `args.dir` with its renderer and print a table."""
+    from activesplat.errors import check_output_file
+
     _, _, out = locate(args.dir)
+    if getattr(args, "budget", False):  # before the evaluation (render_eval checks its own files)
+        for name in ("render_budget.json", "render_budget.png"):
+            check_output_file(Path(out) / name)
     options = {"renderer": None, **render_options(Path(out))}
     result = render_eval(args.dir, n_train=args.n_train, n_test=args.n_test, seed=args.seed,
                          backend=args.backend, progress=not args.no_progress,

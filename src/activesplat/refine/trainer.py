@@ -25,13 +25,11 @@ gives the same map as an uninterrupted run; ``restart=True`` (``--restart``) sta
 
 from __future__ import annotations
 
-import errno
 import json
 import math
 import os
 import signal
 import sys
-import tempfile
 import threading
 import time
 import warnings
@@ -41,7 +39,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from activesplat.errors import ActiveSplatError, EpisodeError, InvalidInputError
+from activesplat.errors import ActiveSplatError, EpisodeError, InvalidInputError, check_output_folder
 from activesplat.refine.adc import DensifyStats, DensityControl, reset_opacity, scene_extent
 from activesplat.refine.config import RefineConfig
 from activesplat.refine.episode_map import check_arguments, load_episode_map, rerender_keyframes
@@ -50,6 +48,7 @@ from activesplat.splat.gaussians import GaussianMap
 from activesplat.splat.losses import mapping_loss
 from activesplat.splat.ply import save_ply
 from activesplat.splat.raster import backend_device
+from activesplat.timing import progress_bar
 
 CHECKPOINT = "checkpoint.pt"
 CHECKPOINT_VERSION = 1
@@ -117,21 +116,6 @@ class _DeferredInterrupt:
         return False
 
 
-def _check_writable(out_dir: Path) -> None:
-    """Before training: the outputs can be written (a read-only DIR, or a file named like the output
-    folder, failed at the first checkpoint, after up to ``checkpoint_every`` iterations, or at the end)."""
-    try:
-        out_dir.mkdir(parents=True, exist_ok=True)
-        with tempfile.TemporaryFile(dir=out_dir):
-            pass
-    except OSError as exc:
-        if out_dir.exists() and not out_dir.is_dir():
-            raise InvalidInputError(f"cannot write into {out_dir}: it is a file, not a folder") from None
-        if exc.errno in (errno.EACCES, errno.EPERM, errno.EROFS, errno.ENOTDIR):
-            raise InvalidInputError(f"cannot write into {out_dir} ({exc.strerror})") from None
-        raise  # a full disk: the command line's own message
-
-
 class Refiner:
     """One refinement run of an episode's map (see the module docstring)."""
 
@@ -144,6 +128,9 @@ class Refiner:
         self.cfg = config if config is not None else RefineConfig()
         self.backend, self.progress = backend, progress
         self.out_dir = Path(out_dir) if out_dir is not None else output_dir(self.episode_dir, method)
+        # before loading and training: a read-only DIR, or a file named like the output folder, failed at the
+        # first checkpoint, after up to ``checkpoint_every`` iterations, or at the end
+        check_output_folder(self.out_dir)
         # 3DGS refinement runs where its rasterizer does (the GPU with gsplat); 2DGS surfels on the CPU
         self.device = backend_device(backend) if method == "3dgs" else torch.device("cpu")
         mapper = load_episode_map(self.episode_dir, self.device)
@@ -163,7 +150,6 @@ class Refiner:
         self.method = make_method(method, self.cfg, self.iters, backend, planar)
         self.densify_until = self.cfg.densify_until(self.iters)
         extent = scene_extent(torch.from_numpy(poses[:, :3, 3]), self.cfg.extent_margin)
-        _check_writable(self.out_dir)
         if restart:
             for name in OUTPUT_FILES:
                 (self.out_dir / name).unlink(missing_ok=True)
@@ -307,23 +293,22 @@ class Refiner:
 
     def train(self, stop_at: int | None = None) -> None:
         """Run the remaining iterations (up to ``stop_at`` if given), checkpointing on the way."""
-        from tqdm import tqdm
-
         end = self.iters if stop_at is None else min(self.iters, int(stop_at))
         if self.iteration >= end:
             return
-        bar = tqdm(total=self.iters, initial=self.iteration, desc=f"refine {self.method_name}", unit="it",
-                   disable=not self.progress, dynamic_ncols=True)
+        bar = progress_bar(self.iters, f"refine {self.method_name}", "it", self.progress,
+                           initial=self.iteration)
         try:
             with _DeferredInterrupt() as interrupt:
                 t0 = time.perf_counter()
                 while self.iteration < end:
                     loss, psnr = self.step()
                     self._track(loss, psnr)
-                    bar.update(1)
-                    if self.iteration % 10 == 0 or self.iteration == end:
-                        bar.set_postfix(loss=f"{self.ema_loss:.4f}", psnr=f"{self.ema_psnr:.2f}",
-                                        n=len(self.gmap), refresh=False)
+                    if bar is not None:
+                        bar.update(1)
+                        if self.iteration % 10 == 0 or self.iteration == end:
+                            bar.set_postfix(loss=f"{self.ema_loss:.4f}", psnr=f"{self.ema_psnr:.2f}",
+                                            n=len(self.gmap), refresh=False)
                     checkpoint = self.iteration % self.cfg.checkpoint_every == 0 or self.iteration == end
                     if checkpoint or interrupt.requested:
                         now = time.perf_counter()
@@ -336,7 +321,8 @@ class Refiner:
                               f"over)", file=sys.stderr)
                         raise KeyboardInterrupt
         finally:
-            bar.close()
+            if bar is not None:
+                bar.close()
 
     def keyframe_metrics(self, indices=None) -> dict:
         """Mean PSNR (dB), depth L1 (m) and loss of the current map over keyframes (all by default),
@@ -444,7 +430,9 @@ def refine(episode_dir: str | Path, method: str = "3dgs", iters: int = 2000, *,
     ask (LPIPS, views), else measured again.
     """
     eval_kwargs = dict(eval_kwargs or {})
-    blocker = evaluation_blocker(check_arguments(episode_dir, method, iters)) if evaluate else None
+    folder = check_arguments(episode_dir, method, iters)
+    check_output_folder(out_dir if out_dir is not None else output_dir(folder, method))  # before the scene
+    blocker = evaluation_blocker(folder) if evaluate else None
     evaluate = evaluate and blocker is None
     refiner = Refiner(episode_dir, method, iters, config, seed, backend, restart, progress, out_dir,
                       image_size)

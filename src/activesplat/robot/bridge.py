@@ -288,11 +288,14 @@ def robot_from_args(args) -> int:
     from pathlib import Path
 
     from activesplat.config import RunConfig
+    from activesplat.episode import EpisodeWriter
     from activesplat.explore import explore_environment
 
     if args.steps <= 0:
         raise InvalidInputError(f"--steps must be > 0, got {args.steps}")
     check_url(args.url)
+    out = Path(args.out)
+    EpisodeWriter.check(out, args.overwrite)  # before connecting (waits up to --timeout per observation)
     env = RosbridgeEnvironment(
         args.url,
         args.rgb_topic,
@@ -304,7 +307,6 @@ def robot_from_args(args) -> int:
         timeout_s=args.timeout,
     )
     run = RunConfig().replace(steps=args.steps, policy=args.policy, seed=args.seed)
-    out = Path(args.out)
     try:
         m = explore_environment(
             env, run, out, overwrite=args.overwrite, progress=not args.no_progress, name="robot"

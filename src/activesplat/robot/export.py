@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from activesplat.errors import EpisodeError, InvalidInputError, cannot_write
+from activesplat.errors import EpisodeError, InvalidInputError, cannot_write, check_output_file
 from activesplat.geometry import K_to_opencv
 
 STEP_S = 0.1
@@ -159,8 +159,7 @@ def export_mcap(
     if max_points is not None and (isinstance(max_points, bool) or max_points < 1):
         raise InvalidInputError(f"--max-points must be >= 1 (leave it out for every map point), got "
                                 f"{max_points}")
-    if out.is_dir():
-        raise InvalidInputError(f"--mcap {out}: it is a folder, not a file")
+    check_output_file(out, "--mcap")
     if out.exists() and not overwrite:
         raise EpisodeError(f"{out} exists; pass --overwrite to replace it")
     _make_parent(out)
@@ -336,8 +335,7 @@ def export_ply(folder: str | Path, out: str | Path, sh_degree: int = 0, overwrit
     if out.suffix != ".ply":
         raise InvalidInputError(f"--ply file must end in .ply: {out}")
     ply_fields(sh_degree)  # a bad degree fails before anything is written
-    if out.is_dir():
-        raise InvalidInputError(f"--ply {out}: it is a folder, not a file")
+    check_output_file(out, "--ply")
     if out.exists() and not overwrite:
         raise EpisodeError(f"{out} exists; pass --overwrite to replace it")
     try:
@@ -369,9 +367,12 @@ def export_from_args(args) -> int:
         raise InvalidInputError("--sh-degree applies to --ply FILE only")
     if args.max_points is not None and args.mcap is None:
         raise InvalidInputError("--max-points applies to --mcap FILE only")
-    for out in (args.ply, args.mcap):  # neither is written when the other would be refused for existing
-        if out is not None and Path(out).is_file() and not args.overwrite:
-            raise EpisodeError(f"{out} exists; pass --overwrite to replace it")
+    # neither is written when the other would be refused (it exists, or cannot be written)
+    for out, label in ((args.ply, "--ply"), (args.mcap, "--mcap")):
+        if out is not None:
+            check_output_file(out, label)
+            if Path(out).is_file() and not args.overwrite:
+                raise EpisodeError(f"{out} exists; pass --overwrite to replace it")
     if args.ply is not None:
         sh = 0 if args.sh_degree is None else args.sh_degree
         export_ply(args.dir, args.ply, sh_degree=sh, overwrite=args.overwrite)

@@ -38,7 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from activesplat.episode import software, write_json_atomic, write_npz
-from activesplat.errors import EpisodeError, InvalidInputError
+from activesplat.errors import EpisodeError, InvalidInputError, check_output_folder
 from activesplat.eval.render_eval import HELDOUT_FILE
 from activesplat.robot.recording import Recording
 from activesplat.robot.transforms import matrix_tq
@@ -51,15 +51,22 @@ WORLD_UP = {"y": np.eye(4), "z": np.array([[1.0, 0, 0, 0], [0, 0, 1, 0], [0, -1,
 """map_T_source per up axis of the source world: z-up (x, y, z) -> (x, z, -y), a proper rotation."""
 
 
+def check_out(out: str | Path, overwrite: bool = False) -> None:
+    """The map folder `out` can be written (the map is made in ``OUT.partial`` beside it, then renamed) and
+    holds nothing, or a map or episode to replace with `overwrite`: checked before the recording is scanned.
+    InvalidInputError / EpisodeError, in one line."""
+    out = Path(out)
+    check_output_folder(out)
+    check_output_folder(out.with_name(out.name + ".partial"))
+    if out.is_dir() and any(out.iterdir()):
+        if not overwrite:
+            raise EpisodeError(f"{out} exists and is not empty; pass --overwrite to replace it")
+        if not (out / "episode.json").is_file():
+            raise EpisodeError(f"{out} is not a map or episode folder; refusing to replace it")
+
+
 def _prepare_out(out: Path, overwrite: bool) -> Path:
-    if out.exists():
-        if not out.is_dir():
-            raise EpisodeError(f"output path {out} exists and is not a folder")
-        if any(out.iterdir()):
-            if not overwrite:
-                raise EpisodeError(f"{out} exists and is not empty; pass --overwrite to replace it")
-            if not (out / "episode.json").is_file():
-                raise EpisodeError(f"{out} is not a map or episode folder; refusing to replace it")
+    check_out(out, overwrite)
     tmp = out.with_name(out.name + ".partial")
     if tmp.exists():
         shutil.rmtree(tmp)
@@ -281,6 +288,8 @@ def map_from_args(args) -> int:
     """The ``map`` command."""
     from activesplat.robot.recording import open_recording
 
+    out = Path(args.out) if args.out else Path("runs") / (Path(args.recording).stem + "-map")
+    check_out(out, args.overwrite)  # before the recording is scanned
     rec = open_recording(
         args.recording,
         args.rgb_topic,
@@ -295,7 +304,6 @@ def map_from_args(args) -> int:
         skip_unposed=args.skip_unposed,
         depth_check=not args.no_depth_check,
     )
-    out = Path(args.out) if args.out else Path("runs") / (Path(args.recording).stem + "-map")
     m = map_recording(
         rec,
         out,
