@@ -377,3 +377,54 @@ def test_summary_says_when_the_timings_include_numba_compiling(tmp_path):
             "code change, later runs are faster)") in cold
     for warm in ({**metrics, "jit_compile_s": 0.2}, metrics):  # little or none; an episode from before
         assert "compiling" not in format_summary(warm, tmp_path)
+
+
+NEW_IN_THE_LOOP = """
+import sys
+
+from numba.core.registry import CPUDispatcher
+
+import activesplat.explore as explore
+import activesplat.timing as timing
+from activesplat.eval.coverage import CoverageConfig
+from activesplat.planning.explorer_config import ExplorerConfig
+from activesplat.sim import SimConfig
+
+
+def compiled():
+    return {(name, attr, sig) for name, module in list(sys.modules.items()) if name.startswith("activesplat")
+            for attr, obj in list(vars(module).items()) if isinstance(obj, CPUDispatcher)
+            for sig in obj.signatures}
+
+
+at_start = set()
+enter = timing.JitCompileClock.__enter__
+
+
+def clock_starts(self):
+    at_start.update(compiled())
+    return enter(self)
+
+
+timing.JitCompileClock.__enter__ = clock_starts
+explore.run_exploration("small-0", steps=30, seed=1, out=sys.argv[1], sim_config=SimConfig(width=64, height=64),
+                        coverage_config=CoverageConfig(n_gt_points=4000, batch_frames=10), progress=False,
+                        backend="numba", explorer_config=ExplorerConfig(bootstrap_yaw_deg=90.0))
+print(sorted({f"{name}.{attr}" for name, attr, _ in compiled() - at_start}))
+"""
+
+
+def test_no_numba_kernel_is_first_used_inside_the_timed_loop(tmp_path):
+    """Every numba kernel (and type signature) the loop runs is loaded, or compiled in the first run after an
+    install or a code change, before the clock starts, so that the step times of a fresh process hold no
+    compiling: a fresh process (the kernels not in its memory yet, whatever numba's on-disk cache holds)
+    lists the kernels that got a new signature inside the loop (without the warm-up: the mapper's, the
+    planner's grid DBSCAN, the panorama scoring's coarser map). The look-around is cut to 90 degrees so
+    that 30 actions reach the policy's planning."""
+    import subprocess
+    import sys
+
+    res = subprocess.run([sys.executable, "-c", NEW_IN_THE_LOOP, str(tmp_path / "ep")], capture_output=True,
+                         text=True, timeout=600)
+    assert res.returncode == 0, res.stderr
+    assert res.stdout.strip().splitlines()[-1] == "[]"

@@ -167,6 +167,7 @@ class _Exploration:
         self.mapper_phases: dict[str, float] = {}  # ms over the episode, per phase of Mapper._map_frame
         self.curve: list[dict] = []
         self.setup_s = _prepare_rasterizer(self.mapper, run, progress)  # kept out of the per-step timings
+        self.setup_s += _warm_up_kernels(run, self.mapper.backend)
         # the other numba kernels compile on first use, inside the timed loop: how long, is measured
         self.jit = JitCompileClock(self.timers).__enter__()  # closed by explore_environment
         self.t_start = time.perf_counter()
@@ -392,6 +393,47 @@ def _prepare_rasterizer(mapper, run, progress: bool) -> float:
         print("loading gsplat's CUDA kernels (the first use after an install compiles them: 1-2 minutes)",
               file=sys.stderr)
     return prepare_backend(mapper.backend, planar_depth=run.mapper.planar_depth)
+
+
+WARM_UP_SIZE = 32
+"""Image side of the made-up view `_warm_up_kernels` maps (pixels)."""
+
+
+def _warm_up_kernels(run, backend: str) -> float:
+    """The kernels the loop would otherwise compile on its first use of them (numba's, in the first run
+    after an install or a code change), loaded or compiled before the clock starts: a throwaway map of a
+    made-up 32 x 32 view of a slanted wall, seen from three poses with the run's mapper settings, a
+    coarser copy of it rendered (the policies' panorama scoring), and the planner's own kernels on tiny
+    inputs. The run's random states are left as they were, so the actions do not change. Its seconds."""
+    import torch
+
+    from activesplat.geometry import intrinsics, voxel_keys
+    from activesplat.planning.clusters import grid_dbscan
+    from activesplat.splat import Mapper
+
+    t0 = time.perf_counter()
+    n = WARM_UP_SIZE
+    K = intrinsics(n, n, 90.0)
+    v, u = np.mgrid[0:n, 0:n].astype(np.float32)
+    depth = (2.0 + (u - n / 2) / n).astype(np.float32)  # a wall 1.5-2.5 m away, slanted
+    rgb = np.stack([u * 255 / n, v * 255 / n, np.full_like(u, 128)], axis=-1).astype(np.uint8)
+    numpy_state, torch_state = np.random.get_state(), torch.random.get_rng_state()
+    try:
+        mapper = Mapper(K, n, n, config=run.mapper, backend=backend)
+        for k in range(3):
+            yaw = math.radians(5.0 * k)
+            pose = np.eye(4)
+            pose[[0, 0, 2, 2], [0, 2, 0, 2]] = [math.cos(yaw), math.sin(yaw), -math.sin(yaw), math.cos(yaw)]
+            mapper.add_frame(rgb, depth, pose, dense=k % 2 == 0)
+        lod = run.explorer.planning.panorama.score_lod_voxel_m
+        mapper.snapshot(lod_voxel_m=lod if lod is not None else 0.05)(pose, front_alpha=True)
+        grid_dbscan(np.eye(8, dtype=bool), 1.5, 2)
+        voxel_keys(np.zeros((2, 3)), 0.05)
+        voxel_keys(np.zeros((2, 3), dtype=np.float32), 0.05)
+    finally:
+        np.random.set_state(numpy_state)
+        torch.random.set_rng_state(torch_state)
+    return time.perf_counter() - t0
 
 
 def _next_waypoint(explorer) -> np.ndarray | None:
