@@ -196,8 +196,10 @@ def test_interrupted_run_leaves_a_consistent_partial_episode(tmp_path, monkeypat
         return original(self, obs)
 
     monkeypatch.setattr(explorer_mod.ActiveSplatExplorer, "act", act)
+    from activesplat.errors import Interrupted
+
     out = tmp_path / "partial"
-    with pytest.raises(KeyboardInterrupt):
+    with pytest.raises(Interrupted):  # its line printed: the command line adds none, exits with 130
         run_exploration("small-0", policy="activesplat", steps=50, seed=0, out=out, **TINY)
     assert not (out / "metrics.json").exists()
     ep = read_episode(out)
@@ -205,6 +207,53 @@ def test_interrupted_run_leaves_a_consistent_partial_episode(tmp_path, monkeypat
     assert (out / "gaussians.ply").exists()
     m = evaluate_episode(out)
     assert m["steps"] == 11 and m["complete"] is False
+
+
+def _ctrl_c(*args, **kwargs):
+    raise KeyboardInterrupt
+
+
+def test_ctrl_c_while_loading_the_scene_is_one_line_and_writes_nothing(tmp_path, monkeypatch, capsys):
+    from activesplat import sim
+
+    monkeypatch.setattr(sim, "load_scene", _ctrl_c)
+    out = tmp_path / "ep"
+    code, err = _cli(capsys, "explore", "--scene", "small-0", "--steps", "5", "--no-progress",
+                     "--out", str(out))
+    assert code == 130  # as a Ctrl-C in the loop
+    assert err.strip() == f"interrupted while loading the scene small-0: nothing written to {out}"
+    assert not out.exists()
+
+
+@pytest.mark.filterwarnings("ignore:a budget of")
+def test_ctrl_c_in_the_set_up_or_the_first_step_leaves_the_folder_as_it_was(tmp_path, monkeypatch, capsys):
+    """Before the first action is recorded nothing is written: no folder, and with --overwrite the episode
+    already there is kept; the line says what was interrupted."""
+    from activesplat import explore
+    from activesplat.errors import Interrupted
+    from activesplat.planning import activesplat as explorer_mod
+
+    out = tmp_path / "ep"
+    monkeypatch.setattr(explore, "_warm_up_kernels", _ctrl_c)
+    with pytest.raises(Interrupted):
+        run_exploration("small-0", steps=5, out=out, **TINY)
+    assert "interrupted while loading the mapper's and the planner's kernels" in capsys.readouterr().err
+    assert not out.exists()
+    monkeypatch.undo()
+    run_exploration("small-0", steps=2, out=out, **TINY)  # an episode already there
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    monkeypatch.setattr(explore, "_warm_up_kernels", _ctrl_c)
+    with pytest.raises(Interrupted):
+        run_exploration("small-0", steps=5, out=out, overwrite=True, **TINY)
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+    monkeypatch.undo()
+    monkeypatch.setattr(explorer_mod.ActiveSplatExplorer, "act", _ctrl_c)  # the first step, before its action
+    capsys.readouterr()
+    with pytest.raises(Interrupted):
+        run_exploration("small-0", steps=5, out=tmp_path / "first", **TINY)
+    err = capsys.readouterr().err.strip()
+    assert err == f"interrupted in the first step, before its action: nothing written to {tmp_path / 'first'}"
+    assert not (tmp_path / "first").exists()
 
 
 def _cli(capsys, *argv):
@@ -372,8 +421,8 @@ def test_summary_says_when_the_timings_include_numba_compiling(tmp_path):
                "completion_ratio_pct": 63.0, "completion_cm": 12.4, "completion_cm_uncapped": 12.5,
                "path_length_m": 2.2, "n_gaussians": 1, "timing_ms": dict.fromkeys(TIMING_KEYS, 1.0)}
     cold = format_summary({**metrics, "jit_compile_s": 17.2}, tmp_path)
-    assert ("(213 ms/step of which 26 live evaluation; 32 s wall, after 18 s loading the rasterizer's "
-            "kernels; 17 s of the wall time compiling numba kernels: the first run after an install or a "
+    assert ("(213 ms/step of which 26 live evaluation; 32 s wall, after 18 s loading the kernels; 17 "
+            "s of the wall time compiling numba kernels: the first run after an install or a "
             "code change, later runs are faster)") in cold
     for warm in ({**metrics, "jit_compile_s": 0.2}, metrics):  # little or none; an episode from before
         assert "compiling" not in format_summary(warm, tmp_path)
@@ -407,7 +456,8 @@ def clock_starts(self):
 
 
 timing.JitCompileClock.__enter__ = clock_starts
-explore.run_exploration("small-0", steps=30, seed=1, out=sys.argv[1], sim_config=SimConfig(width=64, height=64),
+explore.run_exploration("small-0", steps=30, seed=1, out=sys.argv[1],
+                        sim_config=SimConfig(width=64, height=64),
                         coverage_config=CoverageConfig(n_gt_points=4000, batch_frames=10), progress=False,
                         backend="numba", explorer_config=ExplorerConfig(bootstrap_yaw_deg=90.0))
 print(sorted({f"{name}.{attr}" for name, attr, _ in compiled() - at_start}))

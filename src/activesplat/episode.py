@@ -104,17 +104,24 @@ def _pose_line(step: int, pose: np.ndarray) -> str:
     return f"{step} " + " ".join(f"{v:.9g}" for v in np.asarray(pose, dtype=np.float64).reshape(16)) + "\n"
 
 
+def check_episode_folder(out_dir: str | Path, overwrite: bool = False) -> None:
+    """The checks of `EpisodeWriter` before it touches `out_dir`: an EpisodeError when it is not a folder,
+    or when it holds an episode (complete or partial) and `overwrite` is off."""
+    d = Path(out_dir)
+    if d.exists() and not d.is_dir():
+        raise EpisodeError(f"output path {d} exists and is not a folder")
+    if not overwrite:
+        held = _held_episode(d)
+        if held:
+            raise EpisodeError(f"{d} already holds {held}; pass --overwrite to replace it")
+
+
 class EpisodeWriter:
     """Appends actions and poses as they happen; `finish(metrics)` marks the episode complete."""
 
     def __init__(self, out_dir: str | Path, overwrite: bool = False):
         self.dir = Path(out_dir)
-        if self.dir.exists() and not self.dir.is_dir():
-            raise EpisodeError(f"output path {self.dir} exists and is not a folder")
-        if not overwrite:
-            held = _held_episode(self.dir)
-            if held:
-                raise EpisodeError(f"{self.dir} already holds {held}; pass --overwrite to replace it")
+        check_episode_folder(self.dir, overwrite)
         self.dir.mkdir(parents=True, exist_ok=True)
         for name in EPISODE_FILES:
             (self.dir / name).unlink(missing_ok=True)
