@@ -34,6 +34,7 @@ def test_episode_folder_is_complete(episode):
     assert ep.complete and len(ep.actions) == 90 and ep.poses.shape == (91, 4, 4)
     assert ep.actions[:2] == ["turn_left", "look_down"]  # the bootstrap look-around comes first
     assert set(ep.meta["software"]) == {"activesplat", "commit", "modified"}  # which code wrote it
+    assert "config_not_used" not in ep.meta  # the run's own simulator: every setting applied
     saved = json.loads((out / "metrics.json").read_text())
     for key in ("completion_ratio_pct", "completion_cm", "completion_cm_uncapped", "path_length_m", "steps",
                 "wall_time_s", "timing_ms"):

@@ -216,6 +216,9 @@ class _Exploration:
             "camera": {"width": env.width, "height": env.height, "K": np.asarray(env.K).tolist()},
             "software": software(),  # the package version, and the git commit of a checkout
         }
+        not_used = _config_not_used(env, run, self.evaluator is not None)
+        if not_used:
+            meta["config_not_used"] = not_used
         if self.evaluator is None:  # no ground truth: evaluate and render-eval's scene checks say so
             meta["source"] = ENVIRONMENT_SOURCE
         return meta
@@ -430,6 +433,24 @@ def _interrupted(when: str, out_dir: Path) -> Interrupted:
     line = f"interrupted {when}: nothing written to {out_dir}"
     print(f"\n{line}", file=sys.stderr)
     return Interrupted(line)
+
+
+def _config_not_used(env, run, ground_truth: bool) -> list[str]:
+    """The settings of `run` (dotted paths in its config) an exploration in `env` does not use: in an
+    environment other than the run's own simulator, the ``sim`` fields of the simulated camera, renderer
+    and navigability (the environment's camera is episode.json's ``camera``; the loop takes from ``sim``
+    only the agent's body, sensor height and action sizes, `config.DERIVED`); without ground truth,
+    ``coverage``."""
+    from dataclasses import fields
+
+    from activesplat.config import DERIVED
+
+    out = []
+    if getattr(env, "config", None) != run.sim:
+        out += [f"sim.{f.name}" for f in fields(run.sim) if f.name not in DERIVED.values()]
+    if not ground_truth:
+        out.append("coverage")
+    return out
 
 
 def _warn_if_no_choice(run, stacklevel: int) -> None:
