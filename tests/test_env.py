@@ -56,6 +56,14 @@ def test_the_exploration_loop_runs_a_user_environment(tmp_path):
     meta = json.loads((tmp_path / "ep" / "episode.json").read_text())
     assert meta["scene"] == "turntable" and meta["config"]["steps"] == 6
     assert meta["source"] == "environment" and meta["camera"]["width"] == 32  # the camera it saw
+    # the run's sim settings stay recorded (--config reruns them); those of the simulated camera, renderer and
+    # navigability did not apply, nor did the completion measure without ground truth
+    assert meta["config"]["sim"]["width"] == 32 and meta["config"]["sim"]["turn_deg"] == 10.0
+    not_used = set(meta["config_not_used"])
+    assert {"sim.width", "sim.height", "sim.hfov_deg", "sim.max_depth", "sim.texture_filter", "sim.nav_cell",
+            "coverage"} <= not_used
+    assert not {"sim.turn_deg", "sim.look_deg", "sim.forward_step", "sim.sensor_height", "sim.agent_radius",
+                "sim.agent_height"} & not_used  # what the planner assumed: the environment should honour them
     for name in ("gaussians.ply", "keyframes.npz", "metrics.json"):
         assert (tmp_path / "ep" / name).is_file()
     from activesplat.errors import EpisodeError

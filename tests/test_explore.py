@@ -34,6 +34,7 @@ def test_episode_folder_is_complete(episode):
     assert ep.complete and len(ep.actions) == 90 and ep.poses.shape == (91, 4, 4)
     assert ep.actions[:2] == ["turn_left", "look_down"]  # the bootstrap look-around comes first
     assert set(ep.meta["software"]) == {"activesplat", "commit", "modified"}  # which code wrote it
+    assert "config_not_used" not in ep.meta  # the run's own simulator: every setting applied
     saved = json.loads((out / "metrics.json").read_text())
     for key in ("completion_ratio_pct", "completion_cm", "completion_cm_uncapped", "path_length_m", "steps",
                 "wall_time_s", "timing_ms"):
@@ -196,8 +197,10 @@ def test_interrupted_run_leaves_a_consistent_partial_episode(tmp_path, monkeypat
         return original(self, obs)
 
     monkeypatch.setattr(explorer_mod.ActiveSplatExplorer, "act", act)
+    from activesplat.errors import Interrupted
+
     out = tmp_path / "partial"
-    with pytest.raises(KeyboardInterrupt):
+    with pytest.raises(Interrupted):  # its line printed: the command line adds none, exits with 130
         run_exploration("small-0", policy="activesplat", steps=50, seed=0, out=out, **TINY)
     assert not (out / "metrics.json").exists()
     ep = read_episode(out)
@@ -205,6 +208,53 @@ def test_interrupted_run_leaves_a_consistent_partial_episode(tmp_path, monkeypat
     assert (out / "gaussians.ply").exists()
     m = evaluate_episode(out)
     assert m["steps"] == 11 and m["complete"] is False
+
+
+def _ctrl_c(*args, **kwargs):
+    raise KeyboardInterrupt
+
+
+def test_ctrl_c_while_loading_the_scene_is_one_line_and_writes_nothing(tmp_path, monkeypatch, capsys):
+    from activesplat import sim
+
+    monkeypatch.setattr(sim, "load_scene", _ctrl_c)
+    out = tmp_path / "ep"
+    code, err = _cli(capsys, "explore", "--scene", "small-0", "--steps", "5", "--no-progress",
+                     "--out", str(out))
+    assert code == 130  # as a Ctrl-C in the loop
+    assert err.strip() == f"interrupted while loading the scene small-0: nothing written to {out}"
+    assert not out.exists()
+
+
+@pytest.mark.filterwarnings("ignore:a budget of")
+def test_ctrl_c_in_the_set_up_or_the_first_step_leaves_the_folder_as_it_was(tmp_path, monkeypatch, capsys):
+    """Before the first action is recorded nothing is written: no folder, and with --overwrite the episode
+    already there is kept; the line says what was interrupted."""
+    from activesplat import explore
+    from activesplat.errors import Interrupted
+    from activesplat.planning import activesplat as explorer_mod
+
+    out = tmp_path / "ep"
+    monkeypatch.setattr(explore, "_warm_up_kernels", _ctrl_c)
+    with pytest.raises(Interrupted):
+        run_exploration("small-0", steps=5, out=out, **TINY)
+    assert "interrupted while loading the mapper's and the planner's kernels" in capsys.readouterr().err
+    assert not out.exists()
+    monkeypatch.undo()
+    run_exploration("small-0", steps=2, out=out, **TINY)  # an episode already there
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    monkeypatch.setattr(explore, "_warm_up_kernels", _ctrl_c)
+    with pytest.raises(Interrupted):
+        run_exploration("small-0", steps=5, out=out, overwrite=True, **TINY)
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+    monkeypatch.undo()
+    monkeypatch.setattr(explorer_mod.ActiveSplatExplorer, "act", _ctrl_c)  # the first step, before its action
+    capsys.readouterr()
+    with pytest.raises(Interrupted):
+        run_exploration("small-0", steps=5, out=tmp_path / "first", **TINY)
+    err = capsys.readouterr().err.strip()
+    assert err == f"interrupted in the first step, before its action: nothing written to {tmp_path / 'first'}"
+    assert not (tmp_path / "first").exists()
 
 
 def _cli(capsys, *argv):
@@ -372,8 +422,60 @@ def test_summary_says_when_the_timings_include_numba_compiling(tmp_path):
                "completion_ratio_pct": 63.0, "completion_cm": 12.4, "completion_cm_uncapped": 12.5,
                "path_length_m": 2.2, "n_gaussians": 1, "timing_ms": dict.fromkeys(TIMING_KEYS, 1.0)}
     cold = format_summary({**metrics, "jit_compile_s": 17.2}, tmp_path)
-    assert ("(213 ms/step of which 26 live evaluation; 32 s wall, after 18 s loading the rasterizer's "
-            "kernels; 17 s of the wall time compiling numba kernels: the first run after an install or a "
+    assert ("(213 ms/step of which 26 live evaluation; 32 s wall, after 18 s loading the kernels; 17 "
+            "s of the wall time compiling numba kernels: the first run after an install or a "
             "code change, later runs are faster)") in cold
     for warm in ({**metrics, "jit_compile_s": 0.2}, metrics):  # little or none; an episode from before
         assert "compiling" not in format_summary(warm, tmp_path)
+
+
+NEW_IN_THE_LOOP = """
+import sys
+
+from numba.core.registry import CPUDispatcher
+
+import activesplat.explore as explore
+import activesplat.timing as timing
+from activesplat.eval.coverage import CoverageConfig
+from activesplat.planning.explorer_config import ExplorerConfig
+from activesplat.sim import SimConfig
+
+
+def compiled():
+    return {(name, attr, sig) for name, module in list(sys.modules.items()) if name.startswith("activesplat")
+            for attr, obj in list(vars(module).items()) if isinstance(obj, CPUDispatcher)
+            for sig in obj.signatures}
+
+
+at_start = set()
+enter = timing.JitCompileClock.__enter__
+
+
+def clock_starts(self):
+    at_start.update(compiled())
+    return enter(self)
+
+
+timing.JitCompileClock.__enter__ = clock_starts
+explore.run_exploration("small-0", steps=30, seed=1, out=sys.argv[1],
+                        sim_config=SimConfig(width=64, height=64),
+                        coverage_config=CoverageConfig(n_gt_points=4000, batch_frames=10), progress=False,
+                        backend="numba", explorer_config=ExplorerConfig(bootstrap_yaw_deg=90.0))
+print(sorted({f"{name}.{attr}" for name, attr, _ in compiled() - at_start}))
+"""
+
+
+def test_no_numba_kernel_is_first_used_inside_the_timed_loop(tmp_path):
+    """Every numba kernel (and type signature) the loop runs is loaded, or compiled in the first run after an
+    install or a code change, before the clock starts, so that the step times of a fresh process hold no
+    compiling: a fresh process (the kernels not in its memory yet, whatever numba's on-disk cache holds)
+    lists the kernels that got a new signature inside the loop (without the warm-up: the mapper's, the
+    planner's grid DBSCAN, the panorama scoring's coarser map). The look-around is cut to 90 degrees so
+    that 30 actions reach the policy's planning."""
+    import subprocess
+    import sys
+
+    res = subprocess.run([sys.executable, "-c", NEW_IN_THE_LOOP, str(tmp_path / "ep")], capture_output=True,
+                         text=True, timeout=600)
+    assert res.returncode == 0, res.stderr
+    assert res.stdout.strip().splitlines()[-1] == "[]"

@@ -19,7 +19,7 @@ from collections.abc import Callable, Sequence
 
 from activesplat import __version__
 from activesplat.cli_options import parse_command
-from activesplat.errors import ActiveSplatError
+from activesplat.errors import ActiveSplatError, Interrupted
 
 Handler = Callable[[argparse.Namespace], int | None]
 
@@ -404,8 +404,9 @@ def _main(argv: Sequence[str] | None) -> int:
     except ActiveSplatError as exc:
         print(f"activesplat: error: {exc}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print("activesplat: interrupted", file=sys.stderr)
+    except KeyboardInterrupt as exc:
+        if not isinstance(exc, Interrupted):  # else the command has said what it stopped and left
+            print("activesplat: interrupted", file=sys.stderr)
         return 130
     except OSError as exc:
         if exc.errno not in _CANNOT_WRITE:

@@ -105,12 +105,24 @@ def _pose_line(step: int, pose: np.ndarray) -> str:
     return f"{step} " + " ".join(f"{v:.9g}" for v in np.asarray(pose, dtype=np.float64).reshape(16)) + "\n"
 
 
+def check_episode_folder(out_dir: str | Path, overwrite: bool = False) -> None:
+    """What `EpisodeWriter` checks before it touches `out_dir`, for a command to call before its slow work
+    (a scene build, a connection to a robot): `out_dir` can be written into (`check_output_folder`), and holds
+    no episode (complete or partial) unless `overwrite`. InvalidInputError / EpisodeError, in one line."""
+    d = Path(out_dir)
+    check_output_folder(d)
+    if not overwrite:
+        held = _held_episode(d)
+        if held:
+            raise EpisodeError(f"{d} already holds {held}; pass --overwrite to replace it")
+
+
 class EpisodeWriter:
     """Appends actions and poses as they happen; `finish(metrics)` marks the episode complete."""
 
     def __init__(self, out_dir: str | Path, overwrite: bool = False):
         self.dir = Path(out_dir)
-        self.check(self.dir, overwrite)
+        check_episode_folder(self.dir, overwrite)
         self.dir.mkdir(parents=True, exist_ok=True)
         for name in EPISODE_FILES:
             (self.dir / name).unlink(missing_ok=True)
@@ -119,18 +131,6 @@ class EpisodeWriter:
                 shutil.rmtree(derived)
         self._actions = None
         self._poses = None
-
-    @staticmethod
-    def check(out_dir: str | Path, overwrite: bool = False) -> None:
-        """What the writer checks first, for a command to call before its slow work (a scene build, a
-        connection to a robot): `out_dir` can be written into, and holds no episode unless `overwrite`.
-        InvalidInputError / EpisodeError, in one line."""
-        out_dir = Path(out_dir)
-        check_output_folder(out_dir)
-        if not overwrite:
-            held = _held_episode(out_dir)
-            if held:
-                raise EpisodeError(f"{out_dir} already holds {held}; pass --overwrite to replace it")
 
     def start(self, meta: dict, pose: np.ndarray) -> None:
         """Write episode.json and the reset pose (step 0)."""

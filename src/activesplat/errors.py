@@ -33,6 +33,11 @@ class RecordingError(InvalidInputError):
     """A recording that cannot be mapped: the message names the topic (or file) and the message."""
 
 
+class Interrupted(KeyboardInterrupt):
+    """Ctrl-C, after the command has said on stderr what it stopped and what it left behind (its one line):
+    the command line exits with 130 without a line of its own."""
+
+
 def check_fields(obj, *, positive: tuple[str, ...] = (), non_negative: tuple[str, ...] = (),
                  unit: tuple[str, ...] = (), at_least_one: tuple[str, ...] = (),
                  optional: tuple[str, ...] = ()) -> None:

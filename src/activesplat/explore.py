@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from activesplat.episode import ENVIRONMENT_SOURCE, EpisodeWriter, software, write_json_atomic
+from activesplat.errors import Interrupted
 from activesplat.eval.behaviour import action_counts, completion_gain, rotation_causes, rotation_pct
 from activesplat.timing import progress_bar
 
@@ -66,25 +67,32 @@ def explore_episode(run, out: str | Path | None = None, overwrite: bool = False,
     episode.json records `run` (its step budget resolved), which `load_run_config` reads back. `scene`: the
     already loaded `Scene` of `run.scene`, if any. The simulator is the environment, and completion is
     measured on the fly from its ground truth."""
-    from activesplat.eval.coverage import CoverageAccumulator
-    from activesplat.sim import Simulator, load_scene
-    from activesplat.sim.scene import BUILTIN_PATTERN, scene_label
+    from activesplat.episode import check_episode_folder
 
     out_dir = Path(out) if out is not None else _default_out(run.scene, run.policy, run.seed)
-    EpisodeWriter.check(out_dir, overwrite)  # before the scene is built
-    scene_obj = scene if scene is not None else load_scene(run.scene, z_up=run.z_up, floor=run.floor)
-    steps = int(run.steps or scene_obj.default_steps)
-    run = run.replace(steps=steps)
-    if scene is None and not BUILTIN_PATTERN.match(str(run.scene)) and Path(run.scene).is_file():
-        # a mesh file by its absolute path: evaluate, render-eval and --config work from any folder
-        run = run.replace(scene=str(Path(run.scene).resolve()))
-    sim = Simulator(scene_obj, seed=run.seed, config=run.sim)
-    cov_cfg = run.coverage
-    coverage = CoverageAccumulator(scene_obj.sample_surface(cov_cfg.n_gt_points, seed=cov_cfg.seed), cov_cfg)
-    meta = {"scene": run.scene, "scene_name": scene_obj.name, "z_up": run.z_up,
-            "start_pose": sim.start_pose.tolist(),
-            "floor": run.floor}  # storey choice of a multi-storey mesh (None: its only storey)
-    evaluator = _Completion(sim, coverage, run)
+    check_episode_folder(out_dir, overwrite)  # before the scene is loaded: a refusal comes at once
+    with _SetUp(out_dir) as setup:
+        from activesplat.eval.coverage import CoverageAccumulator
+        from activesplat.sim import Simulator, load_scene
+        from activesplat.sim.scene import BUILTIN_PATTERN, scene_label
+
+        setup.phase = f"loading the scene {run.scene}"
+        scene_obj = scene if scene is not None else load_scene(run.scene, z_up=run.z_up, floor=run.floor)
+        steps = int(run.steps or scene_obj.default_steps)
+        run = run.replace(steps=steps)
+        if scene is None and not BUILTIN_PATTERN.match(str(run.scene)) and Path(run.scene).is_file():
+            # a mesh file by its absolute path: evaluate, render-eval and --config work from any folder
+            run = run.replace(scene=str(Path(run.scene).resolve()))
+        setup.phase = "building the simulator (navigability map, sensor)"
+        sim = Simulator(scene_obj, seed=run.seed, config=run.sim)
+        setup.phase = "sampling the ground truth for the completion measure"
+        cov_cfg = run.coverage
+        coverage = CoverageAccumulator(scene_obj.sample_surface(cov_cfg.n_gt_points, seed=cov_cfg.seed),
+                                       cov_cfg)
+        meta = {"scene": run.scene, "scene_name": scene_obj.name, "z_up": run.z_up,
+                "start_pose": sim.start_pose.tolist(),
+                "floor": run.floor}  # storey choice of a multi-storey mesh (None: its only storey)
+        evaluator = _Completion(sim, coverage, run)
     metrics = explore_environment(sim, run, out_dir, overwrite=overwrite, progress=progress, viewer=viewer,
                                   evaluator=evaluator, meta=meta, name=scene_obj.name)
     evaluator.draw_trajectory(out_dir / "trajectory.png", metrics.get("rooms"),
@@ -107,17 +115,18 @@ def explore_environment(env, run, out: str | Path, overwrite: bool = False, prog
     III-A), let the policy choose the next action from the map (workspace, viewpoints and planning, sec.
     III-A to III-C; the first ones are the bootstrap look-around), have the environment take it and record
     it; map the last observation too; then the metrics, the map and the figures. Ctrl-C leaves a partial
-    episode that `activesplat evaluate` reads."""
-    episode = _Exploration(env, run, Path(out), overwrite=overwrite, progress=progress, viewer=viewer,
-                           evaluator=evaluator, meta=meta, name=name)
+    episode that `activesplat evaluate` reads; before the first action is recorded (the set-up: reset,
+    mapper, policy, kernels; the first step) it leaves `out` as it was, and says so in one line."""
+    with _SetUp(Path(out), evaluator) as setup:
+        episode = _Exploration(env, run, Path(out), overwrite=overwrite, progress=progress, viewer=viewer,
+                               evaluator=evaluator, meta=meta, name=name, setup=setup)
     try:
         try:
             for step in range(1, episode.steps + 1):
                 episode.step(step)
             episode.end()
         except KeyboardInterrupt:
-            episode.interrupted()
-            raise
+            raise episode.interrupted() from None
         return episode.finish()
     finally:
         episode.jit.close()
@@ -129,14 +138,16 @@ class _Exploration:
     the completion curve)."""
 
     def __init__(self, env, run, out_dir: Path, *, overwrite: bool, progress: bool, viewer, evaluator,
-                 meta: dict | None, name: str):
-        """Set up the run: check the step budget and the backend before the folder is touched, reset the
-        environment, build the mapper and the policy on the floor the agent starts on, start the episode
-        folder (episode.json), load the rasterizer's kernels, start the clock and the progress bar, and
-        hand the reset's frame to the evaluation (the curve's step 0)."""
+                 meta: dict | None, name: str, setup: _SetUp):
+        """Set up the run: check the step budget, the backend and the episode folder, reset the environment,
+        build the mapper and the policy on the floor the agent starts on, describe the episode (episode.json,
+        written with the first action: until then the folder is not touched), load the kernels, start the
+        clock and the progress bar, and hand the reset's frame to the evaluation (the curve's step 0).
+        `setup.phase` says what it is doing, for the line Ctrl-C prints."""
         import torch
 
         from activesplat.env import check_observation
+        from activesplat.episode import check_episode_folder
         from activesplat.errors import InvalidInputError
         from activesplat.planning.policies import make_policy
         from activesplat.sim.scene import scene_label
@@ -147,12 +158,15 @@ class _Exploration:
         if not isinstance(run.steps, int) or run.steps <= 0:
             raise InvalidInputError(f"an environment needs a step budget > 0 (run.steps), got {run.steps}")
         self.env, self.run, self.out_dir, self.viewer, self.evaluator = env, run, out_dir, viewer, evaluator
-        self.steps, self.name = run.steps, name
+        self.steps, self.name, self.overwrite = run.steps, name, overwrite
         resolve_backend(run.backend)  # a backend this machine cannot run fails before the folder is touched
-        self.writer = EpisodeWriter(out_dir, overwrite=overwrite)
+        check_episode_folder(out_dir, overwrite)
+        self.writer: EpisodeWriter | None = None  # the episode folder is written from the first action on
         torch.manual_seed(run.seed)
+        setup.phase = "resetting the environment (its first observation)"
         self.obs = env.reset()
         check_observation(self.obs, env.width, env.height, "reset()")
+        setup.phase = "building the mapper and the policy"
         self.mapper = Mapper(env.K, env.width, env.height, config=run.mapper, backend=run.backend)
         self.timers = Timers()
         # the floor height comes from the agent's own start pose (its sensor height is known), not the mesh
@@ -160,15 +174,21 @@ class _Exploration:
         self.explorer = make_policy(run.policy, self.mapper, self.floor_height, cfg=run.explorer,
                                     timers=self.timers, frontier=run.frontier)
         _warn_if_no_choice(run, stacklevel=4)  # attributed to the caller of explore_environment
-        self.writer.start(self._episode_meta(meta), self.obs.pose)
+        self.meta = self._episode_meta(meta)
+        self.start_pose = np.array(self.obs.pose, dtype=np.float64)
 
         self.actions: list[str] = []
         self.causes: list[str] = []  # why each action was taken (the explorer's `last_cause`)
         self.forward = 0  # forward moves so far (the path length)
         self.mapper_phases: dict[str, float] = {}  # ms over the episode, per phase of Mapper._map_frame
         self.curve: list[dict] = []
+        compiling = "(compiling them: the first run after an install or a code change)"
+        setup.phase = f"loading the rasterizer's kernels {compiling}"
         self.setup_s = _prepare_rasterizer(self.mapper, run, progress)  # kept out of the per-step timings
-        # the other numba kernels compile on first use, inside the timed loop: how long, is measured
+        setup.phase = f"loading the mapper's and the planner's kernels {compiling}"
+        self.setup_s += _warm_up_kernels(run, self.mapper.backend)
+        setup.phase = "measuring the completion of the first observation"
+        # a kernel the warm-ups missed would compile on first use, inside the timed loop: measured
         self.jit = JitCompileClock(self.timers).__enter__()  # closed by explore_environment
         self.t_start = time.perf_counter()
         self.label = scene_label(name)  # in the progress bar and figure titles
@@ -180,6 +200,8 @@ class _Exploration:
                                  {"path_length_m": 0.0, "n_gaussians": 0})
             except BaseException:
                 self.jit.close()
+                if self.bar is not None:
+                    self.bar.close()
                 raise
 
     def _episode_meta(self, meta: dict | None) -> dict:
@@ -194,6 +216,9 @@ class _Exploration:
             "camera": {"width": env.width, "height": env.height, "K": np.asarray(env.K).tolist()},
             "software": software(),  # the package version, and the git commit of a checkout
         }
+        not_used = _config_not_used(env, run, self.evaluator is not None)
+        if not_used:
+            meta["config_not_used"] = not_used
         if self.evaluator is None:  # no ground truth: evaluate and render-eval's scene checks say so
             meta["source"] = ENVIRONMENT_SOURCE
         return meta
@@ -247,6 +272,9 @@ class _Exploration:
         self.forward += action == "move_forward"
         self.actions.append(action)
         self.causes.append(getattr(self.explorer, "last_cause", "") or "policy")
+        if self.writer is None:  # the first action: the episode folder is written from here on
+            self.writer = EpisodeWriter(self.out_dir, overwrite=self.overwrite)
+            self.writer.start(self.meta, self.start_pose)
         self.writer.record(step, action, self.obs.pose)
         if self.evaluator is not None:  # the frame after action `step`: in the curve's point at `step`
             self.timers.time("evaluation", self.evaluator.observe, self.obs.pose)
@@ -280,18 +308,23 @@ class _Exploration:
             self.curve = self.timers.time("evaluation", self.evaluator.finish)
 
     # ------------------------------------------------------------------ the end of the episode
-    def interrupted(self) -> None:
+    def interrupted(self) -> Interrupted:
         """Ctrl-C: the episode folder is left consistent and incomplete (the actions and poses so far, the
         map as it is, no metrics.json), the evaluation's worker and the progress bar are stopped, and the
-        user is told how to evaluate it."""
-        self.writer.close()
+        user is told how to evaluate it; before the first action was recorded, the folder is left as it
+        was. Returns the exception to raise, its line printed."""
         if self.evaluator is not None:
             self.evaluator.close()
         if self.bar is not None:
             self.bar.close()
+        if self.writer is None:
+            return _interrupted("in the first step, before its action", self.out_dir)
+        self.writer.close()
         self.save_map()
-        print(f"\ninterrupted after {len(self.actions)} steps: partial episode in {self.out_dir} "
-              f"(evaluate it with: activesplat evaluate {self.out_dir})", file=sys.stderr)
+        line = (f"interrupted after {len(self.actions)} steps: partial episode in {self.out_dir} "
+                f"(evaluate it with: activesplat evaluate {self.out_dir})")
+        print(f"\n{line}", file=sys.stderr)
+        return Interrupted(line)
 
     def finish(self) -> dict:
         """The finished episode: its metrics (`metrics`), the map (`save_map`), completion.png where there is
@@ -373,6 +406,53 @@ class _Exploration:
                      trajectory=traj, scene=self.label, step=len(self.actions), policy=explorer.name)
 
 
+class _SetUp:
+    """An exploration's set-up under way (``with _SetUp(out_dir) as setup:``), before the episode folder is
+    touched: what it is doing (`phase`, set as it goes) for the one line a Ctrl-C prints; that line says
+    that nothing was written, and the command exits with 130 without a line of its own (`Interrupted`). Any
+    error stops the live evaluation's worker (`evaluator`), if there is one."""
+
+    def __init__(self, out_dir: Path, evaluator=None):
+        self.out_dir, self.evaluator = out_dir, evaluator
+        self.phase = "starting"
+
+    def __enter__(self) -> _SetUp:
+        return self
+
+    def __exit__(self, kind, exc, tb) -> None:
+        if exc is None:
+            return
+        if self.evaluator is not None:
+            self.evaluator.close()
+        if isinstance(exc, KeyboardInterrupt) and not isinstance(exc, Interrupted):
+            raise _interrupted(f"while {self.phase}", self.out_dir) from None
+
+
+def _interrupted(when: str, out_dir: Path) -> Interrupted:
+    """The `Interrupted` of a Ctrl-C before the first action (`when`), its line printed on stderr."""
+    line = f"interrupted {when}: nothing written to {out_dir}"
+    print(f"\n{line}", file=sys.stderr)
+    return Interrupted(line)
+
+
+def _config_not_used(env, run, ground_truth: bool) -> list[str]:
+    """The settings of `run` (dotted paths in its config) an exploration in `env` does not use: in an
+    environment other than the run's own simulator, the ``sim`` fields of the simulated camera, renderer
+    and navigability (the environment's camera is episode.json's ``camera``; the loop takes from ``sim``
+    only the agent's body, sensor height and action sizes, `config.DERIVED`); without ground truth,
+    ``coverage``."""
+    from dataclasses import fields
+
+    from activesplat.config import DERIVED
+
+    out = []
+    if getattr(env, "config", None) != run.sim:
+        out += [f"sim.{f.name}" for f in fields(run.sim) if f.name not in DERIVED.values()]
+    if not ground_truth:
+        out.append("coverage")
+    return out
+
+
 def _warn_if_no_choice(run, stacklevel: int) -> None:
     """A budget that ends within the first look-around leaves the policy nothing to choose: warned about."""
     from activesplat.planning.explorer import bootstrap_actions
@@ -393,6 +473,46 @@ def _prepare_rasterizer(mapper, run, progress: bool) -> float:
         print("loading gsplat's CUDA kernels (the first use after an install compiles them: 1-2 minutes)",
               file=sys.stderr)
     return prepare_backend(mapper.backend, planar_depth=run.mapper.planar_depth)
+
+
+WARM_UP_SIZE = 32
+"""Image side of the made-up view `_warm_up_kernels` maps (pixels)."""
+
+
+def _warm_up_kernels(run, backend: str) -> float:
+    """The kernels the loop would otherwise compile on its first use of them (numba's, in the first run
+    after an install or a code change), loaded or compiled before the clock starts: a throwaway map of a
+    made-up 32 x 32 view of a slanted wall, seen from three poses with the run's mapper settings, a
+    coarser copy of it rendered (the policies' panorama scoring), and the planner's own kernels on tiny
+    inputs. The run's random state (torch's) is left as it was, so the actions do not change. Its seconds."""
+    import torch
+
+    from activesplat.geometry import intrinsics, voxel_keys
+    from activesplat.planning.clusters import grid_dbscan
+    from activesplat.splat import Mapper
+
+    t0 = time.perf_counter()
+    n = WARM_UP_SIZE
+    K = intrinsics(n, n, 90.0)
+    v, u = np.mgrid[0:n, 0:n].astype(np.float32)
+    depth = (2.0 + (u - n / 2) / n).astype(np.float32)  # a wall 1.5-2.5 m away, slanted
+    rgb = np.stack([u * 255 / n, v * 255 / n, np.full_like(u, 128)], axis=-1).astype(np.uint8)
+    torch_state = torch.random.get_rng_state()  # the mapper's own generator is its own
+    try:
+        mapper = Mapper(K, n, n, config=run.mapper, backend=backend)
+        for k in range(3):
+            yaw = math.radians(5.0 * k)
+            pose = np.eye(4)
+            pose[[0, 0, 2, 2], [0, 2, 0, 2]] = [math.cos(yaw), math.sin(yaw), -math.sin(yaw), math.cos(yaw)]
+            mapper.add_frame(rgb, depth, pose, dense=k % 2 == 0)
+        lod = run.explorer.planning.panorama.score_lod_voxel_m
+        mapper.snapshot(lod_voxel_m=lod if lod is not None else 0.05)(pose, front_alpha=True)
+        grid_dbscan(np.eye(8, dtype=bool), 1.5, 2)
+        voxel_keys(np.zeros((2, 3)), 0.05)
+        voxel_keys(np.zeros((2, 3), dtype=np.float32), 0.05)
+    finally:
+        torch.random.set_rng_state(torch_state)
+    return time.perf_counter() - t0
 
 
 def _next_waypoint(explorer) -> np.ndarray | None:
@@ -577,9 +697,10 @@ def _jit(metrics: dict) -> str:
 
 
 def _setup(metrics: dict) -> str:
-    """The rasterizer's one-time setup, where it was long enough to matter (a gsplat build)."""
+    """The kernels' one-time setup before the clock, where it was long enough to matter (a gsplat build,
+    numba compiling in the first run after an install or a code change)."""
     setup = metrics.get("backend_setup_s", 0.0)
-    return f", after {setup:.0f} s loading the rasterizer's kernels" if setup >= 1.0 else ""
+    return f", after {setup:.0f} s loading the kernels" if setup >= 1.0 else ""
 
 
 def _fmt(v) -> str:

@@ -498,6 +498,22 @@ def test_an_episode_without_a_map_or_graph_shows_what_it_has(live, tmp_path, cap
     assert "viewer: no graph (ValueError: no floor in the map)" in capsys.readouterr().err
 
 
+def test_an_episode_is_shown_with_the_camera_it_saw_not_the_simulators_settings(live, tmp_path):
+    """An exploration in another environment (a robot) records its camera apart from config.sim, which
+    keeps the simulator's defaults: the frustum and the map's renders take the recorded camera."""
+    _, out, _ = live
+    ep = copy_episode(out, tmp_path / "robot")
+    meta = json.loads((ep / "episode.json").read_text())
+    K = [[40.0, 0.0, 24.5], [0.0, 41.0, 15.5], [0.0, 0.0, 1.0]]
+    meta["camera"] = {"width": 48, "height": 32, "K": K}
+    (ep / "episode.json").write_text(json.dumps(meta))
+    viewer = EpisodeViewer(ep, port=free_port(), ground_truth=False)
+    try:
+        assert (viewer.width, viewer.height) == (48, 32) and viewer.K.tolist() == K
+    finally:
+        viewer.close()
+
+
 def test_ctrl_c_during_a_render_closes_without_a_warning(live):
     """Ctrl-C while the render worker draws the map: it finishes before the server stops, and nothing is
     queued on the stopped server (viser warned 'Queued a GuiImageMessage on a closed connection')."""

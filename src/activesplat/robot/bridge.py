@@ -288,14 +288,14 @@ def robot_from_args(args) -> int:
     from pathlib import Path
 
     from activesplat.config import RunConfig
-    from activesplat.episode import EpisodeWriter
+    from activesplat.episode import check_episode_folder
     from activesplat.explore import explore_environment
 
     if args.steps <= 0:
         raise InvalidInputError(f"--steps must be > 0, got {args.steps}")
     check_url(args.url)
     out = Path(args.out)
-    EpisodeWriter.check(out, args.overwrite)  # before connecting (waits up to --timeout per observation)
+    check_episode_folder(out, args.overwrite)  # before connecting (waits up to --timeout per observation)
     env = RosbridgeEnvironment(
         args.url,
         args.rgb_topic,

@@ -335,8 +335,13 @@ class EpisodeViewer:
             self.floor_height = float(meta.get("floor_height", self.positions[:, 1].min() - 1.25))
         else:
             sim_cfg = meta.get("config", {}).get("sim", {})
-            self.width, self.height = int(sim_cfg.get("width", 256)), int(sim_cfg.get("height", 256))
-            self.K = intrinsics(self.width, self.height, float(sim_cfg.get("hfov_deg", 90.0)))
+            camera = meta.get("camera")  # the camera the run saw (a robot's is not the simulator's)
+            if isinstance(camera, dict) and {"width", "height", "K"} <= set(camera):
+                self.width, self.height = int(camera["width"]), int(camera["height"])
+                self.K = np.asarray(camera["K"], dtype=np.float64).reshape(3, 3)
+            else:  # an episode from before episode.json recorded the camera
+                self.width, self.height = int(sim_cfg.get("width", 256)), int(sim_cfg.get("height", 256))
+                self.K = intrinsics(self.width, self.height, float(sim_cfg.get("hfov_deg", 90.0)))
             self.floor_height = float(meta.get("floor_height",
                                                self.poses[0][1, 3] - sim_cfg.get("sensor_height", 1.25)))
         self.fov_y, _ = _camera_fov(self.K, self.width, self.height)
