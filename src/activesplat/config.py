@@ -25,6 +25,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import json
+import numbers
 import re
 import types
 import typing
@@ -129,6 +130,10 @@ CoverageGroup = Annotated[CoverageConfig, tyro.conf.arg(help=(
 RefineGroup = Annotated[RefineConfig, tyro.conf.arg(help=(
     "Offline refinement of the episode's map (paper sec. III-D4), used by `activesplat refine`."))]
 
+GROUPS = {"sim": SimConfig, "mapper": MapperConfig, "explorer": ExplorerConfig, "frontier": FrontierConfig,
+          "coverage": CoverageConfig, "refine": RefineConfig}
+"""RunConfig's settings groups and their classes."""
+
 
 @dataclass(frozen=True)
 class RunConfig:
@@ -175,10 +180,21 @@ class RunConfig:
                 raise InvalidInputError(f"RunConfig.floor must be a storey index (1) or a floor height in "
                                         f"metres (3.0), got {self.floor!r}") from None
             object.__setattr__(self, "floor", floor)
-        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
+        if isinstance(self.seed, bool) or not isinstance(self.seed, numbers.Integral) or self.seed < 0:
             raise InvalidInputError(f"RunConfig.seed must be an integer >= 0, got {self.seed!r}")
-        if self.steps is not None and (isinstance(self.steps, bool) or self.steps <= 0):
-            raise InvalidInputError(f"RunConfig.steps must be a positive number of actions, got {self.steps}")
+        object.__setattr__(self, "seed", int(self.seed))  # a numpy integer too, as an int (episode.json)
+        if self.steps is not None:
+            steps = self.steps
+            if isinstance(steps, bool) or not isinstance(steps, numbers.Integral) or steps <= 0:
+                raise InvalidInputError(f"RunConfig.steps must be a positive number of actions (an integer, "
+                                        f"or None for the scene's default), got {self.steps!r}")
+            object.__setattr__(self, "steps", int(self.steps))
+        for name, group in GROUPS.items():
+            value = getattr(self, name)
+            if not isinstance(value, group):
+                hint = f" (use {group.__name__}(**that_dict))" if isinstance(value, dict) else ""
+                raise InvalidInputError(f"RunConfig.{name} must be a {group.__name__}, got "
+                                        f"{type(value).__name__}{hint}")
         derived = self
         for path, sim_field in DERIVED.items():
             derived = _replace_path(derived, path.split("."), getattr(self.sim, sim_field))

@@ -170,11 +170,13 @@ def write_bag(
     stamps=None,
     drop_pose_after: int | None = None,
     skip_topic: str | None = None,
+    rename: dict[str, str] | None = None,
 ):
     """Write frames (logged at 10 Hz, header stamps ``stamps``) as /camera/color/image_raw,
     /camera/depth/image_raw, /camera/color/camera_info and a pose source (/camera_pose PoseStamped, or
     /tf map -> camera_color_optical_frame). ``fmt``: ros1 (a .bag file), ros2 (a sqlite3 bag folder),
-    mcap (a ROS 2 bag folder with MCAP storage)."""
+    mcap (a ROS 2 bag folder with MCAP storage). ``rename``: other names for some of those topics in the
+    bag (e.g. a camera driver's own)."""
     from rosbags.typesys import Stores, get_typestore
 
     ros1 = fmt == "ros1"
@@ -215,7 +217,7 @@ def write_bag(
         for topic, typ in topics.items():
             if topic == skip_topic:
                 continue
-            conns[topic] = writer.add_connection(topic, typ, typestore=store)
+            conns[topic] = writer.add_connection((rename or {}).get(topic, topic), typ, typestore=store)
 
         def put(topic, stamp, msg):  # logged in order; the header stamps may go back
             if topic in conns:

@@ -8,6 +8,8 @@ Yaw and pitch follow `activesplat.geometry`: yaw 0 looks along +z, TURN_LEFT add
 
 from __future__ import annotations
 
+import numbers
+import os
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -48,8 +50,11 @@ class Simulator:
 
     def __init__(self, scene: Scene, seed: int = 0, start: np.ndarray | None = None,
                  config: SimConfig | None = None):
+        if not hasattr(scene, "navmap_for"):
+            hint = f": load_scene({str(scene)!r}) first" if isinstance(scene, (str, os.PathLike)) else ""
+            raise InvalidInputError(f"Simulator takes a Scene, got {type(scene).__name__}{hint}")
         self.scene = scene
-        if isinstance(seed, bool) or int(seed) != seed or seed < 0:
+        if isinstance(seed, bool) or not isinstance(seed, numbers.Real) or int(seed) != seed or seed < 0:
             raise InvalidInputError(f"Simulator seed must be an integer >= 0, got {seed!r}")
         self.seed = int(seed)
         self.config = config = config or SimConfig()

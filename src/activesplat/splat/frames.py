@@ -17,9 +17,19 @@ MAX_MEDIAN_DEPTH_M = 100.0
 """A frame whose valid depth has a median beyond this is taken for depth in other units (millimetres)."""
 
 
+def _float_array(value, name: str, expected: str) -> np.ndarray:
+    """``value`` as a float64 array; InvalidInputError naming it when it is not numbers (a string, None's
+    elements, ragged nested lists)."""
+    try:
+        return np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"{name} must be {expected} of numbers, got {type(value).__name__} "
+                                f"{str(value)[:60]!r}") from None
+
+
 def as_intrinsics(K) -> np.ndarray:
     """K as a float64 3x3 matrix; InvalidInputError unless finite with positive focal lengths."""
-    K = np.asarray(K, dtype=np.float64)
+    K = _float_array(K, "intrinsics K", "a 3x3 matrix")
     if K.shape != (3, 3) or not np.isfinite(K).all() or K[0, 0] <= 0 or K[1, 1] <= 0:
         raise InvalidInputError(f"intrinsics K must be a finite 3x3 matrix with positive focal lengths, "
                                 f"got {K.tolist()}")
@@ -28,7 +38,7 @@ def as_intrinsics(K) -> np.ndarray:
 
 def as_pose(pose) -> np.ndarray:
     """A camera-to-world pose as a float64 4x4; InvalidInputError unless finite and rigid."""
-    pose = np.asarray(pose, dtype=np.float64)
+    pose = _float_array(pose, "pose", "a 4x4 camera-to-world matrix")
     if pose.shape != (4, 4):
         raise InvalidInputError(f"pose must be a 4x4 camera-to-world matrix, got shape {pose.shape}")
     if not np.isfinite(pose).all():

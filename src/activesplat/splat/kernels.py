@@ -59,7 +59,9 @@ def check_tensors(caller: str, shapes: dict[str, tuple[int | None, ...]],
         expected = tuple(n if d is None else d for d in shape)
         if tuple(value.shape) != expected or n < 0:
             want = "x".join("N" if d is None else str(d) for d in shape)
-            raise InvalidInputError(f"{caller}: {name} must have shape ({want}), got {tuple(value.shape)}")
+            rows = f" with N = {n}, the rows of means" if None in shape and name != "means" else ""
+            raise InvalidInputError(f"{caller}: {name} must have shape ({want}){rows}, got "
+                                    f"{tuple(value.shape)}")
         if not value.is_floating_point():
             value = value.to(dtype)
         if not _all_finite(value):

@@ -91,15 +91,24 @@ def _blank_render(width: int, height: int):
             "alpha": torch.zeros(height, width), "median_depth": torch.zeros(height, width)}
 
 
+def _image_size(width, height, what: str) -> tuple[int, int]:
+    """(width, height) as positive ints; InvalidInputError naming ``what`` (image, render) otherwise."""
+    try:
+        size = int(width), int(height)
+    except (TypeError, ValueError):
+        size = (0, 0)
+    if min(size) <= 0:
+        raise InvalidInputError(f"{what} size must be positive, got {width!r}x{height!r}")
+    return size
+
+
 class Mapper:
     """Incremental Gaussian map built from posed RGB-D frames (see module docstring)."""
 
     def __init__(self, K, width: int, height: int, config: MapperConfig | None = None, backend: str = "auto",
                  device: str | torch.device | None = None):
-        if int(width) <= 0 or int(height) <= 0:
-            raise InvalidInputError(f"image size must be positive, got {width}x{height}")
+        self.width, self.height = _image_size(width, height, "image")
         self.K = as_intrinsics(K)
-        self.width, self.height = int(width), int(height)
         self.config = config if config is not None else MapperConfig()
         self.backend = backend
         self.device = backend_device(backend) if device is None else torch.device(device)
@@ -146,10 +155,8 @@ class Mapper:
                 height: int | None) -> tuple[np.ndarray, np.ndarray, int, int]:
         """Checked pose and intrinsics of a render, the sensor's where not given."""
         K = self.K if K is None else as_intrinsics(K)
-        width = self.width if width is None else int(width)
-        height = self.height if height is None else int(height)
-        if width <= 0 or height <= 0:
-            raise InvalidInputError(f"render size must be positive, got {width}x{height}")
+        width, height = _image_size(self.width if width is None else width,
+                                    self.height if height is None else height, "render")
         return as_pose(pose), K, width, height
 
     def _draw_front(self, pose: np.ndarray, K: np.ndarray, width: int, height: int,
