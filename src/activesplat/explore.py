@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from activesplat.episode import ENVIRONMENT_SOURCE, EpisodeWriter, software, write_json_atomic
-from activesplat.errors import Interrupted
+from activesplat.errors import Interrupted, interrupted
 from activesplat.eval.behaviour import action_counts, completion_gain, rotation_causes, rotation_pct
 from activesplat.timing import progress_bar
 
@@ -321,10 +321,8 @@ class _Exploration:
             return _interrupted("in the first step, before its action", self.out_dir)
         self.writer.close()
         self.save_map()
-        line = (f"interrupted after {len(self.actions)} steps: partial episode in {self.out_dir} "
-                f"(evaluate it with: activesplat evaluate {self.out_dir})")
-        print(f"\n{line}", file=sys.stderr)
-        return Interrupted(line)
+        return interrupted(f"interrupted after {len(self.actions)} steps: partial episode in {self.out_dir} "
+                           f"(evaluate it with: activesplat evaluate {self.out_dir})")
 
     def finish(self) -> dict:
         """The finished episode: its metrics (`metrics`), the map (`save_map`), completion.png where there is
@@ -430,9 +428,7 @@ class _SetUp:
 
 def _interrupted(when: str, out_dir: Path) -> Interrupted:
     """The `Interrupted` of a Ctrl-C before the first action (`when`), its line printed on stderr."""
-    line = f"interrupted {when}: nothing written to {out_dir}"
-    print(f"\n{line}", file=sys.stderr)
-    return Interrupted(line)
+    return interrupted(f"interrupted {when}: nothing written to {out_dir}")
 
 
 def _config_not_used(env, run, ground_truth: bool) -> list[str]:

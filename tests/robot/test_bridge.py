@@ -106,3 +106,17 @@ def test_robot_command_over_loopback(tmp_path, capsys):
         == 2
     )
     assert "cannot connect" in capsys.readouterr().err
+
+
+def test_ctrl_c_while_connecting_is_one_line(tmp_path, capsys, monkeypatch):
+    from activesplat.cli import main
+
+    def ctrl_c(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr("activesplat.robot.bridge.RosbridgeEnvironment", ctrl_c)
+    out = tmp_path / "ep"
+    assert main(["robot", "ws://127.0.0.1:9", "--steps", "3", "--out", str(out)]) == 130
+    err = capsys.readouterr().err.strip()
+    assert err == f"interrupted while connecting to ws://127.0.0.1:9: nothing written to {out}"
+    assert not out.exists()

@@ -30,7 +30,7 @@ from types import SimpleNamespace
 import numpy as np
 
 from activesplat.env import ACTIONS, Observation
-from activesplat.errors import InvalidInputError
+from activesplat.errors import InvalidInputError, interrupted
 from activesplat.geometry import K_from_opencv, K_to_opencv
 from activesplat.robot.bags import decode_color, decode_depth
 from activesplat.robot.mapping import WORLD_UP
@@ -296,16 +296,19 @@ def robot_from_args(args) -> int:
     check_url(args.url)
     out = Path(args.out)
     check_episode_folder(out, args.overwrite)  # before connecting (waits up to --timeout per observation)
-    env = RosbridgeEnvironment(
-        args.url,
-        args.rgb_topic,
-        args.depth_topic,
-        args.camera_info_topic,
-        args.pose_topic,
-        pose_type=args.pose_type,
-        world_up=args.world_up,
-        timeout_s=args.timeout,
-    )
+    try:
+        env = RosbridgeEnvironment(
+            args.url,
+            args.rgb_topic,
+            args.depth_topic,
+            args.camera_info_topic,
+            args.pose_topic,
+            pose_type=args.pose_type,
+            world_up=args.world_up,
+            timeout_s=args.timeout,
+        )
+    except KeyboardInterrupt:
+        raise interrupted(f"interrupted while connecting to {args.url}: nothing written to {out}") from None
     run = RunConfig().replace(steps=args.steps, policy=args.policy, seed=args.seed)
     try:
         m = explore_environment(
