@@ -285,6 +285,7 @@ def serve_simulator(sim, host: str = "127.0.0.1", port: int = 0, topics: dict | 
 
 def robot_from_args(args) -> int:
     """The ``robot`` command: explore a live robot behind rosbridge and write the episode folder."""
+    from dataclasses import replace
     from pathlib import Path
 
     from activesplat.config import RunConfig
@@ -293,6 +294,10 @@ def robot_from_args(args) -> int:
 
     if args.steps <= 0:
         raise InvalidInputError(f"--steps must be > 0, got {args.steps}")
+    run = RunConfig()  # the robot's action sizes: what the planner assumes (checked before connecting)
+    run = run.replace(steps=args.steps, policy=args.policy, seed=args.seed,
+                      sim=replace(run.sim, forward_step=args.forward_step, turn_deg=args.turn_deg,
+                                  look_deg=args.look_deg))
     check_url(args.url)
     out = Path(args.out)
     check_episode_folder(out, args.overwrite)  # before connecting (waits up to --timeout per observation)
@@ -305,11 +310,11 @@ def robot_from_args(args) -> int:
             args.pose_topic,
             pose_type=args.pose_type,
             world_up=args.world_up,
+            forward_step=args.forward_step,
             timeout_s=args.timeout,
         )
     except KeyboardInterrupt:
         raise interrupted(f"interrupted while connecting to {args.url}: nothing written to {out}") from None
-    run = RunConfig().replace(steps=args.steps, policy=args.policy, seed=args.seed)
     try:
         m = explore_environment(
             env, run, out, overwrite=args.overwrite, progress=not args.no_progress, name="robot"
