@@ -39,6 +39,124 @@ class TurntableCamera:
         return self._observe(collided=action == "move_forward")
 
 
+class WalkingCamera(TurntableCamera):
+    """A user-written environment that also walks, by its own action sizes (its simulator's ``sizes``)."""
+
+    def __init__(self, width=32, height=32, **sizes):
+        super().__init__(width, height)
+        self._renderer = Simulator(box_room(), seed=0, config=SimConfig(width=width, height=height, **sizes))
+
+    def step(self, action):
+        self.steps += 1
+        return self._observe(collided=self._renderer.act(action))
+
+
+def _walk(tmp_path, env, steps=70):
+    """`steps` actions of `env` with the default action sizes and a short look-around (60 deg): 14 forward
+    moves in the box room. The warnings it gave, and its metrics."""
+    import warnings
+    from dataclasses import replace
+
+    from activesplat.planning.explorer_config import ExplorerConfig
+
+    run = RunConfig().replace(steps=steps, sim=SimConfig(width=32, height=32), backend="numba",
+                              explorer=replace(ExplorerConfig(), bootstrap_yaw_deg=60.0))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        metrics = explore_environment(env, run, tmp_path / "ep", progress=False, name="walker")
+    return [str(w.message) for w in caught], metrics
+
+
+def test_an_environment_that_steps_farther_than_configured_is_warned_about_once(tmp_path):
+    """A robot that moves 0.1 m per move_forward where the run says 0.065 m: planning and path_length_m
+    assume 0.065 m; the poses tell, and a warning names both sizes and the option (once, though more forward
+    moves follow). metrics.json records the measured sizes and the path the poses walked."""
+    caught, metrics = _walk(tmp_path, WalkingCamera(forward_step=0.1))
+    assert caught == ["the environment's move_forward moved the camera by 0.100 m (median of 5), not the "
+                      "configured 0.065 m the planner assumes (and path_length_m counts): configure the run "
+                      "with the environment's own, --sim.forward-step 0.1 (SimConfig.forward_step)"]
+    sizes = metrics["measured_action_sizes"]
+    forward = metrics["action_counts"]["move_forward"]
+    assert forward == sizes["forward_step"]["moves"] > 5 and sizes["forward_step"]["ignored"] == 0
+    assert sizes["forward_step"]["measured"] == pytest.approx(0.1)
+    assert sizes["forward_step"]["configured"] == 0.065
+    assert sizes["turn_deg"]["measured"] == pytest.approx(10.0) and sizes["look_deg"]["measured"] == \
+        pytest.approx(15.0)
+    assert metrics["path_length_m"] == pytest.approx(0.065 * forward)  # what the loop assumed
+    assert metrics["path_length_poses_m"] == pytest.approx(0.1 * forward)  # what the poses say
+    saved = json.loads((tmp_path / "ep" / "metrics.json").read_text())
+    assert saved["measured_action_sizes"] == sizes
+
+
+def test_an_environment_of_the_configured_sizes_is_not_warned_about(tmp_path):
+    caught, metrics = _walk(tmp_path, WalkingCamera())
+    assert caught == []
+    assert {kind: round(m["measured"], 6) for kind, m in metrics["measured_action_sizes"].items()} == {
+        "forward_step": 0.065, "turn_deg": 10.0, "look_deg": 15.0}
+    assert metrics["path_length_poses_m"] == pytest.approx(metrics["path_length_m"])
+
+
+def test_the_run_s_own_simulator_is_not_measured(tmp_path):
+    """The simulator of the run's own sim settings moves by them: no check, no new metrics."""
+    sim = Simulator(box_room(), seed=0, config=SimConfig(width=32, height=32))
+    run = RunConfig().replace(steps=3, sim=SimConfig(width=32, height=32), backend="numba")
+    with pytest.warns(UserWarning, match="a budget of 3") as caught:
+        metrics = explore_environment(sim, run, tmp_path / "ep", progress=False)
+    assert len(caught) == 1
+    assert "measured_action_sizes" not in metrics and "path_length_poses_m" not in metrics
+
+
+def _pose(x=0.0, z=0.0, yaw_deg=0.0, pitch_deg=0.0):
+    from activesplat.geometry import camera_pose
+
+    return camera_pose([x, 1.25, z], np.radians(yaw_deg), np.radians(pitch_deg))
+
+
+def test_blocked_moves_and_a_minority_of_short_ones_are_not_warned_about():
+    """Forward moves the environment reports as collisions, moves that did not happen (a blocked base
+    without collision reports, a tilt at the limit or of a base without a tilt unit) are left out, and the
+    median shrugs off a few short ones; turns are measured about the world's vertical at any pitch."""
+    import warnings
+
+    from activesplat.env import ActionSizeCheck
+
+    check = ActionSizeCheck(SimConfig())
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        z = 0.0
+        for k in range(12):
+            if k % 3 == 0:  # blocked: reported, or not (it did not move)
+                check.observe("move_forward", _pose(z=z), _pose(z=z + 0.002 * (k % 2)), collided=k % 2 == 0)
+            step = 0.03 if k % 4 == 1 else 0.065  # a few stopped short
+            check.observe("move_forward", _pose(z=z), _pose(z=z + step))
+            z += step
+            check.observe("turn_left", _pose(yaw_deg=10 * k, pitch_deg=-30), _pose(yaw_deg=10 * k + 10,
+                                                                                  pitch_deg=-30))
+            check.observe("look_down", _pose(pitch_deg=-45), _pose(pitch_deg=-45))  # at the limit
+    m = check.metrics()
+    assert m["forward_step"]["measured"] == pytest.approx(0.065) and m["forward_step"]["ignored"] == 4
+    assert m["forward_step"]["moves"] == 12
+    assert m["turn_deg"]["measured"] == pytest.approx(10.0)
+    assert m["look_deg"] == {"measured": None, "configured": 15.0, "moves": 0, "ignored": 12}
+    assert check.path_length_m == pytest.approx(z + 0.002 * 2)
+
+
+def test_each_kind_is_warned_about_once_after_five_moves():
+    from activesplat.env import ActionSizeCheck
+
+    check = ActionSizeCheck(SimConfig())
+    for _ in range(4):  # 4 tilts of 20 deg: not yet judged
+        check.observe("look_up", _pose(pitch_deg=0), _pose(pitch_deg=20))
+    with pytest.warns(UserWarning) as caught:
+        for _ in range(10):
+            check.observe("look_up", _pose(pitch_deg=0), _pose(pitch_deg=20))
+            check.observe("turn_right", _pose(yaw_deg=5), _pose(yaw_deg=-3))  # 8 deg: within 25 % of 10
+    assert [str(w.message) for w in caught] == [
+        "the environment's look_up / look_down moved the camera by 20.0 deg (median of 5), not the "
+        "configured 15 deg the planner assumes (and path_length_m counts): configure the run with the "
+        "environment's own, --sim.look-deg 20 (SimConfig.look_deg)"]
+
+
 def test_the_simulator_and_a_user_environment_satisfy_the_interface():
     assert isinstance(Simulator(box_room(), config=SimConfig(width=16, height=16)), Environment)
     assert isinstance(TurntableCamera(), Environment)
@@ -48,6 +166,10 @@ def test_the_exploration_loop_runs_a_user_environment(tmp_path):
     run = RunConfig().replace(steps=6, sim=SimConfig(width=32, height=32), backend="numba")
     metrics = explore_environment(TurntableCamera(), run, tmp_path / "ep", progress=False, name="turntable")
     assert metrics["steps"] == 6 and "completion_ratio_pct" not in metrics  # no ground truth, no completion
+    # it turns by the configured 10 deg; its forward moves are all refused (collisions): none measured
+    sizes = metrics["measured_action_sizes"]
+    assert sizes["turn_deg"]["measured"] == pytest.approx(10.0)
+    assert sizes["forward_step"]["measured"] is None and metrics["path_length_poses_m"] == 0.0
     assert metrics["n_gaussians"] > 0
     actions = (tmp_path / "ep" / "actions.txt").read_text().split()
     assert len(actions) == 6 and set(actions) <= set(ACTIONS)

@@ -319,6 +319,12 @@ def build_parser() -> argparse.ArgumentParser:
     p_robot.add_argument("--policy", default="activesplat")
     p_robot.add_argument("--seed", type=int, default=0)
     p_robot.add_argument("--timeout", type=float, default=30.0, help="seconds to wait for each observation")
+    p_robot.add_argument("--sim.forward-step", dest="forward_step", type=float, default=0.065, metavar="M",
+                         help="the robot's move_forward in metres, which the planner assumes (0.065)")
+    p_robot.add_argument("--sim.turn-deg", dest="turn_deg", type=float, default=10.0, metavar="DEG",
+                         help="the robot's turn_left / turn_right in degrees (10)")
+    p_robot.add_argument("--sim.look-deg", dest="look_deg", type=float, default=15.0, metavar="DEG",
+                         help="the robot's look_up / look_down in degrees (15)")
     p_robot.add_argument("--out", required=True, help="episode folder")
     p_robot.add_argument("--overwrite", action="store_true")
     p_robot.add_argument("--no-progress", action="store_true")

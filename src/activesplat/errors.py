@@ -1,6 +1,8 @@
 """Exceptions for bad input, and the checks of output paths. The command line turns these into a one-line
 error and exit code 2."""
 
+import contextlib
+import contextvars
 import errno
 
 
@@ -36,6 +38,31 @@ class RecordingError(InvalidInputError):
 class Interrupted(KeyboardInterrupt):
     """Ctrl-C, after the command has said on stderr what it stopped and what it left behind (its one line):
     the command line exits with 130 without a line of its own."""
+
+
+_QUIET_INTERRUPTS = contextvars.ContextVar("quiet_interrupts", default=False)
+
+
+def interrupted(line: str) -> Interrupted:
+    """The `Interrupted` of a Ctrl-C, `line` (what was stopped, what is kept, how to resume) printed on
+    stderr on a line of its own (after a progress bar's); inside :func:`quiet_interrupts` it is not
+    printed."""
+    import sys
+
+    if not _QUIET_INTERRUPTS.get():
+        print(f"\n{line}", file=sys.stderr)
+    return Interrupted(line)
+
+
+@contextlib.contextmanager
+def quiet_interrupts():
+    """Within it, the commands' own work (an exploration) does not print its Ctrl-C line: for a caller that
+    says in its own line what was kept (a benchmark, whose partial runs are explored again)."""
+    token = _QUIET_INTERRUPTS.set(True)
+    try:
+        yield
+    finally:
+        _QUIET_INTERRUPTS.reset(token)
 
 
 def check_fields(obj, *, positive: tuple[str, ...] = (), non_negative: tuple[str, ...] = (),

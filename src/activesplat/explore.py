@@ -18,8 +18,9 @@ from pathlib import Path
 
 import numpy as np
 
+from activesplat.env import ActionSizeCheck
 from activesplat.episode import ENVIRONMENT_SOURCE, EpisodeWriter, software, write_json_atomic
-from activesplat.errors import Interrupted
+from activesplat.errors import Interrupted, interrupted
 from activesplat.eval.behaviour import action_counts, completion_gain, rotation_causes, rotation_pct
 from activesplat.timing import progress_bar
 
@@ -180,6 +181,8 @@ class _Exploration:
         self.actions: list[str] = []
         self.causes: list[str] = []  # why each action was taken (the explorer's `last_cause`)
         self.forward = 0  # forward moves so far (the path length)
+        # an environment other than the run's own simulator: are its moves the sizes the planner assumes?
+        self.sizes = ActionSizeCheck(run.sim) if getattr(env, "config", None) != run.sim else None
         self.mapper_phases: dict[str, float] = {}  # ms over the episode, per phase of Mapper._map_frame
         self.curve: list[dict] = []
         compiling = "(compiling them: the first run after an install or a code change)"
@@ -268,8 +271,11 @@ class _Exploration:
     def take_action(self, step: int, action: str) -> None:
         """The environment takes `action` and observes; the action, why it was taken and the new pose go
         to the episode folder (actions.txt, poses.txt), the new pose to the evaluation."""
+        before = self.obs.pose
         self.obs = self.timers.time("simulator", self.env.step, action)
         self.forward += action == "move_forward"
+        if self.sizes is not None:
+            self.sizes.observe(action, before, self.obs.pose, bool(getattr(self.obs, "collided", False)))
         self.actions.append(action)
         self.causes.append(getattr(self.explorer, "last_cause", "") or "policy")
         if self.writer is None:  # the first action: the episode folder is written from here on
@@ -321,10 +327,8 @@ class _Exploration:
             return _interrupted("in the first step, before its action", self.out_dir)
         self.writer.close()
         self.save_map()
-        line = (f"interrupted after {len(self.actions)} steps: partial episode in {self.out_dir} "
-                f"(evaluate it with: activesplat evaluate {self.out_dir})")
-        print(f"\n{line}", file=sys.stderr)
-        return Interrupted(line)
+        return interrupted(f"interrupted after {len(self.actions)} steps: partial episode in {self.out_dir} "
+                           f"(evaluate it with: activesplat evaluate {self.out_dir})")
 
     def finish(self) -> dict:
         """The finished episode: its metrics (`metrics`), the map (`save_map`), completion.png where there is
@@ -376,6 +380,9 @@ class _Exploration:
             "scene": self.name, "policy": run.policy, "seed": run.seed,
             "curve": self.curve,
         })
+        if self.sizes is not None:  # another environment: what its poses say, beside what the loop assumed
+            metrics["measured_action_sizes"] = self.sizes.metrics()
+            metrics["path_length_poses_m"] = self.sizes.path_length_m
         if evaluator is not None:
             metrics["evaluation_worker_ms_per_step"] = evaluator.worker_ms / steps
             metrics["evaluation_background"] = evaluator.background
@@ -430,9 +437,7 @@ class _SetUp:
 
 def _interrupted(when: str, out_dir: Path) -> Interrupted:
     """The `Interrupted` of a Ctrl-C before the first action (`when`), its line printed on stderr."""
-    line = f"interrupted {when}: nothing written to {out_dir}"
-    print(f"\n{line}", file=sys.stderr)
-    return Interrupted(line)
+    return interrupted(f"interrupted {when}: nothing written to {out_dir}")
 
 
 def _config_not_used(env, run, ground_truth: bool) -> list[str]:

@@ -16,6 +16,7 @@ from activesplat.bench import run_benchmark, write_report
 from activesplat.bench.runner import RunResult, execute_run, plan_runs, run_ray
 from activesplat.bench.tables import collect, markdown_report
 from activesplat.cli import main
+from activesplat.errors import interrupted
 from activesplat.eval.coverage import CoverageConfig
 from activesplat.explore import TIMING_KEYS
 from activesplat.sim import SimConfig
@@ -51,8 +52,10 @@ class FakeExplore:
     def __call__(self, scene, policy, steps, seed, out, overwrite, **options):
         self.calls.append((scene, policy, seed))
         assert overwrite, "a partial folder is re-run with overwrite"
-        if (policy, seed) in self.interrupt:
-            raise KeyboardInterrupt
+        if (policy, seed) in self.interrupt:  # as an exploration's Ctrl-C: its own line, then Interrupted
+            out.mkdir(parents=True, exist_ok=True)
+            (out / "actions.txt").write_text("turn_left\n")  # a partial episode
+            raise interrupted(f"interrupted after 1 steps: partial episode in {out}")
         if (policy, seed) in self.fail:
             raise RuntimeError(f"boom in {policy}")
         m = _metrics(self.ratios.get((scene, policy, seed), 90.0), steps=steps or 1000, seed=seed,
@@ -204,6 +207,40 @@ def test_ctrl_c_stops_and_keeps_the_tables_of_what_is_done(tmp_path, fake):
                       log=lambda s: None)
     status = {r["policy"]: r["status"] for r in csv.DictReader(open(tmp_path / "results.csv"))}
     assert status == {"activesplat": "complete", "fbe": "missing", "random": "missing"}
+
+
+def test_ctrl_c_is_one_line_that_says_what_is_kept_and_how_to_resume(tmp_path, fake, capsys):
+    """Not the run's own line (its partial episode is explored again, not evaluated), nor the tables' summary
+    and a generic "interrupted" after it: one line, exit code 130; the same command then resumes."""
+    fake(interrupt={("fbe", 0)})
+    argv = ["benchmark", "--scenes", "small-0", "--policies", "activesplat", "fbe", "random", "--steps", "20",
+            "--root", str(tmp_path), "--no-ceiling"]
+    assert main(argv) == 130
+    captured = capsys.readouterr()
+    assert captured.err.strip() == (
+        f"benchmark interrupted: 1 of 3 runs complete, their tables in {tmp_path / 'results.md'}; run the "
+        f"same command again to resume (the runs not complete are explored again from scratch)")
+    out = captured.out.splitlines()  # the start and the finished run, no summary of the tables after them
+    assert len(out) == 2 and out[0].startswith("benchmark: 3 runs") and out[1].startswith("[1/3] small-0")
+    f = fake()
+    assert main(argv) == 0
+    assert f.calls == [("small-0", "fbe", 0), ("small-0", "random", 0)]
+
+
+def test_ctrl_c_in_the_sweep_ceiling_is_one_line(tmp_path, fake, capsys, monkeypatch):
+    fake()
+    monkeypatch.setattr("activesplat.eval.sweep.sweep_ceiling", _ctrl_c)
+    argv = ["benchmark", "--scenes", "small-0", "--policies", "fbe", "--steps", "20", "--root", str(tmp_path)]
+    assert main(argv) == 130
+    assert capsys.readouterr().err.strip() == (
+        f"benchmark interrupted while measuring the sweep ceiling: 1 of 1 runs complete in {tmp_path}, the "
+        f"tables not written; run the same command again to write them (the ceilings measured are kept in "
+        f"ROOT/<scene>/sweep.json)")
+    assert not (tmp_path / "results.md").exists()
+
+
+def _ctrl_c(*args, **kwargs):
+    raise KeyboardInterrupt
 
 
 @pytest.mark.parametrize("argv, needle", [

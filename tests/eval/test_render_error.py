@@ -168,3 +168,31 @@ def test_render_eval_budget_option_writes_the_budget(episode, tmp_path, capsys):
     saved = json.loads((out / "render_budget.json").read_text())
     assert saved["train"]["n_views"] == 2 and set(saved["test"]["classes"]) == set(PIXEL_CLASSES)
     assert (out / "render_budget.png").stat().st_size > 10_000
+
+
+def _ctrl_c(*args, **kwargs):
+    raise KeyboardInterrupt
+
+
+def test_ctrl_c_in_render_eval_is_one_line(episode, tmp_path, capsys, monkeypatch):
+    """What is kept and what to run again, in one line (no generic "interrupted" after it), exit code 130:
+    in the evaluation nothing is written; in the error budget, render_metrics.json is already there."""
+    import shutil
+
+    from activesplat.cli import main
+
+    out = shutil.copytree(episode[0], tmp_path / "copy")
+    argv = ["render-eval", str(out), "--n-train", "2", "--n-test", "2", "--backend", "numba", "--no-progress",
+            "--no-lpips"]
+    monkeypatch.setattr("activesplat.refine.maps.render_eval", _ctrl_c)
+    assert main(argv) == 130
+    assert capsys.readouterr().err.strip() == (f"render-eval interrupted: nothing measured is kept "
+                                               f"({out / 'render_metrics.json'} as it was); run the same "
+                                               f"command again")
+    monkeypatch.undo()
+    monkeypatch.setattr("activesplat.eval.render_error.error_budget", _ctrl_c)
+    assert main([*argv, "--budget"]) == 130
+    err = capsys.readouterr().err.strip()
+    assert err == (f"render-eval interrupted in the error budget: {out / 'render_metrics.json'} is written, "
+                   f"render_budget.json is not; run the same command again for it")
+    assert (out / "render_metrics.json").is_file() and not (out / "render_budget.json").exists()

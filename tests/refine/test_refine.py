@@ -197,6 +197,58 @@ def test_ctrl_c_saves_the_iteration_and_says_how_to_resume(episode, tmp_path, mo
     assert rest.iterations == 8 and rest.n_gaussians == whole.n_gaussians and rest.densify == whole.densify
 
 
+def test_ctrl_c_is_one_line_and_exit_code_130(episode, tmp_path, monkeypatch, capsys):
+    """The command line's Ctrl-C: one line saying what is kept and that the same command resumes, no generic
+    "interrupted" after it: the first Ctrl-C (checkpoint of the iteration), a second one (at once: the last
+    checkpoint is kept), one while loading, and one while evaluating the trained map (not trained again)."""
+    import signal
+
+    ep = shutil.copytree(episode, tmp_path / "ep")
+    monkeypatch.setattr("activesplat.refine.trainer.evaluation_blocker", lambda folder: None)
+    checkpoint = ep / "refined_3dgs" / CHECKPOINT
+    step = Refiner.step
+
+    def ctrl_c_at(n, at_once=False):
+        def stepped(self):
+            if at_once and self.iteration + 1 == n:
+                raise KeyboardInterrupt  # as the second Ctrl-C's handler does, inside the iteration
+            out = step(self)
+            if self.iteration == n:
+                signal.raise_signal(signal.SIGINT)
+            return out
+        return stepped
+
+    argv = ["refine", str(ep), "--iters", "8", "--backend", "numba", "--no-progress", "--no-lpips"]
+    monkeypatch.setattr(Refiner, "step", ctrl_c_at(3))
+    assert main(argv) == 130
+    assert capsys.readouterr().err.strip() == (f"refine: stopped at iteration 3 of 8, saved in {checkpoint}; "
+                                               f"the same command resumes (--restart starts over)")
+    monkeypatch.setattr(Refiner, "step", ctrl_c_at(5, at_once=True))
+    assert main(argv) == 130
+    assert capsys.readouterr().err.strip() == (f"refine: stopped at once in iteration 5 of 8: the checkpoint "
+                                               f"of iteration 3 in {checkpoint} is kept; the same command "
+                                               f"resumes from it")
+    assert torch.load(checkpoint, weights_only=True)["iteration"] == 3
+    monkeypatch.setattr("activesplat.refine.trainer.load_episode_map", _ctrl_c)
+    assert main(argv) == 130
+    assert capsys.readouterr().err.strip() == (f"refine: interrupted while loading the map and keyframes of "
+                                               f"{ep}: nothing written; run the same command again")
+    monkeypatch.undo()
+    monkeypatch.setattr("activesplat.refine.trainer.evaluation_blocker", lambda folder: None)
+    monkeypatch.setattr(Refiner, "evaluate", _ctrl_c)
+    assert main(argv) == 130
+    assert capsys.readouterr().err.strip() == (
+        f"refine: interrupted while writing and evaluating the refined map; its 8 iterations are saved in "
+        f"{checkpoint}: the same command writes and evaluates it without training again")
+    monkeypatch.setattr(Refiner, "step", _ctrl_c)  # not trained again
+    monkeypatch.setattr(Refiner, "evaluate", lambda self, ply, **kw: {"train": {}, "test": {}})
+    assert main(argv) == 0
+
+
+def _ctrl_c(*args, **kwargs):
+    raise KeyboardInterrupt
+
+
 def test_checkpoint_of_other_settings_names_them(fresh):
     refine(fresh, "3dgs", 10, config=FAST, backend="numba", progress=False, evaluate=False, stop_at=2)
     other = RefineConfig(**{**FAST.__dict__, "densify_interval": 5, "lambda_dssim": 0.3})

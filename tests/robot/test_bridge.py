@@ -106,3 +106,50 @@ def test_robot_command_over_loopback(tmp_path, capsys):
         == 2
     )
     assert "cannot connect" in capsys.readouterr().err
+
+
+def test_ctrl_c_while_connecting_is_one_line(tmp_path, capsys, monkeypatch):
+    from activesplat.cli import main
+
+    def ctrl_c(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr("activesplat.robot.bridge.RosbridgeEnvironment", ctrl_c)
+    out = tmp_path / "ep"
+    assert main(["robot", "ws://127.0.0.1:9", "--steps", "3", "--out", str(out)]) == 130
+    err = capsys.readouterr().err.strip()
+    assert err == f"interrupted while connecting to ws://127.0.0.1:9: nothing written to {out}"
+    assert not out.exists()
+
+
+def test_the_robot_s_action_sizes_reach_the_planner_and_the_bridge(tmp_path, capsys, monkeypatch):
+    """`robot --sim.forward-step / --sim.turn-deg / --sim.look-deg`: the sizes the planner assumes (and the
+    action-size check compares the poses with) and the bridge's collision test, as the warning says to set
+    them; a bad one is refused before connecting."""
+    from activesplat.cli import main
+
+    seen = {}
+
+    class Robot:
+        def __init__(self, url, *topics, **options):
+            seen["options"] = options
+
+        def close(self):
+            pass
+
+    def explore(env, run, out, **options):
+        seen["run"] = run
+        return {"steps": 3, "path_length_m": 0.0, "n_gaussians": 0, "ms_per_step": 1.0}
+
+    monkeypatch.setattr("activesplat.robot.bridge.RosbridgeEnvironment", Robot)
+    monkeypatch.setattr("activesplat.explore.explore_environment", explore)
+    argv = ["robot", "ws://127.0.0.1:9", "--steps", "3", "--out", str(tmp_path / "ep")]
+    assert main([*argv, "--sim.forward-step", "0.1", "--sim.turn-deg", "15", "--sim.look-deg", "20"]) == 0
+    run = seen["run"]
+    assert (run.sim.forward_step, run.sim.turn_deg, run.sim.look_deg) == (0.1, 15.0, 20.0)
+    assert (run.explorer.controller.forward_m, run.explorer.controller.turn_deg) == (0.1, 15.0)
+    assert seen["options"]["forward_step"] == 0.1
+    seen.clear()
+    assert main([*argv, "--sim.forward-step", "-1"]) == 2
+    assert capsys.readouterr().err == "activesplat: error: SimConfig.forward_step must be > 0, got -1.0\n"
+    assert seen == {}

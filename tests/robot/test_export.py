@@ -91,3 +91,25 @@ def test_export_refuses_bad_point_counts_and_paths(map_folder, tmp_path, capsys)
     nested = tmp_path / "new" / "sub" / "e.mcap"  # missing folders are made
     assert main(["export", str(map_folder), "--mcap", str(nested)]) == 0 and nested.is_file()
     assert not list(tmp_path.rglob("*.partial"))
+
+
+def test_a_corrupt_poses_file_is_refused_in_one_line(map_folder, tmp_path, capsys):
+    """A bad line inside poses.txt was the end of the trajectory (the rest silently left out); now it is an
+    error naming the file and the line. A last line cut by a crash is still dropped, as everywhere else."""
+    import shutil
+
+    folder = shutil.copytree(map_folder, tmp_path / "map")
+    lines = (folder / "poses.txt").read_text().splitlines()
+    out = tmp_path / "e.mcap"
+    (folder / "poses.txt").write_text("\n".join([*lines[:2], lines[2][:40], *lines[3:]]) + "\n")
+    assert main(["export", str(folder), "--mcap", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"activesplat: error: {folder / 'poses.txt'}, line 3: not a pose line") and \
+        err.count("\n") == 1, err
+    assert not out.exists() and not out.with_name(out.name + ".partial").exists()
+    (folder / "poses.txt").write_text("\n".join([*lines[:-1], lines[-1][:40]]) + "\n")  # cut by a crash
+    assert main(["export", str(folder), "--mcap", str(out)]) == 0
+    with open(out, "rb") as f:
+        trajectory = [json.loads(m.data) for _, c, m in mcap_reader.make_reader(f).iter_messages()
+                      if c.topic == "/trajectory"]
+    assert len(trajectory[0]["poses"]) == len(lines) - 1

@@ -300,6 +300,49 @@ def test_ctrl_c_keeps_the_map_of_the_frames_so_far(frames, tmp_path, capsys):
     assert not (tmp_path / "none").exists() and not (tmp_path / "none.partial").exists()
 
 
+def test_ctrl_c_is_one_line_and_exit_code_130(frames, tmp_path, capsys, monkeypatch):
+    """What is kept and how to map it all, in one line (not followed by a generic "interrupted"); before a
+    frame is mapped, or while scanning the recording, that nothing was written (a map there is kept)."""
+    from activesplat.robot import recording
+
+    K, fr = frames
+    bag = write_bag(tmp_path / "rec", K, fr)
+    stream = recording.Recording.frames
+
+    def interrupted_at(n):
+        def frames(self, only=None):
+            for k, rgb, depth in stream(self, only):
+                if k == n:
+                    raise KeyboardInterrupt
+                yield k, rgb, depth
+        return frames
+
+    out = tmp_path / "map"
+    monkeypatch.setattr(recording.Recording, "frames", interrupted_at(6))
+    assert _map(bag, out) == 130
+    assert capsys.readouterr().err.strip() == (
+        f"interrupted after 6 of 10 frames: partial map of 6 frames in {out} (\"complete\": false in its "
+        f"metrics.json); the same command with --overwrite maps the whole recording")
+    assert json.loads((out / "metrics.json").read_text())["complete"] is False
+    before = (out / "metrics.json").read_bytes()
+    monkeypatch.setattr(recording.Recording, "frames", interrupted_at(0))
+    assert _map(bag, out, "--overwrite") == 130
+    assert capsys.readouterr().err.strip() == (
+        f"interrupted before the first frame was mapped (0 of 10 read): no map written to {out} (the one "
+        f"there is kept); the same command starts again")
+    assert (out / "metrics.json").read_bytes() == before and not (tmp_path / "map.partial").exists()
+    monkeypatch.setattr("activesplat.robot.recording.open_recording", _ctrl_c)
+    assert _map(bag, tmp_path / "none") == 130
+    assert capsys.readouterr().err.strip() == (
+        f"interrupted while scanning the recording: no map written to {tmp_path / 'none'}; the same command "
+        f"starts again")
+    assert not (tmp_path / "none").exists()
+
+
+def _ctrl_c(*args, **kwargs):
+    raise KeyboardInterrupt
+
+
 def test_a_frame_without_pose_says_why(frames, tmp_path):
     from activesplat.errors import RecordingError
     from activesplat.robot.transforms import PoseTrack

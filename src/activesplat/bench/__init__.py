@@ -35,7 +35,13 @@ from activesplat.bench.runner import (
     run_serial,
 )
 from activesplat.bench.tables import RunRecord, TableConfig, add_derived, collect, markdown_report, write_csv
-from activesplat.errors import InvalidInputError, check_output_file, check_output_folder
+from activesplat.errors import (
+    InvalidInputError,
+    check_output_file,
+    check_output_folder,
+    interrupted,
+    quiet_interrupts,
+)
 
 __all__ = ["BenchmarkConfig", "BenchmarkReport", "RunSpec", "TableConfig", "benchmark_from_command",
            "run_benchmark", "write_report"]
@@ -85,7 +91,8 @@ def run_benchmark(scenes: Sequence[str], policies: Sequence[str], trials: int = 
     `activesplat.explore.run_exploration` (configs, backend); with a `config` (a RunConfig: the settings of
     every run), runs already complete in ROOT must have been made with it. A failed run is reported and
     shown as n/a; it does not stop the others. Ctrl-C stops the runs, writes the tables of what is complete
-    and re-raises. `ceiling`: add the sweep ceiling of every scene to the multi-room table (write_report)."""
+    and raises `Interrupted`, its one line (what is complete, that the same command resumes) printed.
+    `ceiling`: add the sweep ceiling of every scene to the multi-room table (write_report)."""
     config = config or BenchmarkConfig()
     if trials <= 0:
         raise InvalidInputError(f"--trials must be a positive number of trials, got {trials}")
@@ -121,27 +128,38 @@ def run_benchmark(scenes: Sequence[str], policies: Sequence[str], trials: int = 
     bar = executor == "local" and workers == 1 and sys.stderr.isatty()  # a progress bar when serial
     options = {"progress": bar, **(run_options or {})}
     t0 = time.perf_counter()
-    interrupted = False
+    stopped = False
     try:
-        if todo and executor == "ray":
-            run_ray(todo, options, on_result, ray_address, config.ray_cpus_per_run)
-        elif todo and workers == 1:
-            run_serial(todo, options, on_result)
-        elif todo:
-            run_local(todo, options, on_result, workers)
+        with quiet_interrupts():  # the run in progress says nothing: the benchmark's line says it all
+            if todo and executor == "ray":
+                run_ray(todo, options, on_result, ray_address, config.ray_cpus_per_run)
+            elif todo and workers == 1:
+                run_serial(todo, options, on_result)
+            elif todo:
+                run_local(todo, options, on_result, workers)
     except KeyboardInterrupt:
-        interrupted = True
-    if ceiling and not interrupted:
+        stopped = True
+    if ceiling and not stopped:
         log("benchmark: measuring the sweep ceiling of each scene (cached in ROOT/<scene>/sweep.json)")
-    report = write_report(root, specs, steps, config.tables, ceiling=ceiling and not interrupted,
-                          run_config=(run_options or {}).get("config"))
+    try:
+        report = write_report(root, specs, steps, config.tables, ceiling=ceiling and not stopped,
+                              run_config=(run_options or {}).get("config"))
+    except KeyboardInterrupt:
+        done = sum(read_metrics(s.out) is not None for s in specs)
+        what = "measuring the sweep ceiling" if ceiling and not stopped else "writing the tables"
+        raise interrupted(f"benchmark interrupted while {what}: {done} of {len(specs)} runs complete in "
+                          f"{root}, the tables not written; run the same command again to write them"
+                          + (" (the ceilings measured are kept in ROOT/<scene>/sweep.json)"
+                             if ceiling and not stopped else "")) from None
+    if stopped:
+        failed = f", {report.count('failed')} failed" if report.failed else ""
+        raise interrupted(f"benchmark interrupted: {report.count('complete')} of {len(specs)} runs complete"
+                          f"{failed}, their tables in {report.markdown_path}; run the same command again to "
+                          f"resume (the runs not complete are explored again from scratch)") from None
     log(f"benchmark: {report.count('complete')} complete, {report.count('failed')} failed, "
         f"{report.count('missing')} not run ({time.perf_counter() - t0:.0f} s) -> {report.markdown_path}")
     for r in report.failed:
         log(f"  failed: {r.spec.name}: {r.error} (see {r.spec.out}/error.txt)")
-    if interrupted:
-        log("benchmark: interrupted; run the same command again to resume")
-        raise KeyboardInterrupt
     return report
 
 

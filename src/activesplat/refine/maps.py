@@ -31,25 +31,34 @@ def render_options(folder: Path) -> dict:
 
 def render_eval_from_args(args: argparse.Namespace) -> int:
     """The `render-eval` command: evaluate the map of `args.dir` with its renderer and print a table."""
-    from activesplat.errors import check_output_file
+    from activesplat.errors import check_output_file, interrupted
 
     _, _, out = locate(args.dir)
     if getattr(args, "budget", False):  # before the evaluation (render_eval checks its own files)
         for name in ("render_budget.json", "render_budget.png"):
             check_output_file(Path(out) / name)
     options = {"renderer": None, **render_options(Path(out))}
-    result = render_eval(args.dir, n_train=args.n_train, n_test=args.n_test, seed=args.seed,
-                         backend=args.backend, progress=not args.no_progress,
-                         lpips=not getattr(args, "no_lpips", False), **options)
+    metrics_file = Path(out) / "render_metrics.json"
+    try:
+        result = render_eval(args.dir, n_train=args.n_train, n_test=args.n_test, seed=args.seed,
+                             backend=args.backend, progress=not args.no_progress,
+                             lpips=not getattr(args, "no_lpips", False), **options)
+    except KeyboardInterrupt:
+        raise interrupted(f"render-eval interrupted: nothing measured is kept ({metrics_file} as it was); "
+                          f"run the same command again") from None
     print(format_table(result, out))
     if getattr(args, "budget", False):
         from activesplat.episode import write_json_atomic
         from activesplat.eval.render_error import error_budget, format_budget
 
-        budget = error_budget(args.dir, n_train=args.n_train, n_test=args.n_test, seed=args.seed,
-                              backend=args.backend, progress=not args.no_progress,
-                              renderer=options["renderer"], sim_overrides=options.get("sim_overrides"),
-                              figure=Path(out) / "render_budget.png")
+        try:
+            budget = error_budget(args.dir, n_train=args.n_train, n_test=args.n_test, seed=args.seed,
+                                  backend=args.backend, progress=not args.no_progress,
+                                  renderer=options["renderer"], sim_overrides=options.get("sim_overrides"),
+                                  figure=Path(out) / "render_budget.png")
+        except KeyboardInterrupt:
+            raise interrupted(f"render-eval interrupted in the error budget: {metrics_file} is written, "
+                              f"render_budget.json is not; run the same command again for it") from None
         write_json_atomic(Path(out) / "render_budget.json", budget)
         print(f"\nerror budget ({Path(out) / 'render_budget.json'}, {Path(out) / 'render_budget.png'}):\n")
         print(format_budget(budget))

@@ -29,7 +29,6 @@ import json
 import math
 import os
 import signal
-import sys
 import threading
 import time
 import warnings
@@ -39,7 +38,14 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from activesplat.errors import ActiveSplatError, EpisodeError, InvalidInputError, check_output_folder
+from activesplat.errors import (
+    ActiveSplatError,
+    EpisodeError,
+    Interrupted,
+    InvalidInputError,
+    check_output_folder,
+    interrupted,
+)
 from activesplat.refine.adc import DensifyStats, DensityControl, reset_opacity, scene_extent
 from activesplat.refine.config import RefineConfig
 from activesplat.refine.episode_map import check_arguments, load_episode_map, rerender_keyframes
@@ -173,6 +179,7 @@ class Refiner:
         self.totals = {"cloned": 0, "split": 0, "pruned": 0}
         self.train_seconds = 0.0
         self.n_initial = len(self.gmap)
+        self.saved_iteration: int | None = None  # the iteration of the checkpoint on disk
 
     def _identity(self) -> dict:
         """What a checkpoint must match to be resumed by this run."""
@@ -198,6 +205,7 @@ class Refiner:
         tmp = path.with_suffix(".tmp")
         torch.save(state, tmp)
         os.replace(tmp, path)
+        self.saved_iteration = self.iteration
         return path
 
     def _load_checkpoint(self, path: Path) -> None:
@@ -223,7 +231,7 @@ class Refiner:
         self.optimizer.load_state_dict(state["optimizer"])
         self.adc = DensityControl(self.cfg, 1.0, 0, self.device)
         self.adc.load_state_dict(state["adc"])
-        self.iteration = int(state["iteration"])
+        self.iteration = self.saved_iteration = int(state["iteration"])
         self.rng = np.random.default_rng()
         self.rng.bit_generator.state = state["rng"]
         self.generator = torch.Generator()
@@ -316,10 +324,24 @@ class Refiner:
                         t0 = now
                         self.save_checkpoint()
                     if interrupt.requested:
-                        print(f"refine: stopped at iteration {self.iteration} of {self.iters}, saved in "
-                              f"{self.out_dir / CHECKPOINT}; the same command resumes (--restart starts "
-                              f"over)", file=sys.stderr)
-                        raise KeyboardInterrupt
+                        if bar is not None:  # before the line, which it would otherwise follow
+                            bar.close()
+                        raise interrupted(f"refine: stopped at iteration {self.iteration} of {self.iters}, "
+                                          f"saved in {self.out_dir / CHECKPOINT}; the same command resumes "
+                                          f"(--restart starts over)")
+        except KeyboardInterrupt as exc:
+            if isinstance(exc, Interrupted):
+                raise
+            # a second Ctrl-C: the iteration in progress is lost, the last checkpoint is not
+            if bar is not None:
+                bar.close()
+            if self.saved_iteration is None:
+                kept = "nothing saved yet; the same command starts over"
+            else:
+                kept = (f"the checkpoint of iteration {self.saved_iteration} in {self.out_dir / CHECKPOINT} "
+                        f"is kept; the same command resumes from it")
+            raise interrupted(f"refine: stopped at once in iteration {self.iteration + 1} of {self.iters}: "
+                              f"{kept}") from None
         finally:
             if bar is not None:
                 bar.close()
@@ -434,8 +456,12 @@ def refine(episode_dir: str | Path, method: str = "3dgs", iters: int = 2000, *,
     check_output_folder(out_dir if out_dir is not None else output_dir(folder, method))  # before the scene
     blocker = evaluation_blocker(folder) if evaluate else None
     evaluate = evaluate and blocker is None
-    refiner = Refiner(episode_dir, method, iters, config, seed, backend, restart, progress, out_dir,
-                      image_size)
+    try:
+        refiner = Refiner(episode_dir, method, iters, config, seed, backend, restart, progress, out_dir,
+                          image_size)
+    except KeyboardInterrupt:
+        raise interrupted(f"refine: interrupted while loading the map and keyframes of {folder}: nothing "
+                          f"written; run the same command again") from None
     metrics_path = refiner.out_dir / "render_metrics.json"
     done_before = refiner.iteration >= refiner.iters and (refiner.out_dir / "gaussians.ply").is_file()
     refiner.train(stop_at)
@@ -445,8 +471,13 @@ def refine(episode_dir: str | Path, method: str = "3dgs", iters: int = 2000, *,
     size = (refiner.width, refiner.height)
     if done_before and (not evaluate or (saved is not None and _metrics_match(saved, eval_kwargs, size))):
         return replace(refiner.result(saved), not_evaluated=blocker)
-    ply = refiner.write_outputs()
-    metrics = refiner.evaluate(ply, **eval_kwargs) if evaluate else None
+    try:
+        ply = refiner.write_outputs()
+        metrics = refiner.evaluate(ply, **eval_kwargs) if evaluate else None
+    except KeyboardInterrupt:
+        raise interrupted(f"refine: interrupted while writing and evaluating the refined map; its "
+                          f"{refiner.iters} iterations are saved in {refiner.out_dir / CHECKPOINT}: the same "
+                          f"command writes and evaluates it without training again") from None
     return replace(refiner.result(metrics), not_evaluated=blocker)
 
 

@@ -30,7 +30,7 @@ from types import SimpleNamespace
 import numpy as np
 
 from activesplat.env import ACTIONS, Observation
-from activesplat.errors import InvalidInputError
+from activesplat.errors import InvalidInputError, interrupted
 from activesplat.geometry import K_from_opencv, K_to_opencv
 from activesplat.robot.bags import decode_color, decode_depth
 from activesplat.robot.mapping import WORLD_UP
@@ -285,6 +285,7 @@ def serve_simulator(sim, host: str = "127.0.0.1", port: int = 0, topics: dict | 
 
 def robot_from_args(args) -> int:
     """The ``robot`` command: explore a live robot behind rosbridge and write the episode folder."""
+    from dataclasses import replace
     from pathlib import Path
 
     from activesplat.config import RunConfig
@@ -293,20 +294,27 @@ def robot_from_args(args) -> int:
 
     if args.steps <= 0:
         raise InvalidInputError(f"--steps must be > 0, got {args.steps}")
+    run = RunConfig()  # the robot's action sizes: what the planner assumes (checked before connecting)
+    run = run.replace(steps=args.steps, policy=args.policy, seed=args.seed,
+                      sim=replace(run.sim, forward_step=args.forward_step, turn_deg=args.turn_deg,
+                                  look_deg=args.look_deg))
     check_url(args.url)
     out = Path(args.out)
     check_episode_folder(out, args.overwrite)  # before connecting (waits up to --timeout per observation)
-    env = RosbridgeEnvironment(
-        args.url,
-        args.rgb_topic,
-        args.depth_topic,
-        args.camera_info_topic,
-        args.pose_topic,
-        pose_type=args.pose_type,
-        world_up=args.world_up,
-        timeout_s=args.timeout,
-    )
-    run = RunConfig().replace(steps=args.steps, policy=args.policy, seed=args.seed)
+    try:
+        env = RosbridgeEnvironment(
+            args.url,
+            args.rgb_topic,
+            args.depth_topic,
+            args.camera_info_topic,
+            args.pose_topic,
+            pose_type=args.pose_type,
+            world_up=args.world_up,
+            forward_step=args.forward_step,
+            timeout_s=args.timeout,
+        )
+    except KeyboardInterrupt:
+        raise interrupted(f"interrupted while connecting to {args.url}: nothing written to {out}") from None
     try:
         m = explore_environment(
             env, run, out, overwrite=args.overwrite, progress=not args.no_progress, name="robot"

@@ -126,19 +126,15 @@ def _transform(step, parent, child, T) -> dict:
 
 
 def _read_poses(folder: Path) -> tuple[np.ndarray, np.ndarray]:
-    path = folder / "poses.txt"
-    if not path.is_file():
+    """The steps (line numbers from 0: an episode's steps, a recorded map's frames) and poses of the folder's
+    poses.txt; a corrupt one is refused in one line (`episode.read_poses`: an EpisodeError naming the file
+    and the line), as is a missing one."""
+    from activesplat.episode import read_poses
+
+    if not (folder / "poses.txt").is_file():
         raise EpisodeError(f"{folder}: no poses.txt (not an episode or map folder)")
-    steps, poses = [], []
-    for line in path.read_text().splitlines():
-        parts = line.split()
-        if len(parts) != 17:
-            break  # a line cut by a crash
-        steps.append(int(parts[0]))
-        poses.append(np.array([float(v) for v in parts[1:]]).reshape(4, 4))
-    if not poses:
-        raise EpisodeError(f"{path}: no poses")
-    return np.asarray(steps), np.stack(poses)
+    poses = np.stack(read_poses(folder / "poses.txt"))
+    return np.arange(len(poses)), poses
 
 
 def export_mcap(

@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import json
 import shutil
-import sys
 import time
 import warnings
 from dataclasses import asdict
@@ -38,7 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from activesplat.episode import software, write_json_atomic, write_npz
-from activesplat.errors import EpisodeError, InvalidInputError, check_output_folder
+from activesplat.errors import EpisodeError, Interrupted, InvalidInputError, check_output_folder, interrupted
 from activesplat.eval.render_eval import HELDOUT_FILE
 from activesplat.robot.recording import Recording
 from activesplat.robot.transforms import matrix_tq
@@ -102,6 +101,7 @@ def map_recording(
         )
     out = Path(out)
     tmp = _prepare_out(out, overwrite)
+    phase = "while setting up the mapper"  # for the line of a Ctrl-C outside the frames
     try:
         W = WORLD_UP[world_up]
         poses = np.einsum("ij,njk->nik", W, rec.poses)
@@ -124,7 +124,7 @@ def map_recording(
         held_rgb = np.empty((len(held_index), h, w, 3), np.uint8)  # filled in place: no list, no np.stack
         held_depth = np.empty((len(held_index), h, w), np.float32)
         n_held = 0
-        used, mapper_ms, seen, interrupted = [], 0.0, 0, False
+        used, mapper_ms, seen, stopped = [], 0.0, 0, False
         bar = progress_bar(len(rec), "map", "frame", progress)
         t0 = time.perf_counter()
         try:
@@ -144,9 +144,13 @@ def map_recording(
                 used.append(k)
         except KeyboardInterrupt:  # Ctrl-C: keep the map of the frames so far, as `explore` keeps its episode
             if not used:
-                raise
-            interrupted = True
+                if bar is not None:
+                    bar.close()
+                raise _interrupted(f"before the first frame was mapped ({seen} of {len(rec)} read)", out,
+                                   overwrite) from None
+            stopped = True
         wall = time.perf_counter() - t0
+        phase = "while writing the map"
         if bar is not None:
             bar.close()
         if not used:
@@ -200,20 +204,31 @@ def map_recording(
             "mapper_ms_per_frame": mapper_ms / max(len(used), 1),
             "topdown": topdown,
         }
-        if interrupted:  # a partial map: `complete` false, as `evaluate` marks a partial episode
+        if stopped:  # a partial map: `complete` false, as `evaluate` marks a partial episode
             metrics.update(complete=False, read_frames=seen)
         write_json_atomic(tmp / "metrics.json", metrics)
+    except KeyboardInterrupt as exc:
+        shutil.rmtree(tmp, ignore_errors=True)
+        if isinstance(exc, Interrupted):
+            raise
+        raise _interrupted(phase, out, overwrite) from None
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
     if out.exists():
         shutil.rmtree(out)
     tmp.rename(out)
-    if interrupted:
-        print(f"\ninterrupted after {seen} of {len(rec)} frames: partial map of {len(used)} frames in {out} "
-              f"(map the whole recording again to complete it)", file=sys.stderr)
-        raise KeyboardInterrupt
+    if stopped:
+        raise interrupted(f"interrupted after {seen} of {len(rec)} frames: partial map of {len(used)} frames "
+                          f"in {out} (\"complete\": false in its metrics.json); the same command with "
+                          f"--overwrite maps the whole recording")
     return metrics
+
+
+def _interrupted(when: str, out: Path, overwrite: bool) -> Interrupted:
+    """The `Interrupted` of a Ctrl-C that leaves no map (`when`), its line printed: ``OUT`` is as it was."""
+    kept = " (the one there is kept)" if overwrite and (out / "episode.json").is_file() else ""
+    return interrupted(f"interrupted {when}: no map written to {out}{kept}; the same command starts again")
 
 
 def heldout_indices(n: int, holdout_every: int, stride: int, max_heldout: int | None) -> np.ndarray:
@@ -290,20 +305,23 @@ def map_from_args(args) -> int:
 
     out = Path(args.out) if args.out else Path("runs") / (Path(args.recording).stem + "-map")
     check_out(out, args.overwrite)  # before the recording is scanned
-    rec = open_recording(
-        args.recording,
-        args.rgb_topic,
-        args.depth_topic,
-        args.camera_info_topic,
-        args.pose_source,
-        camera_in_body=args.camera_in_body,
-        intrinsics=args.intrinsics,
-        depth_scale=args.depth_scale,
-        max_dt=args.max_dt,
-        max_pose_gap=args.max_pose_gap,
-        skip_unposed=args.skip_unposed,
-        depth_check=not args.no_depth_check,
-    )
+    try:
+        rec = open_recording(
+            args.recording,
+            args.rgb_topic,
+            args.depth_topic,
+            args.camera_info_topic,
+            args.pose_source,
+            camera_in_body=args.camera_in_body,
+            intrinsics=args.intrinsics,
+            depth_scale=args.depth_scale,
+            max_dt=args.max_dt,
+            max_pose_gap=args.max_pose_gap,
+            skip_unposed=args.skip_unposed,
+            depth_check=not args.no_depth_check,
+        )
+    except KeyboardInterrupt:
+        raise _interrupted("while scanning the recording", out, args.overwrite) from None
     m = map_recording(
         rec,
         out,
