@@ -157,6 +157,37 @@ def test_each_kind_is_warned_about_once_after_five_moves():
         "environment's own, --sim.look-deg 20 (SimConfig.look_deg)"]
 
 
+def test_steps_shorter_than_a_collision_are_warned_about_once():
+    """A robot whose steps are under half the configured one has every move reported as a collision (the
+    bridge's rule): none is measured, so the sizes' check cannot see it; the collisions that moved say it."""
+    from activesplat.env import ActionSizeCheck
+
+    check = ActionSizeCheck(SimConfig())
+    with pytest.warns(UserWarning) as caught:
+        for k in range(12):
+            check.observe("move_forward", _pose(z=0.02 * k), _pose(z=0.02 * (k + 1)), collided=True)
+    assert [str(w.message) for w in caught] == [
+        "5 of the environment's 5 move_forward actions were reported as collisions though the camera moved "
+        "(median 0.020 m): its steps may be shorter than the configured 0.065 m the planner assumes; if so, "
+        "configure the run with the environment's own, --sim.forward-step (SimConfig.forward_step)"]
+    assert check.metrics()["forward_step"] == {"measured": None, "configured": 0.065, "moves": 0,
+                                               "ignored": 12}
+
+
+def test_a_few_real_collisions_are_not_warned_about():
+    import warnings
+
+    from activesplat.env import ActionSizeCheck
+
+    check = ActionSizeCheck(SimConfig())
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for k in range(20):  # every third move bumps into something after 2 cm
+            bumped = k % 3 == 0
+            check.observe("move_forward", _pose(z=0.0), _pose(z=0.02 if bumped else 0.065), collided=bumped)
+    assert check.metrics()["forward_step"]["measured"] == pytest.approx(0.065)
+
+
 def test_the_simulator_and_a_user_environment_satisfy_the_interface():
     assert isinstance(Simulator(box_room(), config=SimConfig(width=16, height=16)), Environment)
     assert isinstance(TurntableCamera(), Environment)

@@ -103,13 +103,18 @@ class ActionSizeCheck:
     blocked move, a tilt at the pitch limit or of a base without one), are left out; the median of the
     others, from `ACTION_SIZE_MIN_MOVES` moves of a kind on, more than `ACTION_SIZE_TOLERANCE` off the
     configured size is warned about once per kind (the measured and configured sizes, the option to set).
-    `path_length_m` sums the camera's horizontal path over every pose."""
+    Forward moves reported as collisions that still moved the camera are counted apart: when they are most
+    of the forward moves (`ACTION_SIZE_MIN_MOVES` of them or more), the robot's steps may be shorter than
+    the configured one (a bridge reports a move of under half a step as a collision), and that is warned
+    about once too. `path_length_m` sums the camera's horizontal path over every pose."""
 
     def __init__(self, sim_config):
         self.configured = {kind: float(getattr(sim_config, field))
                            for kind, (_, field, _, _) in ACTION_KINDS.items()}
         self.sizes: dict[str, list[float]] = {kind: [] for kind in ACTION_KINDS}
         self.ignored = dict.fromkeys(ACTION_KINDS, 0)
+        self.collided_moving: list[float] = []
+        """The distances of forward moves reported as collisions that still moved the camera."""
         self.warned: set[str] = set()
         self.path_length_m = 0.0
 
@@ -126,8 +131,12 @@ class ActionSizeCheck:
         else:
             cos = (np.trace(before[:3, :3].T @ after[:3, :3]) - 1.0) / 2.0
             size = float(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))))
-        if (collided and kind == "forward_step") or size < ACTION_STILL_FRACTION * self.configured[kind]:
+        still = size < ACTION_STILL_FRACTION * self.configured[kind]
+        if (collided and kind == "forward_step") or still:
             self.ignored[kind] += 1
+            if collided and kind == "forward_step" and not still:
+                self.collided_moving.append(size)
+                self._judge_collisions()
             return
         self.sizes[kind].append(size)
         self._judge(kind)
@@ -152,6 +161,20 @@ class ActionSizeCheck:
             f"{len(self.sizes[kind])}), not the configured {configured:g} {unit} the planner assumes (and "
             f"path_length_m counts): configure the run with the environment's own, {option} {measured:.3g} "
             f"(SimConfig.{field})",
+            stacklevel=4)
+
+    def _judge_collisions(self) -> None:
+        import warnings
+
+        n, forward = len(self.collided_moving), len(self.sizes["forward_step"]) + self.ignored["forward_step"]
+        if "collisions" in self.warned or n < ACTION_SIZE_MIN_MOVES or 2 * n <= forward:
+            return
+        self.warned.add("collisions")
+        warnings.warn(
+            f"{n} of the environment's {forward} move_forward actions were reported as collisions though the "
+            f"camera moved (median {float(np.median(self.collided_moving)):.3f} m): its steps may be shorter "
+            f"than the configured {self.configured['forward_step']:g} m the planner assumes; if so, "
+            f"configure the run with the environment's own, --sim.forward-step (SimConfig.forward_step)",
             stacklevel=4)
 
     def metrics(self) -> dict:
