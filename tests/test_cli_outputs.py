@@ -204,3 +204,12 @@ def test_a_folder_that_takes_no_files_is_one_line(tmp_path, monkeypatch):
     monkeypatch.setattr(tempfile, "TemporaryFile", refuse)
     with pytest.raises(InvalidInputError, match=r"x\.glb: .* is not writable \(No such file or directory\)"):
         check_output_file(tmp_path / "x.glb")
+
+
+def test_benchmark_refuses_a_file_where_a_run_folder_goes(tmp_path, capsys, monkeypatch):
+    """A file standing where one run's folder (ROOT/<scene>/...) goes is refused before any run, not found
+    run by run after the others have explored."""
+    (tmp_path / "small-0").write_text("in the way")
+    err = _run(capsys, monkeypatch, "benchmark", tmp_path)
+    assert err == (f"activesplat: error: cannot write into {tmp_path / 'small-0' / 'random' / 's0'}: "
+                   f"{tmp_path / 'small-0'} is a file, not a folder\n")

@@ -112,6 +112,8 @@ def run_benchmark(scenes: Sequence[str], policies: Sequence[str], trials: int = 
         check_output_file(root / name)
     root.mkdir(parents=True, exist_ok=True)
     todo = [s for s in specs if read_metrics(s.out) is None]
+    for spec in todo:  # a file where a run's folder goes fails here, not run by run after the others
+        check_output_folder(spec.out)
     where = f"Ray ({ray_address or 'default address'})" if executor == "ray" else (
         "this process" if workers == 1 else f"{workers} worker processes")
     shape = [len({getattr(s, k) for s in specs}) for k in ("label", "policy", "seed")]
