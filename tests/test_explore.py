@@ -155,7 +155,7 @@ def test_live_evaluation_on_a_worker_thread_gives_the_same_numbers(episode, tmp_
 def test_the_evaluation_worker_renders_on_its_own_thread(monkeypatch):
     from concurrent.futures import ThreadPoolExecutor
 
-    from activesplat.explore import _evaluation_thread
+    from activesplat.live_completion import _evaluation_thread
     from activesplat.sim import sensor
 
     monkeypatch.setattr(sensor.numba, "get_num_threads", lambda: 2)
@@ -235,7 +235,7 @@ def test_ctrl_c_in_the_set_up_or_the_first_step_leaves_the_folder_as_it_was(tmp_
     from activesplat.planning import activesplat as explorer_mod
 
     out = tmp_path / "ep"
-    monkeypatch.setattr(explore, "_warm_up_kernels", _ctrl_c)
+    monkeypatch.setattr(explore, "warm_up_kernels", _ctrl_c)  # explore_setup's, as the loop looks it up
     with pytest.raises(Interrupted):
         run_exploration("small-0", steps=5, out=out, **TINY)
     assert "interrupted while loading the mapper's and the planner's kernels" in capsys.readouterr().err
@@ -243,7 +243,7 @@ def test_ctrl_c_in_the_set_up_or_the_first_step_leaves_the_folder_as_it_was(tmp_
     monkeypatch.undo()
     run_exploration("small-0", steps=2, out=out, **TINY)  # an episode already there
     before = {p.name: p.read_bytes() for p in out.iterdir()}
-    monkeypatch.setattr(explore, "_warm_up_kernels", _ctrl_c)
+    monkeypatch.setattr(explore, "warm_up_kernels", _ctrl_c)
     with pytest.raises(Interrupted):
         run_exploration("small-0", steps=5, out=out, overwrite=True, **TINY)
     assert {p.name: p.read_bytes() for p in out.iterdir()} == before

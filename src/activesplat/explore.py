@@ -5,15 +5,18 @@ planning) -> action -> simulator, until the step budget is spent. The episode fo
 run goes (see `activesplat.episode`); completion is measured on the fly with the evaluation protocol
 (docs/protocol.md §6) so the progress bar shows it, and `activesplat evaluate DIR` recomputes it from
 the action log alone.
+
+This module holds the entry points (`run_exploration`, `explore_episode`, `explore_environment`,
+`explore_from_command`) and the loop itself (`_Exploration`). Beside it: `activesplat.explore_setup`, the
+set-up before the first step (checks, kernels, the Ctrl-C line before anything is written);
+`activesplat.live_completion`, the completion measured against the simulator's ground truth as the loop
+goes; `activesplat.explore_summary`, the lines printed after it (`format_summary`, also importable from
+here).
 """
 
 from __future__ import annotations
 
-import math
-import sys
 import time
-import warnings
-from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -22,11 +25,17 @@ from activesplat.env import ActionSizeCheck
 from activesplat.episode import ENVIRONMENT_SOURCE, EpisodeWriter, software, write_json_atomic
 from activesplat.errors import Interrupted, interrupted
 from activesplat.eval.behaviour import action_counts, completion_gain, rotation_causes, rotation_pct
+from activesplat.explore_setup import (
+    SetUp,
+    config_not_used,
+    interrupted_before_writing,
+    prepare_rasterizer,
+    warm_up_kernels,
+    warn_if_no_choice,
+)
+from activesplat.explore_summary import TIMING_KEYS, format_summary
+from activesplat.live_completion import LiveCompletion
 from activesplat.timing import progress_bar
-
-TIMING_KEYS = ("mapper", "workspace", "voronoi", "subregions", "rotation_selection", "position_selection",
-               "planner")
-"""Per-module mean ms per step, as the paper's Tab. VI."""
 
 
 def _default_out(scene: str, policy: str, seed: int) -> Path:
@@ -72,7 +81,7 @@ def explore_episode(run, out: str | Path | None = None, overwrite: bool = False,
 
     out_dir = Path(out) if out is not None else _default_out(run.scene, run.policy, run.seed)
     check_episode_folder(out_dir, overwrite)  # before the scene is loaded: a refusal comes at once
-    with _SetUp(out_dir) as setup:
+    with SetUp(out_dir) as setup:
         from activesplat.eval.coverage import CoverageAccumulator
         from activesplat.sim import Simulator, load_scene
         from activesplat.sim.scene import BUILTIN_PATTERN, scene_label
@@ -93,7 +102,7 @@ def explore_episode(run, out: str | Path | None = None, overwrite: bool = False,
         meta = {"scene": run.scene, "scene_name": scene_obj.name, "z_up": run.z_up,
                 "start_pose": sim.start_pose.tolist(),
                 "floor": run.floor}  # storey choice of a multi-storey mesh (None: its only storey)
-        evaluator = _Completion(sim, coverage, run)
+        evaluator = LiveCompletion(sim, coverage, run)
     metrics = explore_environment(sim, run, out_dir, overwrite=overwrite, progress=progress, viewer=viewer,
                                   evaluator=evaluator, meta=meta, name=scene_obj.name)
     evaluator.draw_trajectory(out_dir / "trajectory.png", metrics.get("rooms"),
@@ -118,7 +127,7 @@ def explore_environment(env, run, out: str | Path, overwrite: bool = False, prog
     it; map the last observation too; then the metrics, the map and the figures. Ctrl-C leaves a partial
     episode that `activesplat evaluate` reads; before the first action is recorded (the set-up: reset,
     mapper, policy, kernels; the first step) it leaves `out` as it was, and says so in one line."""
-    with _SetUp(Path(out), evaluator) as setup:
+    with SetUp(Path(out), evaluator) as setup:
         episode = _Exploration(env, run, Path(out), overwrite=overwrite, progress=progress, viewer=viewer,
                                evaluator=evaluator, meta=meta, name=name, setup=setup)
     try:
@@ -139,7 +148,7 @@ class _Exploration:
     the completion curve)."""
 
     def __init__(self, env, run, out_dir: Path, *, overwrite: bool, progress: bool, viewer, evaluator,
-                 meta: dict | None, name: str, setup: _SetUp):
+                 meta: dict | None, name: str, setup: SetUp):
         """Set up the run: check the step budget, the backend and the episode folder, reset the environment,
         build the mapper and the policy on the floor the agent starts on, describe the episode (episode.json,
         written with the first action: until then the folder is not touched), load the kernels, start the
@@ -174,7 +183,7 @@ class _Exploration:
         self.floor_height = float(self.obs.pose[1, 3] - run.sim.sensor_height)
         self.explorer = make_policy(run.policy, self.mapper, self.floor_height, cfg=run.explorer,
                                     timers=self.timers, frontier=run.frontier)
-        _warn_if_no_choice(run, stacklevel=4)  # attributed to the caller of explore_environment
+        warn_if_no_choice(run, stacklevel=4)  # attributed to the caller of explore_environment
         self.meta = self._episode_meta(meta)
         self.start_pose = np.array(self.obs.pose, dtype=np.float64)
 
@@ -187,9 +196,9 @@ class _Exploration:
         self.curve: list[dict] = []
         compiling = "(compiling them: the first run after an install or a code change)"
         setup.phase = f"loading the rasterizer's kernels {compiling}"
-        self.setup_s = _prepare_rasterizer(self.mapper, run, progress)  # kept out of the per-step timings
+        self.setup_s = prepare_rasterizer(self.mapper, run, progress)  # kept out of the per-step timings
         setup.phase = f"loading the mapper's and the planner's kernels {compiling}"
-        self.setup_s += _warm_up_kernels(run, self.mapper.backend)
+        self.setup_s += warm_up_kernels(run, self.mapper.backend)
         setup.phase = "measuring the completion of the first observation"
         # a kernel the warm-ups missed would compile on first use, inside the timed loop: measured
         self.jit = JitCompileClock(self.timers).__enter__()  # closed by explore_environment
@@ -219,7 +228,7 @@ class _Exploration:
             "camera": {"width": env.width, "height": env.height, "K": np.asarray(env.K).tolist()},
             "software": software(),  # the package version, and the git commit of a checkout
         }
-        not_used = _config_not_used(env, run, self.evaluator is not None)
+        not_used = config_not_used(env, run, self.evaluator is not None)
         if not_used:
             meta["config_not_used"] = not_used
         if self.evaluator is None:  # no ground truth: evaluate and render-eval's scene checks say so
@@ -324,7 +333,7 @@ class _Exploration:
         if self.bar is not None:
             self.bar.close()
         if self.writer is None:
-            return _interrupted("in the first step, before its action", self.out_dir)
+            return interrupted_before_writing("in the first step, before its action", self.out_dir)
         self.writer.close()
         self.save_map()
         return interrupted(f"interrupted after {len(self.actions)} steps: partial episode in {self.out_dir} "
@@ -413,303 +422,12 @@ class _Exploration:
                      trajectory=traj, scene=self.label, step=len(self.actions), policy=explorer.name)
 
 
-class _SetUp:
-    """An exploration's set-up under way (``with _SetUp(out_dir) as setup:``), before the episode folder is
-    touched: what it is doing (`phase`, set as it goes) for the one line a Ctrl-C prints; that line says
-    that nothing was written, and the command exits with 130 without a line of its own (`Interrupted`). Any
-    error stops the live evaluation's worker (`evaluator`), if there is one."""
-
-    def __init__(self, out_dir: Path, evaluator=None):
-        self.out_dir, self.evaluator = out_dir, evaluator
-        self.phase = "starting"
-
-    def __enter__(self) -> _SetUp:
-        return self
-
-    def __exit__(self, kind, exc, tb) -> None:
-        if exc is None:
-            return
-        if self.evaluator is not None:
-            self.evaluator.close()
-        if isinstance(exc, KeyboardInterrupt) and not isinstance(exc, Interrupted):
-            raise _interrupted(f"while {self.phase}", self.out_dir) from None
-
-
-def _interrupted(when: str, out_dir: Path) -> Interrupted:
-    """The `Interrupted` of a Ctrl-C before the first action (`when`), its line printed on stderr."""
-    return interrupted(f"interrupted {when}: nothing written to {out_dir}")
-
-
-def _config_not_used(env, run, ground_truth: bool) -> list[str]:
-    """The settings of `run` (dotted paths in its config) an exploration in `env` does not use: in an
-    environment other than the run's own simulator, the ``sim`` fields of the simulated camera, renderer
-    and navigability (the environment's camera is episode.json's ``camera``; the loop takes from ``sim``
-    only the agent's body, sensor height and action sizes, `config.DERIVED`); without ground truth,
-    ``coverage``."""
-    from dataclasses import fields
-
-    from activesplat.config import DERIVED
-
-    out = []
-    if getattr(env, "config", None) != run.sim:
-        out += [f"sim.{f.name}" for f in fields(run.sim) if f.name not in DERIVED.values()]
-    if not ground_truth:
-        out.append("coverage")
-    return out
-
-
-def _warn_if_no_choice(run, stacklevel: int) -> None:
-    """A budget that ends within the first look-around leaves the policy nothing to choose: warned about."""
-    from activesplat.planning.explorer import bootstrap_actions
-
-    look_around = len(bootstrap_actions(run.explorer))
-    if run.steps <= look_around:
-        warnings.warn(f"a budget of {run.steps} actions ends within the first look-around ({look_around} "
-                      f"actions, the same for every policy): no policy gets to choose anything",
-                      stacklevel=stacklevel)
-
-
-def _prepare_rasterizer(mapper, run, progress: bool) -> float:
-    """The one-time loading / compiling of the rasterizer's kernels (announced on a GPU, where gsplat's JIT
-    build can take minutes, silently); its seconds."""
-    from activesplat.splat.raster import prepare_backend
-
-    if progress and mapper.device.type == "cuda":
-        print("loading gsplat's CUDA kernels (the first use after an install compiles them: 1-2 minutes)",
-              file=sys.stderr)
-    return prepare_backend(mapper.backend, planar_depth=run.mapper.planar_depth)
-
-
-WARM_UP_SIZE = 32
-"""Image side of the made-up view `_warm_up_kernels` maps (pixels)."""
-
-
-def _warm_up_kernels(run, backend: str) -> float:
-    """The kernels the loop would otherwise compile on its first use of them (numba's, in the first run
-    after an install or a code change), loaded or compiled before the clock starts: a throwaway map of a
-    made-up 32 x 32 view of a slanted wall, seen from three poses with the run's mapper settings, a
-    coarser copy of it rendered (the policies' panorama scoring), and the planner's own kernels on tiny
-    inputs. The run's random state (torch's) is left as it was, so the actions do not change. Its seconds."""
-    import torch
-
-    from activesplat.geometry import intrinsics, voxel_keys
-    from activesplat.planning.clusters import grid_dbscan
-    from activesplat.splat import Mapper
-
-    t0 = time.perf_counter()
-    n = WARM_UP_SIZE
-    K = intrinsics(n, n, 90.0)
-    v, u = np.mgrid[0:n, 0:n].astype(np.float32)
-    depth = (2.0 + (u - n / 2) / n).astype(np.float32)  # a wall 1.5-2.5 m away, slanted
-    rgb = np.stack([u * 255 / n, v * 255 / n, np.full_like(u, 128)], axis=-1).astype(np.uint8)
-    torch_state = torch.random.get_rng_state()  # the mapper's own generator is its own
-    try:
-        mapper = Mapper(K, n, n, config=run.mapper, backend=backend)
-        for k in range(3):
-            yaw = math.radians(5.0 * k)
-            pose = np.eye(4)
-            pose[[0, 0, 2, 2], [0, 2, 0, 2]] = [math.cos(yaw), math.sin(yaw), -math.sin(yaw), math.cos(yaw)]
-            mapper.add_frame(rgb, depth, pose, dense=k % 2 == 0)
-        lod = run.explorer.planning.panorama.score_lod_voxel_m
-        mapper.snapshot(lod_voxel_m=lod if lod is not None else 0.05)(pose, front_alpha=True)
-        grid_dbscan(np.eye(8, dtype=bool), 1.5, 2)
-        voxel_keys(np.zeros((2, 3)), 0.05)
-        voxel_keys(np.zeros((2, 3), dtype=np.float32), 0.05)
-    finally:
-        torch.random.set_rng_state(torch_state)
-    return time.perf_counter() - t0
-
-
 def _next_waypoint(explorer) -> np.ndarray | None:
     """The (x, z) world waypoint the explorer's path follower heads for, None when it follows no path."""
     follower = getattr(explorer, "follower", None)
     if follower is None or follower.done:
         return None
     return np.asarray(follower.waypoints[0], dtype=np.float64)
-
-
-def _evaluation_thread() -> None:
-    """Set-up of the live evaluation's worker thread: its ground-truth renders run on itself, not on the
-    simulator's shared pool, which stays the loop's."""
-    from activesplat.sim.sensor import render_on_this_thread
-
-    render_on_this_thread()
-
-
-class _Completion:
-    """Completion measured on the fly (docs/protocol.md §6): evaluation, not the robot's work; ground-truth
-    depth at 128 x 128 rendered by the simulator at every observed pose.
-
-    The loop hands over poses (`observe`) and asks for curve points (`curve_point`); the ground-truth
-    renders and KD-tree updates run by batches of `CoverageConfig.batch_frames` poses, in order, either at
-    once or on a worker thread (`CoverageConfig.background`), so both give the same numbers. `finish`
-    waits for the worker and returns the curve."""
-
-    def __init__(self, sim, coverage, run):
-        from activesplat.geometry import intrinsics
-
-        self.sim, self.coverage, self.cfg, self.sim_config = sim, coverage, run.coverage, run.sim
-        self.K = intrinsics(self.cfg.resolution, self.cfg.resolution, run.sim.hfov_deg)
-        self.positions: list[tuple[float, float]] = []
-        self.curve: list[dict] = []
-        self.worker_ms = 0.0
-        """Milliseconds spent on the renders and KD-tree updates, wherever they ran."""
-        self._pending: list[np.ndarray] = []
-        background = self.cfg.background
-        if background is None:  # only where the map is on a GPU: see CoverageConfig.background
-            import numba
-
-            from activesplat.splat.raster import resolve_backend
-
-            background = numba.get_num_threads() >= 2 and resolve_backend(run.backend) == "gsplat"
-        self._worker = ThreadPoolExecutor(1, thread_name_prefix="live-evaluation",
-                                          initializer=_evaluation_thread) if background else None
-        self._jobs: list[Future] = []
-
-    @property
-    def background(self) -> bool:
-        return self._worker is not None
-
-    def observe(self, pose) -> None:
-        self._pending.append(np.array(pose, dtype=np.float64))
-        self.positions.append((float(pose[0, 3]), float(pose[2, 3])))
-
-    def curve_due(self, step: int, steps: int) -> bool:
-        """A curve point every ``batch_frames`` actions and at the last one."""
-        return step % self.cfg.batch_frames == 0 or step == steps
-
-    def curve_point(self, step: int, at_step: dict) -> None:
-        """Fold the poses observed so far in, then add the curve point of `step` (`curve`): its completion
-        and what the loop knows at that step (`at_step`: path length, the map's size)."""
-        self._submit(step, at_step)
-
-    def latest(self) -> dict | None:
-        """The newest curve point computed so far (behind by a batch while the worker runs)."""
-        return self.curve[-1] if self.curve else None
-
-    def finish(self) -> list[dict]:
-        """Fold the remaining poses in, wait for the worker; the curve."""
-        self._submit(None, {})
-        self._wait()
-        return self.curve
-
-    def close(self) -> None:
-        """Stop the worker (an interrupted episode): queued batches are dropped."""
-        if self._worker is not None:
-            self._worker.shutdown(wait=True, cancel_futures=True)
-
-    def _submit(self, step: int | None, at_step: dict) -> None:
-        poses, self._pending = self._pending, []
-        if self._worker is None:
-            self._fold(poses, step, at_step)
-            return
-        done = [job.done() for job in self._jobs]  # one look at each: a job may finish meanwhile
-        for job in (job for job, d in zip(self._jobs, done, strict=True) if d):
-            job.result()  # a worker's error surfaces at the next batch, not at the end of the episode
-        self._jobs = [job for job, d in zip(self._jobs, done, strict=True) if not d]
-        self._jobs.append(self._worker.submit(self._fold, poses, step, at_step))
-
-    def _wait(self) -> None:
-        for job in self._jobs:
-            job.result()
-        self._jobs = []
-        if self._worker is not None:
-            self._worker.shutdown(wait=True)
-
-    def _fold(self, poses: list[np.ndarray], step: int | None, at_step: dict) -> None:
-        t0 = time.perf_counter()
-        res = self.cfg.resolution
-        for pose in poses:
-            self.coverage.add_frame(self.sim.depth(pose, res, res), pose, self.K)
-        if step is not None:
-            self.curve.append(_curve_point(step, self.coverage, at_step))
-        self.worker_ms += 1000.0 * (time.perf_counter() - t0)
-
-    def metrics(self) -> dict:
-        """Completion, and for a built-in house the rooms entered and per-room completion."""
-        from activesplat.eval.behaviour import room_behaviour
-
-        out = self.coverage.metrics()
-        house = self.sim.scene.house
-        if house is not None:
-            out.update(room_behaviour(house, np.array(self.positions), self.coverage.gt,
-                                      self.coverage.completed()))
-        return out
-
-    def save(self, out_dir: Path) -> None:
-        """coverage.npz: which ground-truth points were completed (packed bits, in sample order), so the
-        per-room and ceiling measures can be recomputed later (eval/behaviour.py)."""
-        completed = self.coverage.completed()
-        np.savez_compressed(out_dir / "coverage.npz", completed=np.packbits(completed), n=len(completed),
-                            threshold_m=self.cfg.threshold_m, seed=self.cfg.seed)
-
-    def draw_trajectory(self, out_png: Path, rooms: dict | None, title: str) -> None:
-        """trajectory.png; `rooms`: the episode's ``rooms`` metrics (built-in houses), else None."""
-        from activesplat.viz.trajectory import draw_trajectory, room_labels
-
-        scene = self.sim.scene
-        labels = {}
-        if rooms is not None:
-            labels = room_labels(scene.house, rooms, {name: room["completion_ratio_pct"]
-                                                      for name, room in rooms.get("completion", {}).items()})
-        draw_trajectory(out_png, scene.navmap_for(self.sim_config), np.array(self.positions),
-                        house=scene.house, room_labels=labels, title=title)
-
-
-def _curve_point(step: int, coverage, at_step: dict) -> dict:
-    m = coverage.metrics(uncapped=False)
-    return {"step": step, "completion_ratio_pct": m["completion_ratio_pct"],
-            "completion_cm": m["completion_cm"], **at_step}
-
-
-def format_summary(metrics: dict, out_dir: Path) -> str:
-    t = metrics["timing_ms"]
-    lines = [
-        f"episode      {out_dir}",
-        f"scene        {metrics['scene']}  policy {metrics['policy']}  seed {metrics['seed']}",
-        f"steps        {metrics['steps']}  ({metrics['ms_per_step']:.0f} ms/step of which "
-        f"{metrics['evaluation_ms_per_step']:.0f} live evaluation{_worker_note(metrics)}; "
-        f"{metrics['wall_time_s']:.0f} s wall{_setup(metrics)}{_jit(metrics)})",
-        f"completion   {metrics['completion_ratio_pct']:.2f} %  |  {metrics['completion_cm']:.2f} cm "
-        f"(uncapped {_fmt(metrics['completion_cm_uncapped'])} cm)",
-        f"path length  {metrics['path_length_m']:.2f} m",
-        f"gaussians    {metrics['n_gaussians']}",
-        "time/step    " + "  ".join(f"{k} {t[k]:.1f}" for k in TIMING_KEYS)
-        + f"  simulator {metrics.get('simulator_ms_per_step', 0.0):.1f} (ms)",
-    ]
-    return "\n".join(lines)
-
-
-def _worker_note(metrics: dict) -> str:
-    """The live evaluation's own time, where it ran on a worker thread (the loop waited only for part)."""
-    if not metrics.get("evaluation_background"):
-        return ""
-    return f" (waiting; {metrics['evaluation_worker_ms_per_step']:.0f} on its worker thread)"
-
-
-JIT_NOTE_S = 1.0
-"""Seconds of numba compiling inside the timed loop from which the summary and the benchmark's tables say
-that the timings include it."""
-
-
-def _jit(metrics: dict) -> str:
-    """The numba compiling inside the timed loop (the first run after an install or a code change)."""
-    jit = metrics.get("jit_compile_s") or 0.0
-    if jit < JIT_NOTE_S:
-        return ""
-    return (f"; {jit:.0f} s of the wall time compiling numba kernels: the first run after an install or a "
-            "code change, later runs are faster")
-
-
-def _setup(metrics: dict) -> str:
-    """The kernels' one-time setup before the clock, where it was long enough to matter (a gsplat build,
-    numba compiling in the first run after an install or a code change)."""
-    setup = metrics.get("backend_setup_s", 0.0)
-    return f", after {setup:.0f} s loading the kernels" if setup >= 1.0 else ""
-
-
-def _fmt(v) -> str:
-    return "n/a" if v is None or (isinstance(v, float) and math.isnan(v)) else f"{v:.2f}"
 
 
 def explore_from_command(cmd) -> int:

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from activesplat.bench.runner import ERROR_FILE, RunSpec, read_metrics
-from activesplat.explore import JIT_NOTE_S, TIMING_KEYS
+from activesplat.explore_summary import JIT_NOTE_S, TIMING_KEYS
 
 PAPER_TAB6_MS = {"mapper": 45.14, "workspace": 43.87, "voronoi": 0.69, "subregions": 1.56,
                  "rotation_selection": 2.76, "position_selection": 6.46, "planner": 0.20}
