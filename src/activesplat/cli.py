@@ -158,7 +158,7 @@ def _cmd_compare(args: argparse.Namespace) -> int:
 
 
 def _cmd_view(args: argparse.Namespace) -> int:
-    from activesplat.viz.viewer import view_from_args
+    from activesplat.viz.replay import view_from_args
 
     return view_from_args(args)
 

@@ -6,6 +6,7 @@ writes ``DIR/refined_<method>/`` (gaussians.ply, render_metrics.json, refine.jso
 """
 
 from activesplat.refine.config import METHODS, RefineConfig
-from activesplat.refine.trainer import Refiner, RefineResult, refine, refine_from_command
+from activesplat.refine.summary import refine_from_command
+from activesplat.refine.trainer import Refiner, RefineResult, refine
 
 __all__ = ["METHODS", "RefineConfig", "RefineResult", "Refiner", "refine", "refine_from_command"]

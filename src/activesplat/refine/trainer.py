@@ -17,19 +17,16 @@ Outputs, in ``DIR/refined_<method>/``: ``gaussians.ply`` (the refined map), ``re
 (train / test PSNR, SSIM, LPIPS, depth L1 from :func:`activesplat.eval.render_eval.render_eval`),
 ``refine.json`` (settings, timing, loss / PSNR history, density-control totals) and ``checkpoint.pt``.
 
-Resuming: a checkpoint (parameters, Adam state, density statistics, iteration, both random generators,
-progress history) is written every ``checkpoint_every`` iterations, at the end, and when Ctrl-C stops
-the run (at the end of the iteration in progress). Running the same command again continues from it and
-gives the same map as an uninterrupted run; ``restart=True`` (``--restart``) starts over.
+Resuming: a checkpoint is written every ``checkpoint_every`` iterations, at the end, and when Ctrl-C stops
+the run; running the same command again continues from it and gives the same map as an uninterrupted run
+(:mod:`activesplat.refine.checkpoint`); ``restart=True`` (``--restart``) starts over. What the command
+prints is :mod:`activesplat.refine.summary`.
 """
 
 from __future__ import annotations
 
 import json
 import math
-import os
-import signal
-import threading
 import time
 import warnings
 from dataclasses import asdict, dataclass, field, replace
@@ -38,15 +35,9 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from activesplat.errors import (
-    ActiveSplatError,
-    EpisodeError,
-    Interrupted,
-    InvalidInputError,
-    check_output_folder,
-    interrupted,
-)
+from activesplat.errors import ActiveSplatError, EpisodeError, check_output_folder, interrupted
 from activesplat.refine.adc import DensifyStats, DensityControl, reset_opacity, scene_extent
+from activesplat.refine.checkpoint import CHECKPOINT, CtrlC, load_checkpoint, save_checkpoint
 from activesplat.refine.config import RefineConfig
 from activesplat.refine.episode_map import check_arguments, load_episode_map, rerender_keyframes
 from activesplat.refine.methods import make_method
@@ -56,8 +47,6 @@ from activesplat.splat.ply import save_ply
 from activesplat.splat.raster import backend_device
 from activesplat.timing import progress_bar
 
-CHECKPOINT = "checkpoint.pt"
-CHECKPOINT_VERSION = 1
 HISTORY_EVERY = 50  # iterations between entries of refine.json's loss / PSNR history
 OUTPUT_FILES = ("gaussians.ply", "render_metrics.json", "render_grid.png", "refine.json", CHECKPOINT,
                 "checkpoint.tmp", "render_budget.json", "render_budget.png")
@@ -98,30 +87,6 @@ def _psnr(rgb: torch.Tensor, obs_rgb: torch.Tensor, valid: torch.Tensor) -> floa
     return 10.0 * math.log10(1.0 / max(mse, 1e-10))
 
 
-class _DeferredInterrupt:
-    """Turns the first Ctrl-C into a flag checked between iterations (so a checkpoint is consistent);
-    a second Ctrl-C interrupts at once. Only active in the main thread."""
-
-    def __init__(self):
-        self.requested = False
-        self._previous = None
-
-    def __enter__(self):
-        if threading.current_thread() is threading.main_thread():
-            self._previous = signal.signal(signal.SIGINT, self._handler)
-        return self
-
-    def _handler(self, signum, frame):
-        if self.requested:
-            raise KeyboardInterrupt
-        self.requested = True
-
-    def __exit__(self, *exc):
-        if self._previous is not None:
-            signal.signal(signal.SIGINT, self._previous)
-        return False
-
-
 class Refiner:
     """One refinement run of an episode's map (see the module docstring)."""
 
@@ -160,7 +125,7 @@ class Refiner:
             for name in OUTPUT_FILES:
                 (self.out_dir / name).unlink(missing_ok=True)
         if (self.out_dir / CHECKPOINT).is_file():
-            self._load_checkpoint(self.out_dir / CHECKPOINT)
+            load_checkpoint(self, self.out_dir / CHECKPOINT)
             self.resumed = True
         else:
             self._fresh_state(mapper.gaussians, extent)
@@ -181,64 +146,9 @@ class Refiner:
         self.n_initial = len(self.gmap)
         self.saved_iteration: int | None = None  # the iteration of the checkpoint on disk
 
-    def _identity(self) -> dict:
-        """What a checkpoint must match to be resumed by this run."""
-        return {"method": self.method_name, "iters": self.iters, "seed": self.seed,
-                "n_keyframes": self.n_keyframes, "image_size": self.image_size, "config": asdict(self.cfg)}
-
     def save_checkpoint(self) -> Path:
-        """Write ``checkpoint.pt`` atomically (temporary file, then rename)."""
-        self.out_dir.mkdir(parents=True, exist_ok=True)
-        state = {
-            "version": CHECKPOINT_VERSION, **self._identity(),
-            "iteration": self.iteration,
-            "params": {name: t.detach().clone() for name, t in self.gmap.params.items()},
-            "optimizer": self.optimizer.state_dict(),
-            "adc": self.adc.state_dict(),
-            "rng": self.rng.bit_generator.state,
-            "torch_rng": self.generator.get_state(),
-            "ema": [self.ema_loss, self.ema_psnr],
-            "history": self.history, "totals": self.totals,
-            "train_seconds": self.train_seconds, "n_initial": self.n_initial,
-        }
-        path = self.out_dir / CHECKPOINT
-        tmp = path.with_suffix(".tmp")
-        torch.save(state, tmp)
-        os.replace(tmp, path)
-        self.saved_iteration = self.iteration
-        return path
-
-    def _load_checkpoint(self, path: Path) -> None:
-        try:
-            state = torch.load(path, weights_only=True, map_location=self.device)
-        except Exception as err:  # noqa: BLE001 - any unreadable file is bad input here
-            raise EpisodeError(f"{path}: unreadable checkpoint ({type(err).__name__}); use --restart") \
-                from None
-        if state.get("version") != CHECKPOINT_VERSION:
-            raise EpisodeError(f"{path}: checkpoint of another version; use --restart")
-        mine = self._identity()
-        differ = [k for k in mine if state.get(k) != mine[k]]
-        if differ:
-            was = [f"{k}={state.get(k)}" for k in differ if k != "config"]
-            saved = state.get("config") if isinstance(state.get("config"), dict) else {}
-            was += [f"refine.{k}={saved.get(k, 'absent')}" for k, v in mine["config"].items()
-                    if "config" in differ and saved.get(k) != v]
-            raise InvalidInputError(
-                f"{path} belongs to another run ({', '.join(was) or 'other settings'}); pass the same "
-                f"arguments to resume it or --restart to start over")
-        self.gmap = GaussianMap(state["params"])
-        self.optimizer = self.gmap.make_optimizer(self.lr, self.adam_eps)
-        self.optimizer.load_state_dict(state["optimizer"])
-        self.adc = DensityControl(self.cfg, 1.0, 0, self.device)
-        self.adc.load_state_dict(state["adc"])
-        self.iteration = self.saved_iteration = int(state["iteration"])
-        self.rng = np.random.default_rng()
-        self.rng.bit_generator.state = state["rng"]
-        self.generator = torch.Generator()
-        self.generator.set_state(state["torch_rng"].cpu())
-        self.ema_loss, self.ema_psnr = state["ema"]
-        self.history, self.totals = list(state["history"]), dict(state["totals"])
-        self.train_seconds, self.n_initial = float(state["train_seconds"]), int(state["n_initial"])
+        """Write ``checkpoint.pt`` atomically (:func:`activesplat.refine.checkpoint.save_checkpoint`)."""
+        return save_checkpoint(self)
 
     # ------------------------------------------------------------------ training
     def _set_means_lr(self, iteration: int) -> None:
@@ -307,7 +217,7 @@ class Refiner:
         bar = progress_bar(self.iters, f"refine {self.method_name}", "it", self.progress,
                            initial=self.iteration)
         try:
-            with _DeferredInterrupt() as interrupt:
+            with CtrlC(self, bar) as ctrl_c:
                 t0 = time.perf_counter()
                 while self.iteration < end:
                     loss, psnr = self.step()
@@ -318,30 +228,13 @@ class Refiner:
                             bar.set_postfix(loss=f"{self.ema_loss:.4f}", psnr=f"{self.ema_psnr:.2f}",
                                             n=len(self.gmap), refresh=False)
                     checkpoint = self.iteration % self.cfg.checkpoint_every == 0 or self.iteration == end
-                    if checkpoint or interrupt.requested:
+                    if checkpoint or ctrl_c.requested:
                         now = time.perf_counter()
                         self.train_seconds += now - t0
                         t0 = now
                         self.save_checkpoint()
-                    if interrupt.requested:
-                        if bar is not None:  # before the line, which it would otherwise follow
-                            bar.close()
-                        raise interrupted(f"refine: stopped at iteration {self.iteration} of {self.iters}, "
-                                          f"saved in {self.out_dir / CHECKPOINT}; the same command resumes "
-                                          f"(--restart starts over)")
-        except KeyboardInterrupt as exc:
-            if isinstance(exc, Interrupted):
-                raise
-            # a second Ctrl-C: the iteration in progress is lost, the last checkpoint is not
-            if bar is not None:
-                bar.close()
-            if self.saved_iteration is None:
-                kept = "nothing saved yet; the same command starts over"
-            else:
-                kept = (f"the checkpoint of iteration {self.saved_iteration} in {self.out_dir / CHECKPOINT} "
-                        f"is kept; the same command resumes from it")
-            raise interrupted(f"refine: stopped at once in iteration {self.iteration + 1} of {self.iters}: "
-                              f"{kept}") from None
+                    if ctrl_c.requested:
+                        ctrl_c.stop()
         finally:
             if bar is not None:
                 bar.close()
@@ -481,98 +374,5 @@ def refine(episode_dir: str | Path, method: str = "3dgs", iters: int = 2000, *,
     return replace(refiner.result(metrics), not_evaluated=blocker)
 
 
-def refine_from_command(cmd) -> int:
-    """``activesplat refine DIR [--method 3dgs|2dgs] [--iters N] [--seed S] [--restart] [--backend B]
-    [--image-size PX] [--no-lpips] [--refine.FIELD VALUE ...]`` (an `activesplat.config.RefineCommand`)."""
-    check_arguments(cmd.dir, cmd.method, cmd.iters)
-    if cmd.lpips:  # the evaluation after training needs the weights: say so before training, not after
-        from activesplat.eval.lpips import find_weights
-
-        find_weights()
-    res = refine(cmd.dir, cmd.method, cmd.iters, config=cmd.refine, seed=cmd.seed, backend=cmd.backend,
-                 restart=cmd.restart, progress=cmd.progress, image_size=cmd.image_size,
-                 eval_kwargs={"lpips": cmd.lpips})
-    rate = res.iterations / res.train_seconds if res.train_seconds else float("nan")
-    print(f"refined {res.method}: {res.iterations} iterations ({rate:.2f} it/s), "
-          f"{res.n_gaussians_initial} -> {res.n_gaussians} Gaussians "
-          f"(cloned {res.densify.get('cloned', 0)}, split {res.densify.get('split', 0)}, "
-          f"pruned {res.densify.get('pruned', 0)}) -> {res.out_dir}")
-    window = round(1.0 / (1.0 - cmd.refine.psnr_ema)) if cmd.refine.psnr_ema < 1 else res.iterations
-    print(f"training PSNR {res.psnr:.2f} dB (running mean over about the last {window} iterations' "
-          f"keyframes, pixels with depth, the map still changing: not the render-eval numbers below)")
-    if res.metrics:
-        online_path = Path(cmd.dir) / "render_metrics.json"
-        online = json.loads(online_path.read_text()) if online_path.is_file() else None
-        print(format_metrics(res.metrics, online, online_path, same_size=cmd.image_size is None))
-    elif res.not_evaluated:
-        print(f"not evaluated: {res.not_evaluated}")
-    return 0
-
-
-VIEW_KEYS = ("step", "position", "yaw_deg")  # what names a view in render_metrics.json (train / test)
-
-
-def other_views(before: dict, after: dict) -> str | None:
-    """None when two render_metrics.json measured the same views the same way (image size, field of view,
-    render-eval settings, metric definitions, every view's step or pose), else what differs. LPIPS
-    measured in one of them only does not count (it is then left out of the comparison)."""
-    def protocol(m: dict) -> dict:
-        return {k: v for k, v in (m.get("protocol") or {}).items() if k != "lpips"}
-
-    if (before.get("width"), before.get("height")) != (after.get("width"), after.get("height")):
-        return (f"image size {before.get('width')}x{before.get('height')}, not "
-                f"{after.get('width')}x{after.get('height')}")
-    for what, a, b in (("field of view", before.get("hfov_deg"), after.get("hfov_deg")),
-                       ("render-eval settings", before.get("config"), after.get("config")),
-                       ("metric definitions", protocol(before), protocol(after))):
-        if a != b:
-            return f"other {what}"
-    for split in ("train", "test"):
-        views = [[{k: v.get(k) for k in VIEW_KEYS} for v in (m.get(split) or {}).get("views", [])]
-                 for m in (before, after)]
-        if views[0] != views[1]:
-            return f"other {split} views"
-    return None
-
-
-def format_metrics(metrics: dict, online: dict | None = None, online_path: Path | None = None,
-                   same_size: bool = True) -> str:
-    """The refined map's render-eval: a heading naming the views, then one line per split (PSNR / SSIM /
-    LPIPS / depth L1). With the online map's render_metrics.json of the same views (:func:`other_views`),
-    every number as online -> refined; otherwise a last line says why the online map is not shown
-    (``same_size``: the map was refined at the keyframes' own size, so that render-eval of the episode
-    measures the same views)."""
-    differs = other_views(online, metrics) if online is not None else None
-    before = online if online is not None and differs is None else None
-    n = {split: (metrics.get(split) or {}).get("n_views") or 0 for split in ("train", "test")}
-    lines = [f"render-eval, online map -> refined on the same {n['train']} train / {n['test']} test views "
-             f"(whole image):" if before else
-             f"render-eval of the refined map ({n['train']} train / {n['test']} test views, whole image):"]
-
-    def value(split: str, key: str, spec: str) -> str:
-        after = format(metrics[split][key], spec)
-        old = (before or {}).get(split, {}).get(key)
-        return after if old is None else f"{format(old, spec)} -> {after}"
-
-    for split in ("train", "test"):
-        m = metrics.get(split)
-        if not m or m.get("psnr") is None:  # no views (a recorded map has no test split)
-            continue
-        parts = [f"PSNR {value(split, 'psnr', '.2f')} dB", f"SSIM {value(split, 'ssim', '.3f')}"]
-        if m.get("lpips") is not None:
-            parts.append(f"LPIPS {value(split, 'lpips', '.3f')}")
-        parts.append(f"depth L1 {value(split, 'depth_l1_cm', '.2f')} cm")
-        lines.append(f"{split:5s} " + "  ".join(parts))
-    if online is None and online_path is not None and same_size:
-        lines.append(f"(the online map on the same views: `activesplat render-eval {online_path.parent}`, "
-                     f"then this command again)")
-    elif online is None and online_path is not None:
-        lines.append("(the online map is not compared: render-eval measures it at the episode's own image "
-                     "size, not the one refined at)")
-    elif differs is not None:
-        lines.append(f"(the online map is not compared: {online_path} has {differs})")
-    return "\n".join(lines)
-
-
-__all__ = ["RefineResult", "Refiner", "check_arguments", "evaluation_blocker", "output_dir", "refine",
-           "refine_from_command"]
+__all__ = ["CHECKPOINT", "RefineResult", "Refiner", "check_arguments", "evaluation_blocker", "output_dir",
+           "refine"]

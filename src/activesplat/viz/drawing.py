@@ -1,8 +1,8 @@
 """What the viewers draw, with viser: the Gaussian map as splats, the camera frustum, trajectories, the
 plan (Voronoi graph by subregion, eq. 12 score bars, goal and path, the top-down grid), rotation
 targets, and the RGB-D / panorama images, each in its own toggleable layer (`SceneDrawer`); and the
-conversions they need (depth and panorama images, splat arrays). Shared by `viz.viewer`'s live and
-replay viewers."""
+conversions they need (depth and panorama images, splat arrays). Shared by the live (`viz.live`) and
+replay (`viz.replay`) viewers."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 if TYPE_CHECKING:
-    from activesplat.viz.viewer import ViewerConfig
+    from activesplat.viz.server import ViewerConfig
 
 
 def _rgb_u8(colormap: str, values: np.ndarray) -> np.ndarray:
