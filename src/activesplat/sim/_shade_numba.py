@@ -221,7 +221,8 @@ def shade_pixels_area(prim, tfar, u, v, dirs, dx, dy, max_depth, pow2, planes, f
             if scaled:  # uint8 texels: the sums / 255 (float32 texels, already / 255: no division by 1)
                 c0, c1, c2 = c0 / texel_divisor, c1 / texel_divisor, c2 / texel_divisor
             if fl > zero:  # trilinear: blend with the next coarser level
-                k00, k01, k10, k11, w00, w01, w10, w11 = _bilinear_taps(o1, w1, h1, sx1, sy1, ws, wt, pow2, x, y)
+                k00, k01, k10, k11, w00, w01, w10, w11 = _bilinear_taps(o1, w1, h1, sx1, sy1, ws, wt, pow2,
+                                                                        x, y)
                 e0 = (w00 * np.float32(texels[k00, 0]) + w01 * np.float32(texels[k01, 0])
                       + w10 * np.float32(texels[k10, 0]) + w11 * np.float32(texels[k11, 0]))
                 e1 = (w00 * np.float32(texels[k00, 1]) + w01 * np.float32(texels[k01, 1])
