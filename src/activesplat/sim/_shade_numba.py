@@ -1,6 +1,7 @@
-"""numba kernels of RGBDSensor.render after the Embree cast: per pixel z-depth, the texture of the hit
-face's material (own texture, wrap modes) read at the nearest texel (`shade_pixels`) or integrated over
-the pixel's footprint (`shade_pixels_area`), base colour / vertex colours, face shading, uint8.
+"""numba kernels of RGBDSensor.render: the world rays before the Embree cast (`world_rays`), and after it
+per pixel z-depth, the texture of the hit face's material (own texture, wrap modes) read at the nearest
+texel (`shade_pixels`) or integrated over the pixel's footprint (`shade_pixels_area`), base colour /
+vertex colours, face shading, uint8.
 
 All in float32. `shade_pixels` keeps the operation order of the numpy reference (`RGBDSensor.shade`), so
 both give the same images; tests compare them. `shade_pixels_area` is tested against supersampled renders
