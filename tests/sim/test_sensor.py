@@ -4,7 +4,7 @@ shading, textures, determinism of images and poses per seed."""
 import numpy as np
 import pytest
 
-from activesplat.geometry import camera_pose
+from activesplat.geometry import camera_pose, intrinsics
 from activesplat.sim import SimConfig, Simulator, box_room
 
 
@@ -153,3 +153,19 @@ def test_threaded_blocks_and_depth_alone_give_the_same_images(small0, monkeypatc
         np.testing.assert_array_equal(rgb, ref_rgb)
         np.testing.assert_array_equal(depth, ref_depth)
         np.testing.assert_array_equal(sim.depth(pose, 96, 64), sim.render(pose, 96, 64)[1])
+
+
+def test_world_rays_are_the_rotated_camera_rays(small0):
+    """The compiled world rays are the float32 sums of the numpy expression, bit for bit, for any pixel
+    range."""
+    sensor = small0.sensor_for(SimConfig())
+    pose = _sensor_pose([1.0, 0.3, 2.0], 0.7, -0.4)
+    K = intrinsics(40, 30, 90.0)
+    rays, rot = sensor._camera_rays(K, 40, 30), pose[:3, :3].astype(np.float32)
+    expected = rays[:, :1] * rot[:, 0] + rays[:, 1:2] * rot[:, 1] + rays[:, 2:] * rot[:, 2]
+    origins, dirs = sensor.world_rays(pose, K, 40, 30)
+    np.testing.assert_array_equal(dirs, expected)
+    np.testing.assert_array_equal(origins, np.broadcast_to(pose[:3, 3].astype(np.float32), (1200, 3)))
+    origins, dirs = sensor.world_rays(pose, K, 40, 30, 100, 250)
+    np.testing.assert_array_equal(dirs, expected[100:250])
+    assert origins.shape == (150, 3)

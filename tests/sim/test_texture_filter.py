@@ -86,3 +86,44 @@ def test_untextured_scene_is_the_same_with_either_filter():
 def test_bad_filter_settings_are_refused(bad):
     with pytest.raises(InvalidInputError, match=next(iter(bad))):
         SimConfig(**bad)
+
+
+def _tiling_room():
+    """A 4 m box room seen from inside, its faces cycling through three 16 x 16 / 8 x 32 / 32 x 4 textures
+    with every wrap mode, UVs from about -3 to 5 (negative texel indices on every axis)."""
+    import trimesh
+
+    from activesplat.sim.materials import CLAMP_TO_EDGE, MIRRORED_REPEAT, REPEAT, Material
+
+    room = trimesh.creation.box(extents=[4.0, 3.0, 4.0])
+    room.apply_translation([2.0, 1.5, 2.0])
+    room.invert()
+    room = room.subdivide().subdivide()
+    rng = np.random.default_rng(0)
+    modes = (REPEAT, MIRRORED_REPEAT, CLAMP_TO_EDGE)
+    materials = [Material(f"m{k}", np.ones(3), rng.integers(0, 256, (h, w, 3)).astype(np.uint8),
+                          modes[k % 3], modes[(k + 1) % 3])
+                 for k, (h, w) in enumerate([(16, 16), (8, 32), (32, 4)] * 2)]
+    tri = room.vertices[room.faces]
+    uv = np.stack([tri[..., 0] + 0.5 * tri[..., 1], tri[..., 2] - tri[..., 1]], axis=-1) * 2.0 - 3.0
+    surface = Surface(materials, np.arange(len(room.faces)) % len(materials), uv.astype(np.float32))
+    return room, surface
+
+
+@pytest.mark.parametrize("config", [SimConfig(), NEAREST])
+def test_power_of_two_wrap_is_the_modulo(config):
+    """With every texture side a power of two the kernels wrap texel indices with a bitwise and; the
+    general modulo gives the same bytes (every wrap mode, negative indices, both filters)."""
+    mesh, surface = _tiling_room()
+    sensor = RGBDSensor(mesh, config, surface=surface)
+    assert sensor._pow2
+    K = intrinsics(64, 48, 90.0)
+    poses = [camera_pose(np.array([2.0, 1.2, 2.0]), math.radians(yaw), math.radians(pitch))
+             for yaw, pitch in ((0, 0), (120, -40), (240, 35))]
+    fast = [sensor.render(pose, K, 64, 48) for pose in poses]
+    sensor._pow2 = False
+    for pose, (rgb, depth) in zip(poses, fast, strict=True):
+        ref_rgb, ref_depth = sensor.render(pose, K, 64, 48)
+        assert rgb.std() > 10  # textured, not a flat colour
+        np.testing.assert_array_equal(rgb, ref_rgb)
+        np.testing.assert_array_equal(depth, ref_depth)
