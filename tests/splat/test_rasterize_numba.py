@@ -96,6 +96,29 @@ def test_tiles_that_finish_before_their_list_ends():
     assert (ref.alpha > 0.999).float().mean() > 0.9  # nearly every pixel reached the transmittance stop
 
 
+def test_rows_that_finish_while_their_tile_still_blends():
+    """An opaque wall over the top rows of the image, Gaussians hidden behind it and others below it in
+    the same tiles: the forward pass leaves out a run's finished rows, so the hidden Gaussians must
+    change nothing, bit for bit, and the scene still matches the torch reference."""
+    wall = list(random_scene(120, 9, scale=(0.15, 0.3), opacity=(0.99, 1.0)))
+    gen = torch.Generator().manual_seed(9)
+    wall[0] = torch.stack([torch.rand(120, generator=gen) * 2.4 - 1.2,
+                           torch.rand(120, generator=gen) * 0.5 - 0.9, torch.full((120,), 1.0)], dim=1)
+    hidden = list(random_scene(60, 10, scale=(0.01, 0.05)))
+    hidden[0] = torch.stack([torch.rand(60, generator=gen) * 3 - 1.5,
+                             torch.rand(60, generator=gen) * 0.6 - 1.8, torch.full((60,), 3.0)], dim=1)
+    below = list(random_scene(60, 11, scale=(0.02, 0.1)))
+    below[0][:, 1] = below[0][:, 2] * (0.1 + 0.6 * torch.rand(60, generator=gen))
+    scene = [torch.cat(parts) for parts in zip(wall, below, hidden, strict=True)]
+    ref = assert_backends_agree(scene)
+    assert ref.alpha[3:8].amax() > 0.9998 and ref.alpha[14:16].amin() < 0.9  # tile row 0: both kinds of rows
+    without, _ = render_with_grads([torch.cat(parts) for parts in zip(wall, below, strict=True)], "numba")
+    out, grads = render_with_grads(scene, "numba")
+    for name in ("rgb", "depth", "alpha", "median_depth"):
+        assert torch.equal(out[name], without[name]), name
+    assert (out.radii[-60:] > 0).any() and grads[3][-60:].abs().max() == 0  # hidden, rendered, no effect
+
+
 def test_behind_camera_gaussians_are_culled():
     params = behind_and_off_screen(80, 4)
     ref = assert_backends_agree(params)

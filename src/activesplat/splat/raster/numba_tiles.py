@@ -10,8 +10,11 @@ The per-pixel work is branch-free so that LLVM vectorises it (SIMD over pixels):
 running state in one local float32 array, each half tile stored row-major, so the pixels a Gaussian
 visits in one half are a single contiguous run; skips (alpha < 1/255, finished pixels) are masks,
 not branches, and exp is an inline polynomial. Pixels outside the box would be skipped anyway, so
-the result is the 3DGS one. Tiles run in parallel (prange, static schedule); the backward pass
-writes one gradient row per instance and a second parallel loop sums them per Gaussian (no atomics).
+the result is the 3DGS one. The forward pass also leaves out the rows at either end of a run whose
+pixels have all finished (it notes which rows still blend whenever it checks whether the tile is done):
+they would blend nothing (about 6 % less forward compositing on a 200k-Gaussian room view). Tiles run
+in parallel (prange, static schedule); the backward pass writes one gradient row per instance and a
+second parallel loop sums them per Gaussian (no atomics).
 """
 
 from __future__ import annotations
@@ -55,8 +58,9 @@ N_BWD = 11  # backward: T, suffix sums (rgb, depth), output gradients (rgb, dept
 MAX_CHUNKS = 16  # chunks of the depth order in the parallel tile-list build (fixed: deterministic)
 MIN_CHUNK = 2048  # Gaussians per chunk at least
 MAX_TILE_LIST = 1 << 24  # list positions are held as float32 in the tile state: exact below 2^24
-# the forward pass checks every this many instances whether a tile is finished; counting the finished
-# pixels inside the pixel loop (an int64 reduction) kept LLVM at 4 lanes instead of 8
+# the forward pass checks every this many instances which half-tile rows still blend (and whether the
+# tile is finished); counting the finished pixels inside the pixel loop (an int64 reduction) kept LLVM
+# at 4 lanes instead of 8
 LIVE_CHECK_EVERY = 32
 
 
@@ -271,16 +275,6 @@ def tile_bounds(t, grid_x, width, height):
     return x0, min(x0 + TILE, width), y0, min(y0 + TILE, height)
 
 
-@njit(cache=True, error_model="numpy")
-def any_live(s):
-    """Whether a pixel of the forward tile state ``s`` is still blending."""
-    m = ZERO
-    for h in range(NH):
-        for q in range(HP):
-            m = max(m, s[F_LIVE, h, q])
-    return m != ZERO
-
-
 @njit(cache=True, parallel=True, error_model="numpy")
 def composite_forward(tile_starts, feat, width, height, background, rgb, depth, trans, median, last):
     """Front-to-back blending per tile; fills rgb (H,W,3), depth, final T, median depth and the list
@@ -295,9 +289,19 @@ def composite_forward(tile_starts, feat, width, height, background, rgb, depth, 
                 s[F_T, h, q], s[F_LAST, h, q] = ONE, NEG1
                 inside = (q >> 3) < y1 - y0 and h * HW + (q & 7) < x1 - x0
                 s[F_LIVE, h, q] = ONE if inside else ZERO
+        row_live = np.empty((NH, TILE), F32)  # per half-tile row: 1 while one of its pixels is blending
         for k in range(k0, tile_starts[t + 1]):
-            if (k - k0) % LIVE_CHECK_EVERY == 0 and k > k0 and not any_live(s):
-                break  # every pixel is finished (checked now and then: later instances would change nothing)
+            if (k - k0) % LIVE_CHECK_EVERY == 0:  # now and then: between checks a row may have finished
+                live = ZERO
+                for h in range(NH):
+                    for r in range(TILE):
+                        m = ZERO
+                        for lane in range(HW):
+                            m = max(m, s[F_LIVE, h, r * HW + lane])
+                        row_live[h, r] = m
+                        live = max(live, m)
+                if live == ZERO:
+                    break  # every pixel is finished: later instances would change nothing
             h0, h1, q0, q1 = visit_range(feat, k, x0, x1, y0, y1)
             b, o, pmax, kk = feat[k, CB], feat[k, OP], feat[k, PMAX], F32(k - k0)
             ha, hc, myl = HALF * feat[k, CA], HALF * feat[k, CC], feat[k, MY] - F32(y0) - HALF
@@ -305,7 +309,12 @@ def composite_forward(tile_starts, feat, width, height, background, rgb, depth, 
             pu, pv = feat[k, PU], feat[k, PV]
             for h in range(h0, h1 + 1):
                 mxl = feat[k, MX] - F32(x0 + h * HW) - HALF
-                for q in range(q0, q1):
+                qa, qb = q0, q1  # without the finished rows at either end (they would blend nothing)
+                while qa < qb and row_live[h, qa >> 3] == ZERO:
+                    qa += np.uint32(HW)
+                while qb > qa and row_live[h, (qb >> 3) - 1] == ZERO:
+                    qb -= np.uint32(HW)
+                for q in range(qa, qb):
                     alpha, _g, dx, dy = pixel_alpha(q, mxl, myl, ha, b, hc, o, pmax)
                     zp = z - pu * dx - pv * dy  # depth at this pixel (dx = mean - pixel)
                     hit = (s[F_LIVE, h, q] != ZERO) & (alpha != ZERO)
