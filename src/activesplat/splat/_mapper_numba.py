@@ -407,6 +407,123 @@ def far_depth(depth, r):
     return out
 
 
+# --------------------------------------------------------------------------- densification and pruning
+@njit(parallel=True, cache=True)
+def window_any(mask, r):
+    """(H, W) bool: some pixel of ``mask`` within the (2r+1)^2 window (clipped to the image) is set; a
+    max-pool of the mask, in two parallel passes."""
+    height, width = mask.shape
+    rows = np.empty((height, width), np.bool_)
+    for i in prange(height):
+        for j in range(width):
+            hit = False
+            for jj in range(max(0, j - r), min(width, j + r + 1)):
+                hit |= mask[i, jj]
+            rows[i, j] = hit
+    out = np.empty((height, width), np.bool_)
+    for i in prange(height):
+        for j in range(width):
+            out[i, j] = False
+        for ii in range(max(0, i - r), min(height, i + r + 1)):
+            for j in range(width):
+                out[i, j] |= rows[ii, j]
+    return out
+
+
+@njit(parallel=True, cache=True)
+def edge_band(depth, band, jump, scale):
+    """``densify.depth_edge_band`` of the float32 ``depth`` in three parallel passes, with torch's float32
+    arithmetic (``jump`` and ``scale`` = 1 + jump as float32): the kinks of the inverse depth along rows
+    and columns, dilated by band - 1, where the farthest depth within ``band`` (:func:`far_depth`) lies
+    beyond depth x ``scale``, on valid depth. The same mask bit for bit (tested against the torch one)."""
+    height, width = depth.shape
+    zero, one, two, tiny = np.float32(0.0), np.float32(1.0), np.float32(2.0), np.float32(1e-12)
+    inv = np.empty((height, width), np.float32)
+    for i in prange(height):
+        for j in range(width):
+            x = depth[i, j]
+            inv[i, j] = one / max(x, tiny) if x > 0 else zero
+    edge = np.zeros((height, width), np.bool_)
+    for i in prange(height):
+        for j in range(width):
+            if not depth[i, j] > 0:
+                continue
+            p = inv[i, j]
+            kink = False
+            if 0 < i < height - 1:
+                kink |= (not depth[i - 1, j] > 0 or not depth[i + 1, j] > 0
+                         or abs(inv[i - 1, j] - two * p + inv[i + 1, j]) > jump * p)
+            if 0 < j < width - 1:
+                kink |= (not depth[i, j - 1] > 0 or not depth[i, j + 1] > 0
+                         or abs(inv[i, j - 1] - two * p + inv[i, j + 1]) > jump * p)
+            edge[i, j] = kink
+    if band > 1:
+        edge = window_any(edge, band - 1)
+    far = far_depth(depth, band)
+    out = np.empty((height, width), np.bool_)
+    for i in prange(height):
+        for j in range(width):
+            out[i, j] = edge[i, j] and far[i, j] > depth[i, j] * scale and depth[i, j] > 0
+    return out
+
+
+@njit(parallel=True, cache=True)
+def colour_blocks(rgb, stride, colour_range):
+    """``densify.colour_detail`` of the float32 (H, W, 3) ``rgb``: per ``stride`` x ``stride`` block, whether
+    some channel spans more than ``colour_range`` (float32), the blocks on the right and bottom edges
+    padded as the torch version pads them (-1 for the maximum, 2 for the minimum). (H, W) bool."""
+    height, width = rgb.shape[0], rgb.shape[1]
+    blocks_down, blocks_across = -(-height // stride), -(-width // stride)
+    out = np.empty((height, width), np.bool_)
+    for bi in prange(blocks_down):
+        i0 = bi * stride
+        i1 = min(height, i0 + stride)
+        for bj in range(blocks_across):
+            j0 = bj * stride
+            j1 = min(width, j0 + stride)
+            padded = i1 - i0 < stride or j1 - j0 < stride
+            detail = False
+            for c in range(3):
+                hi = lo = rgb[i0, j0, c]
+                for i in range(i0, i1):
+                    for j in range(j0, j1):
+                        x = rgb[i, j, c]
+                        hi = max(hi, x)
+                        lo = min(lo, x)
+                if padded:
+                    hi = max(hi, np.float32(-1.0))
+                    lo = min(lo, np.float32(2.0))
+                detail |= hi - lo > colour_range
+            for i in range(i0, i1):
+                for j in range(j0, j1):
+                    out[i, j] = detail
+    return out
+
+
+@njit(parallel=True, cache=True)
+def floaters(z, u, v, inside, depth, window, margin):
+    """``densify.free_space_mask`` from the projected centres (camera depth ``z``, pixel ``u``, ``v``,
+    ``inside`` the image): z < (the nearest observed depth within the (2 ``window`` + 1)^2 window, 0 when
+    a pixel of it is invalid or the window leaves the image) - ``margin`` (float32), looked up for
+    each centre instead of min-pooling the whole image."""
+    height, width = depth.shape
+    zero = np.float32(0.0)
+    out = np.zeros(z.shape[0], dtype=np.bool_)
+    for k in prange(z.shape[0]):
+        if not inside[k]:
+            continue
+        ui, vi = u[k], v[k]
+        nearest = zero
+        if window == 0 or (window <= vi < height - window and window <= ui < width - window):
+            nearest = np.float32(np.inf)
+            for i in range(vi - window, vi + window + 1):
+                for j in range(ui - window, ui + window + 1):
+                    x = depth[i, j]
+                    nearest = min(nearest, x if x > 0 else zero)
+        out[k] = z[k] < nearest - margin
+    return out
+
+
 # --------------------------------------------------------------------------- coarse-Gaussian refresh
 @njit(parallel=True, cache=True)
 def coarse_rows(means, log_scales, rot, t, fx, fy, cx, cy, depth, factor, radius_per_z, min_radius, sigmas,
