@@ -3,7 +3,10 @@
 :class:`activesplat.splat.optim.RowAdam`, each one parallel pass over the rows, where the torch
 versions (kept for other devices, and compared in the tests) make a dozen passes and temporaries; and the
 mapping loss of eqs. 5-7 with its gradient (:func:`activesplat.splat.losses.mapping_loss`) in three
-parallel passes over the image rows instead of pytorch-msssim's ten convolutions and autograd."""
+parallel passes over the image rows instead of pytorch-msssim's ten convolutions and autograd; and the
+per-frame masks of :mod:`activesplat.splat.densify` that torch computes with max-pools over the whole
+image (the depth-edge band, the colour-detail blocks, the floater test of the pruning), which give the
+torch versions' masks bit for bit (the tests compare them)."""
 
 from __future__ import annotations
 
