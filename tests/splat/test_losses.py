@@ -135,3 +135,68 @@ def test_mapping_loss_falls_back_to_torch_on_small_images():
         terms = mapping_loss(*case, MapperConfig())
         ref = mapping_loss_torch(*case, MapperConfig())
     assert terms.total.item() == ref.total.item()
+
+
+def _plain_loss_passes(rgb, depth, obs_rgb, obs_depth, win, c1, c2, weights):
+    """The three passes of the fused loss as plain numpy float32 loops, each sum taken in the kernels'
+    order (tap k = 0, 1, ... from 0): the blurred X, Y, XX, YY, XY, the SSIM derivatives, dL/drgb and
+    dL/ddepth."""
+    height, width = depth.shape
+    nw = len(win)
+    ho, wo = height - nw + 1, width - nw + 1
+    ok = obs_depth > 0
+    x = np.where(ok[..., None], rgb, np.float32(0.0)).transpose(2, 0, 1)
+    y = np.where(ok[..., None], obs_rgb, np.float32(0.0)).transpose(2, 0, 1)
+    h = np.zeros((5, 3, height, wo), np.float32)
+    for q, src in enumerate((x, y, x * x, y * y, x * y)):
+        for k in range(nw):
+            h[q] += win[k] * src[:, :, k:k + wo]
+    acc = np.zeros((5, 3, ho, wo), np.float32)
+    for k in range(nw):
+        acc += win[k] * h[:, :, k:k + ho]
+    m1, m2 = acc[0], acc[1]
+    s11, s22, s12 = acc[2] - m1 * m1, acc[3] - m2 * m2, acc[4] - m1 * m2
+    two, one = np.float32(2.0), np.float32(1.0)
+    a1, b1 = two * m1 * m2 + c1, m1 * m1 + m2 * m2 + c1
+    a2, b2 = two * s12 + c2, s11 + s22 + c2
+    inv = one / (b1 * b2)
+    ssim = a1 * a2 * inv
+    d = np.stack([two * m2 * (a2 - a1) * inv - two * m1 * ssim * (one / b1 - one / b2), -ssim / b2,
+                  two * a1 * inv])
+    col = np.zeros((3, 3, height, wo), np.float32)
+    for k in range(nw):
+        col[:, :, k:k + ho] += win[k] * d
+    full = np.zeros((3, 3, height, width), np.float32)
+    for k in range(nw):
+        full[..., k:k + wo] += win[k] * col
+    w_ssim, w_color, w_depth = weights
+    gx = w_ssim * (full[0] + two * x * full[1] + y * full[2])
+    g_rgb = np.where(ok, gx + w_color * np.sign(rgb - obs_rgb).transpose(2, 0, 1), np.float32(0.0))
+    g_depth = np.where(ok, w_depth * np.sign(depth - obs_depth), np.float32(0.0))
+    return h, d, g_rgb.transpose(1, 2, 0), g_depth
+
+
+@pytest.mark.parametrize("window", [11, 7])
+def test_fused_loss_passes_are_the_plain_loops_bit_for_bit(window):
+    """The numba passes (registers over the taps for the default 11-tap window, plain loops otherwise, a
+    zero border for the transposed blurs) add the same float32 products in the same order as plain loops:
+    every intermediate and gradient is the same bit for bit, also where pixels are invalid."""
+    from activesplat.splat._mapper_numba import loss_grad_rows, loss_rows, ssim_columns
+    from activesplat.splat.losses import SSIM_C1, SSIM_C2, ssim_window
+
+    arrays = [t.numpy() for t in _loss_case(window, 37, 45)]
+    arrays[0][5, 7] = arrays[2][5, 7]  # a zero colour difference: sign 0
+    win = ssim_window(window)
+    c1, c2 = np.float32(SSIM_C1), np.float32(SSIM_C2)
+    weights = (np.float32(-0.01), np.float32(0.002), np.float32(0.003))
+    h, sums = loss_rows(*arrays, win)
+    d, _ = ssim_columns(h, win, c1, c2)
+    g_rgb, g_depth = loss_grad_rows(d, win, *arrays, *weights)
+    want_h, want_d, want_rgb, want_depth = _plain_loss_passes(*arrays, win, c1, c2, weights)
+    p = window - 1
+    inner = np.zeros(d.shape, bool)
+    inner[:, :, p:-p, p:-p] = True
+    assert np.array_equal(h, want_h) and np.array_equal(d[:, :, p:-p, p:-p], want_d)
+    assert not d[~inner].any()  # the border the transposed blurs read is zero
+    assert np.array_equal(g_rgb, want_rgb) and np.array_equal(g_depth, want_depth)
+    assert int(sums[:, 2].sum()) == int((arrays[3] > 0).sum())

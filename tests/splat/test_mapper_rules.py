@@ -548,6 +548,57 @@ def test_free_space_mask_flags_only_gaussians_in_observed_free_space():
         got.tolist()
 
 
+def _rough_depth(h: int, w: int, seed: int) -> torch.Tensor:
+    """A floor-like ramp with boxes in front of it, noise, and invalid pixels: jumps, smooth slopes, holes."""
+    rng = np.random.default_rng(seed)
+    rows = np.arange(h, dtype=np.float64)[:, None] + 0.5
+    depth = np.broadcast_to(40.0 / (rows + 8.0), (h, w)).copy()
+    for _ in range(4):
+        i, j = rng.integers(0, h), rng.integers(0, w)
+        depth[i:i + rng.integers(2, 9), j:j + rng.integers(2, 9)] *= rng.uniform(0.3, 0.98)
+    depth *= 1.0 + 0.01 * rng.standard_normal((h, w))
+    depth[rng.random((h, w)) < 0.03] = 0.0
+    return torch.from_numpy(depth.astype(np.float32))
+
+
+@pytest.mark.parametrize("h,w", [(37, 45), (2, 7), (16, 16)])
+def test_cpu_density_masks_are_the_torch_masks_bit_for_bit(h, w):
+    """The CPU (numba) depth-edge band, colour detail and floater test give exactly the torch versions'
+    masks: every band width and stride, image sizes that leave partial blocks, windows at the border."""
+    from activesplat.splat.densify import (
+        _colour_detail_torch,
+        _depth_edge_band_torch,
+        _floaters_torch,
+        _project,
+        free_space_mask,
+    )
+
+    depth = _rough_depth(h, w, h * w)
+    for band in (1, 2, 3):
+        for jump in (0.05, 0.01):
+            assert torch.equal(depth_edge_band(depth, band, jump), _depth_edge_band_torch(depth, band, jump))
+    rng = np.random.default_rng(w)
+    rgb = torch.from_numpy(rng.integers(0, 256, (h, w, 3)).astype(np.uint8)).to(torch.float32) / 255.0
+    rgb[: h // 2] = rgb[: h // 2].mean()  # flat colour in the top half
+    for stride in (1, 2, 3, 4):
+        for colour_range in (0.1, 0.5):
+            want = _colour_detail_torch(rgb, stride, colour_range)
+            assert torch.equal(colour_detail(rgb, stride, colour_range), want)
+    K = np.array([[w / 2.0, 0, w / 2.0], [0, h / 2.0, h / 2.0], [0, 0, 1]])
+    n = 3000
+    g = torch.Generator().manual_seed(h)
+    z = 0.2 + 6.0 * torch.rand(n, generator=g)
+    means = torch.cat([(torch.rand(n, 2, generator=g) - 0.5) * 2.4 * z[:, None], z[:, None]], 1)
+    means[:50, 2] *= -1.0  # behind the camera
+    projected = _project(means, np.eye(4), K, h, w)
+    for window in (0, 1, 2):
+        for margin in (0.1, 0.0):
+            got = free_space_mask(means, np.eye(4), K, depth, margin, window)
+            assert torch.equal(got, _floaters_torch(*projected, depth, margin, window))
+            assert got.dtype == torch.bool and not got.all()
+            assert got.any() or min(h, w) <= 2 * window
+
+
 def test_coarse_mask_picks_only_what_the_view_sees_whole_and_much_finer():
     size, f = 64, 32.0
     K = np.array([[f, 0, size / 2], [0, f, size / 2], [0, 0, 1]])

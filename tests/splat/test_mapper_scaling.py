@@ -112,6 +112,30 @@ def test_far_depth_kernel_and_cpu_culling_match_the_torch_version():
                                 candidates[:40])) < 40  # and nothing outside the candidates
 
 
+def test_cpu_culling_of_centres_in_the_image_matches_the_torch_version():
+    """The CPU kernel skips the screen radius of a centre in the image unless the observed depth would hide
+    it: Gaussians in front of the camera, centres in the image and around it, footprints from well under to
+    well over the depth window, in front of and behind the observed surface, keep exactly the torch rows,
+    with and without the depth."""
+    g = torch.Generator().manual_seed(7)
+    n = 4000
+    z = 0.5 + 4.0 * torch.rand(n, generator=g)
+    xy = (torch.rand(n, 2, generator=g) - 0.5) * 2.6 * z[:, None]  # about 1.3 x the 90 deg field of view
+    means = torch.cat([xy, z[:, None]], 1)
+    log_scales = torch.log(0.003 + 0.6 * torch.rand(n, 3, generator=g) ** 2)  # radii from 1 px to ~100 px
+    K = intrinsics(S)
+    depth = torch.from_numpy((0.4 + 3.0 * np.random.default_rng(8).random((S, S))).astype(np.float32))
+    depth[:4] = 0.0
+    for observed in (None, depth):
+        want = _frustum_rows_torch(means, log_scales, pose(), K, S, S, observed, 0.1, 8)
+        got = frustum_rows(means, log_scales, pose(), K, S, S, observed, 0.1, 8)
+        assert torch.equal(got, want)
+        some = frustum_rows(means, log_scales, pose(), K, S, S, observed, 0.1, 8, torch.arange(0, n, 3))
+        assert torch.equal(some, want[want % 3 == 0])
+    hidden = len(frustum_rows(means, log_scales, pose(), K, S, S)) - len(want)
+    assert 200 < hidden < n // 2  # the depth hides some of them, and not all
+
+
 def test_row_adam_is_adam_on_trained_rows_and_leaves_the_others_alone():
     gmap, ref = _cloud(50, seed=1), _cloud(50, seed=1)
     lr = LearningRates()

@@ -69,7 +69,17 @@ def depth_edge_band(depth: torch.Tensor, band_px: int, jump: float) -> torch.Ten
     neighbour is invalid. A pixel is on its near side when some depth within ``band_px`` pixels is farther
     than its own by more than ``jump`` of it (invalid depth counts as infinitely far). Only those
     Gaussians reach over something else; a far floor or a wall seen at a slant, whose depth grows fast
-    but smoothly, is no jump."""
+    but smoothly, is no jump. On the CPU in numba (``_mapper_numba.edge_band``, the same mask)."""
+    if depth.device.type == "cpu":
+        from activesplat.splat._mapper_numba import edge_band
+
+        d = np.ascontiguousarray(depth.detach().numpy(), dtype=np.float32)
+        return torch.from_numpy(edge_band(d, band_px, np.float32(jump), np.float32(1.0 + jump)))
+    return _depth_edge_band_torch(depth, band_px, jump)
+
+
+def _depth_edge_band_torch(depth: torch.Tensor, band_px: int, jump: float) -> torch.Tensor:
+    """:func:`depth_edge_band` in torch (any device)."""
     d = depth.to(torch.float32)
     valid = d > 0
     inv = torch.where(valid, 1.0 / d.clamp_min(1e-12), torch.zeros_like(d))
@@ -94,7 +104,17 @@ def depth_edge_band(depth: torch.Tensor, band_px: int, jump: float) -> torch.Ten
 def colour_detail(rgb: torch.Tensor, stride: int, colour_range: float) -> torch.Tensor:
     """(H, W) bool: the pixels of the ``stride`` x ``stride`` blocks whose colours span more than
     ``colour_range`` in some channel (max - min over the block): where one Gaussian per block would blur
-    texture the observation has."""
+    texture the observation has. On the CPU in numba (``_mapper_numba.colour_blocks``, the same mask)."""
+    if rgb.device.type == "cpu":
+        from activesplat.splat._mapper_numba import colour_blocks
+
+        x = np.ascontiguousarray(rgb.detach().numpy(), dtype=np.float32)
+        return torch.from_numpy(colour_blocks(x, stride, np.float32(colour_range)))
+    return _colour_detail_torch(rgb, stride, colour_range)
+
+
+def _colour_detail_torch(rgb: torch.Tensor, stride: int, colour_range: float) -> torch.Tensor:
+    """:func:`colour_detail` in torch (any device)."""
     h, w = rgb.shape[:2]
     x = rgb.to(torch.float32).permute(2, 0, 1)[None]
     pad = (0, (-w) % stride, 0, (-h) % stride)
@@ -304,6 +324,18 @@ def free_space_mask(means: torch.Tensor, pose: np.ndarray, K: np.ndarray, obs_de
     """
     h, w = obs_depth.shape
     z, u, v, inside = _project(means, pose, K, h, w)
+    if obs_depth.device.type == "cpu" and obs_depth.dtype == z.dtype == torch.float32:
+        from activesplat.splat._mapper_numba import floaters  # the window minimum at each centre only
+
+        depth = np.ascontiguousarray(obs_depth.detach().numpy())
+        return torch.from_numpy(floaters(z.numpy(), u.numpy(), v.numpy(), inside.numpy(), depth, window_px,
+                                         np.float32(margin_m)))
+    return _floaters_torch(z, u, v, inside, obs_depth, margin_m, window_px)
+
+
+def _floaters_torch(z: torch.Tensor, u: torch.Tensor, v: torch.Tensor, inside: torch.Tensor,
+                    obs_depth: torch.Tensor, margin_m: float, window_px: int) -> torch.Tensor:
+    """The test of :func:`free_space_mask` on the projected centres (:func:`_project`), in torch."""
     observed = torch.where(obs_depth > 0, obs_depth, torch.zeros_like(obs_depth))
     k = 2 * window_px + 1
     # min-pool of the depth; any invalid (0) pixel makes the neighbourhood minimum 0 -> never a floater

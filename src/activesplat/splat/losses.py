@@ -104,7 +104,7 @@ def _fused_mapping_loss(rgb, depth, obs_rgb, obs_depth, cfg) -> LossTerms:
     h, sums = loss_rows(*arrays, win)
     d, row_ssim = ssim_columns(h, win, np.float32(SSIM_C1), np.float32(SSIM_C2))
     count = max(float(sums[:, 2].sum()), 1.0)
-    n_ssim = row_ssim.shape[0] * d.shape[3]  # channels x output pixels of the valid blur
+    n_ssim = row_ssim.shape[0] * (depth.shape[1] - len(win) + 1)  # channels x output pixels of the valid blur
     color_l1, depth_l1 = float(sums[:, 0].sum()) / count, float(sums[:, 1].sum()) / count
     ssim_value = float(row_ssim.sum()) / n_ssim
     photometric = cfg.lambda_l1 * color_l1 + cfg.lambda_ssim * (1.0 - ssim_value)  # eq. 5

@@ -413,8 +413,9 @@ class Mapper:
         for gone in (retired, absorbed):
             if gone is not None:
                 keep[gone] = False
-        if rows.numel():
-            sub = self.gaussians.rows(rows)
+        if rows.numel():  # the parameters the tests below read, gathered once
+            sub = {name: self.gaussians.params[name].detach().index_select(0, rows)
+                   for name in ("means", "log_scales", "opacity_logits")}
             ok = prune_mask(sub, cfg)
             if cfg.prune_floater_margin_m is not None:
                 ok &= ~free_space_mask(sub["means"], pose, self.K, obs_depth, cfg.prune_floater_margin_m,
