@@ -1,4 +1,5 @@
-"""Shared pytest setup: compile (or load from the numba disk cache) the rasterizer kernels once."""
+"""Shared pytest setup: compile (or load from the numba disk cache) the rasterizer kernels once; fixtures
+several test modules use."""
 
 import pytest
 
@@ -20,3 +21,15 @@ def house():
     rooms = [Room(0, 0, 4, 3, name="living"), Room(0, 3, 2, 5, name="living"),
              Room(4, 0, 5.5, 5, kind="corridor", name="corridor"), Room(5.5, 0, 9, 5, name="bedroom")]
     return House("test", rooms, [], 2.6)
+
+
+@pytest.fixture
+def registry(monkeypatch):
+    """A clean policy registry, without this machine's installed entry points: a policy a test registers
+    does not outlive it."""
+    from activesplat.planning import policies
+
+    monkeypatch.setattr(policies, "_REGISTERED", {})
+    policies._entry_points.cache_clear()
+    yield
+    policies._entry_points.cache_clear()

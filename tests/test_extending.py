@@ -35,15 +35,6 @@ def _blocks(lang: str) -> list[str]:
 
 
 @pytest.fixture
-def registry(monkeypatch):
-    """A clean policy registry, without this machine's installed entry points."""
-    monkeypatch.setattr(policies, "_REGISTERED", {})
-    policies._entry_points.cache_clear()
-    yield
-    policies._entry_points.cache_clear()
-
-
-@pytest.fixture
 def tiny(monkeypatch, tmp_path):
     """The doc's calls on tiny settings, in a scratch folder (its runs/... paths land there)."""
     monkeypatch.chdir(tmp_path)

@@ -43,15 +43,6 @@ def api_block() -> str:
 
 
 @pytest.fixture
-def registry(monkeypatch):
-    """A clean policy registry: the block's register_policy does not outlive the test."""
-    monkeypatch.setattr(policies, "_REGISTERED", {})
-    policies._entry_points.cache_clear()
-    yield
-    policies._entry_points.cache_clear()
-
-
-@pytest.fixture
 def tiny(monkeypatch, tmp_path):
     """The block's calls on tiny settings, in a scratch folder (its runs/... paths land there)."""
     monkeypatch.chdir(tmp_path)
