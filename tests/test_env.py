@@ -104,6 +104,18 @@ def test_the_run_s_own_simulator_is_not_measured(tmp_path):
         metrics = explore_environment(sim, run, tmp_path / "ep", progress=False)
     assert len(caught) == 1
     assert "measured_action_sizes" not in metrics and "path_length_poses_m" not in metrics
+    assert "environment_seed" not in json.loads((tmp_path / "ep" / "episode.json").read_text())
+
+
+def test_a_simulator_of_another_seed_is_recorded_with_its_own(tmp_path):
+    """episode.json's seed is the run's (torch, the planner); the simulator's own seed, which chose the start
+    pose, is recorded beside it when it differs."""
+    sim = Simulator(box_room(), seed=3, config=SimConfig(width=32, height=32))
+    run = RunConfig().replace(steps=3, seed=1, sim=SimConfig(width=32, height=32), backend="numba")
+    with pytest.warns(UserWarning, match="a budget of 3"):
+        explore_environment(sim, run, tmp_path / "ep", progress=False)
+    meta = json.loads((tmp_path / "ep" / "episode.json").read_text())
+    assert meta["seed"] == 1 and meta["environment_seed"] == 3
 
 
 def _pose(x=0.0, z=0.0, yaw_deg=0.0, pitch_deg=0.0):

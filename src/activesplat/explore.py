@@ -228,6 +228,9 @@ class _Exploration:
             "camera": {"width": env.width, "height": env.height, "K": np.asarray(env.K).tolist()},
             "software": software(),  # the package version, and the git commit of a checkout
         }
+        env_seed = getattr(env, "seed", None)  # a simulator's seed chose its start pose, not run.seed
+        if isinstance(env_seed, int) and env_seed != run.seed:
+            meta["environment_seed"] = env_seed
         not_used = config_not_used(env, run, self.evaluator is not None)
         if not_used:
             meta["config_not_used"] = not_used
