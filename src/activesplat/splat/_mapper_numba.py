@@ -123,15 +123,6 @@ def adam_rows(param, exp_avg, exp_avg_sq, grad, rows, step_size, bias2_sqrt, bet
         adam_row(param, exp_avg, exp_avg_sq, grad, k, rows[k], step_size[k], bias2_sqrt[k], beta1, beta2, eps)
 
 
-@njit(inline="always", cache=True)
-def adam_value(p, m0, v0, g, step_size, bias2_sqrt, beta1, beta2, eps):
-    """The Adam step of :func:`adam_row` for one value: the new parameter and moments (float64, rounded to
-    float32 by the caller's stores), from scalars only (no array arguments: no reference counting)."""
-    m = beta1 * m0 + (1.0 - beta1) * g
-    v = beta2 * v0 + (1.0 - beta2) * g * g
-    return p - step_size * m / (math.sqrt(v) / bias2_sqrt + eps), m, v
-
-
 @njit(parallel=True, cache=True)
 def adam_nonzero_rows(params, exp_avgs, exp_avg_sqs, grads, rows, steps, rates, bias1_of, bias2_sqrt_of,
                       beta1, beta2, eps):
@@ -139,54 +130,24 @@ def adam_nonzero_rows(params, exp_avgs, exp_avg_sqs, grads, rows, steps, rates, 
     over every parameter p) is not all zero: each such row's step count t goes up by one and every parameter
     takes the Adam step of :func:`adam_rows` with the bias corrections ``bias1_of[t]`` = 1 - beta1^t and
     ``bias2_sqrt_of[t]`` = sqrt(1 - beta2^t) (tables made by numpy, whose vectorised pow can differ from
-    a scalar one in the last bit). Returns which k were stepped. ``params`` etc. are tuples of the five
-    (N, D_p) float32 arrays of ``gaussians.PARAM_NAMES``, ``grads`` of (len(rows), D_p). The arrays are
-    taken out of the tuples once, outside the loop over the rows, and indexed with scalars inside it."""
-    p0, p1, p2, p3, p4 = params[0], params[1], params[2], params[3], params[4]
-    m0, m1, m2, m3, m4 = exp_avgs[0], exp_avgs[1], exp_avgs[2], exp_avgs[3], exp_avgs[4]
-    v0, v1, v2, v3, v4 = exp_avg_sqs[0], exp_avg_sqs[1], exp_avg_sqs[2], exp_avg_sqs[3], exp_avg_sqs[4]
-    g0, g1, g2, g3, g4 = grads[0], grads[1], grads[2], grads[3], grads[4]
-    r0, r1, r2, r3, r4 = rates[0], rates[1], rates[2], rates[3], rates[4]
+    a scalar one in the last bit). Returns which k were stepped. ``params`` etc. are tuples of (N, D_p)
+    float32 arrays, ``grads`` of (len(rows), D_p)."""
     n = rows.shape[0]
     touched = np.zeros(n, dtype=np.bool_)
     for k in prange(n):
         nonzero = False
-        for d in range(g0.shape[1]):
-            nonzero |= g0[k, d] != 0
-        for d in range(g1.shape[1]):
-            nonzero |= g1[k, d] != 0
-        for d in range(g2.shape[1]):
-            nonzero |= g2[k, d] != 0
-        for d in range(g3.shape[1]):
-            nonzero |= g3[k, d] != 0
-        for d in range(g4.shape[1]):
-            nonzero |= g4[k, d] != 0
+        for p in range(len(grads)):
+            for d in range(grads[p].shape[1]):
+                nonzero |= grads[p][k, d] != 0
         if not nonzero:
             continue
         touched[k] = True
         i = rows[k]
         steps[i] += 1
         bias1, bias2_sqrt = bias1_of[steps[i]], bias2_sqrt_of[steps[i]]
-        size = r0 / bias1
-        for d in range(p0.shape[1]):
-            p0[i, d], m0[i, d], v0[i, d] = adam_value(p0[i, d], m0[i, d], v0[i, d], g0[k, d], size,
-                                                      bias2_sqrt, beta1, beta2, eps)
-        size = r1 / bias1
-        for d in range(p1.shape[1]):
-            p1[i, d], m1[i, d], v1[i, d] = adam_value(p1[i, d], m1[i, d], v1[i, d], g1[k, d], size,
-                                                      bias2_sqrt, beta1, beta2, eps)
-        size = r2 / bias1
-        for d in range(p2.shape[1]):
-            p2[i, d], m2[i, d], v2[i, d] = adam_value(p2[i, d], m2[i, d], v2[i, d], g2[k, d], size,
-                                                      bias2_sqrt, beta1, beta2, eps)
-        size = r3 / bias1
-        for d in range(p3.shape[1]):
-            p3[i, d], m3[i, d], v3[i, d] = adam_value(p3[i, d], m3[i, d], v3[i, d], g3[k, d], size,
-                                                      bias2_sqrt, beta1, beta2, eps)
-        size = r4 / bias1
-        for d in range(p4.shape[1]):
-            p4[i, d], m4[i, d], v4[i, d] = adam_value(p4[i, d], m4[i, d], v4[i, d], g4[k, d], size,
-                                                      bias2_sqrt, beta1, beta2, eps)
+        for p in range(len(params)):
+            adam_row(params[p], exp_avgs[p], exp_avg_sqs[p], grads[p], k, i, rates[p] / bias1, bias2_sqrt,
+                     beta1, beta2, eps)
     return touched
 
 
