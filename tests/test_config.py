@@ -262,12 +262,12 @@ def test_benchmark_refuses_a_root_run_with_other_settings(capsys, tmp_path, monk
     code, out_text, err = _run(capsys, *argv, "--mapper.pixel-stride", "3")  # the same settings: complete
     assert "1 already complete, 0 to run" in out_text, (out_text, err)
     recorded = config.to_dict()  # a run older than an option: the option at its default is the same run
-    del recorded["mapper"]["densify_median_depth"]
+    del recorded["mapper"]["init_capped_fill"]
     (out / "episode.json").write_text(json.dumps({"config": recorded}))
     code, out_text, err = _run(capsys, *argv, "--mapper.pixel-stride", "3")
     assert "1 already complete, 0 to run" in out_text, (out_text, err)
-    code, _, err = _run(capsys, *argv, "--mapper.pixel-stride", "3", "--mapper.densify-median-depth")
-    assert code == 2 and ("was run before mapper.densify_median_depth existed (default False) but this "
+    code, _, err = _run(capsys, *argv, "--mapper.pixel-stride", "3", "--mapper.init-capped-fill")
+    assert code == 2 and ("was run before mapper.init_capped_fill existed (default False) but this "
                           "benchmark asks for True") in err, err
 
 
@@ -304,6 +304,13 @@ def test_a_removed_field_at_its_off_value_reads_and_any_other_value_is_refused(c
     ep = _old_episode(tmp_path, lambda d: (d["mapper"].update(area_budget_slack=None, area_budget_cell_m=0.4),
                                            d["explorer"]["planning"]["score"].update(w_entry=0.0)))
     assert load_run_config(ep) == RunConfig(steps=5, refine=load_run_config(ep).refine)
+    ep = _old_episode(tmp_path, lambda d: d["mapper"].update(
+        densify_median_depth=False, densify_represented_tol=None, densify_represented_px=1,
+        densify_represented_age=300, init_max_elongation=1.0, init_slant_fill=1, cull_occluded_masks=False))
+    assert load_run_config(ep) == RunConfig(steps=5, refine=load_run_config(ep).refine)
+    ep = _old_episode(tmp_path, lambda d: d["mapper"].update(init_slant_fill=4))
+    code, _, err = _run(capsys, "explore", "--config", str(ep), "--out", str(tmp_path / "never"))
+    assert code == 2 and "mapper.init_slant_fill was removed (2026-12-05" in err and "= 4" in err, err
     ep = _old_episode(tmp_path, lambda d: d["explorer"].update(front_faces_scores_after=0.5))
     code, _, err = _run(capsys, "explore", "--config", str(ep), "--out", str(tmp_path / "never"))
     assert code == 2 and len(err.strip().splitlines()) == 1, err
@@ -373,6 +380,6 @@ def test_refine_keeps_an_old_episodes_settings_when_another_group_cannot_be_read
 
 def test_an_old_maps_settings_with_a_removed_field_still_read():
     d = dataclasses.asdict(MapperConfig())
-    d.update(area_budget_slack=0.2, area_budget_cell_m=0.2)
+    d.update(area_budget_slack=0.2, area_budget_cell_m=0.2, init_slant_fill=4, densify_represented_tol=0.02)
     del d["planar_depth"]
     assert MapperConfig.from_dict(d) == MapperConfig(planar_depth=False)

@@ -63,6 +63,15 @@ REMOVED: dict[str, tuple[Any, str]] = {
     "explorer.multi_stop_frontier_m": (None, "2026-11-29, measured and reverted"),
     "explorer.multi_stop_frontier_cells": (_ANY, "2026-11-29, with multi_stop_frontier_m"),
     "explorer.front_faces_scores_after": (None, "2026-12-02, measured and removed"),
+    "mapper.densify_median_depth": (False, "2026-12-05, measured off and removed; last in commit 9d426c9"),
+    "mapper.densify_represented_tol": (None, "2026-12-05, measured off and removed; last in commit 9d426c9"),
+    "mapper.densify_represented_px": (
+        _ANY, "2026-12-05, with densify_represented_tol; last in commit 9d426c9"),
+    "mapper.densify_represented_age": (
+        _ANY, "2026-12-05, with densify_represented_tol; last in commit 9d426c9"),
+    "mapper.init_max_elongation": (1.0, "2026-12-05, measured off and removed; last in commit 9d426c9"),
+    "mapper.init_slant_fill": (1, "2026-12-05, measured off and removed; last in commit 9d426c9"),
+    "mapper.cull_occluded_masks": (False, "2026-12-05, measured off and removed; last in commit 9d426c9"),
 }
 """Fields removed from RunConfig: dotted path -> (the value that behaves as today's code, when and why). An
 old file holding that value (or any value, for a field that only tuned a removed one) reads without it; any

@@ -1,7 +1,5 @@
 """The online mapper end to end on a tiny analytic scene (torch reference rasterizer, 32x32)."""
 
-import json
-
 import numpy as np
 import pytest
 import torch
@@ -365,30 +363,6 @@ def test_depth_edges_at_pixel_resolution_bleed_less_over_what_lies_behind():
         counts[band] = len(mapper.gaussians)
     assert counts[2] > counts[0]
     assert errors[2] < 0.8 * errors[0], errors  # measured 0.061 vs 0.086 m
-
-
-def test_represented_pixels_count_only_centres_of_the_given_age(tmp_path):
-    """MapperConfig "Surfaces already represented" with ``densify_represented_age``: the wall's centres mark
-    its pixels only once they were mapped that many frames earlier, so a first pass over a place maps as
-    without the rule, and a revisit skips the depth test where the surface is already in the map."""
-    rgb, depth = observe(pose(), S)
-    obs = torch.from_numpy(depth)
-    young = _mapper(iterations=0, densify_represented_tol=0.02, densify_represented_age=3)
-    any_age = _mapper(iterations=0, densify_represented_tol=0.02)
-    for mapper in (young, any_age):
-        mapper.add_frame(rgb, depth, pose())
-    assert not young._represented(pose(), obs, None).any()
-    assert any_age._represented(pose(), obs, None).float().mean() > 0.9
-    # save / load keeps the map's recent sizes; a folder written without them counts every row as old
-    young.save(tmp_path / "m")
-    assert not Mapper.load(tmp_path / "m")._represented(pose(), obs, None).any()
-    meta = json.loads((tmp_path / "m" / "mapper.json").read_text())
-    del meta["recent_sizes"]
-    (tmp_path / "m" / "mapper.json").write_text(json.dumps(meta))
-    assert Mapper.load(tmp_path / "m")._represented(pose(), obs, None).float().mean() > 0.9
-    for _ in range(3):
-        young.add_frame(rgb, depth, pose())
-    assert young._represented(pose(), obs, None).float().mean() > 0.9
 
 
 @pytest.mark.parametrize("backend", ["torch", "numba"])

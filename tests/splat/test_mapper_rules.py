@@ -17,7 +17,6 @@ from activesplat.splat.densify import (
     high_loss_mask,
     one_per_voxel,
     prune_mask,
-    surface_elongation,
     surface_frame,
 )
 from activesplat.splat.gaussians import SH_C0, GaussianMap, back_facing
@@ -47,63 +46,6 @@ def test_densification_mask_eq8():
     expected[0, 0] = expected[1, 1] = True
     assert torch.equal(mask, expected)
     assert not densification_mask(alpha, depth, obs, MapperConfig(densify_max_depth_m=1.0))[1, 1]
-
-
-def test_depth_test_with_the_median_rule_skips_blended_edges_but_not_missing_objects():
-    cfg = MapperConfig(densify_k=5.0, densify_median_depth=True)
-    alpha, depth, obs = _planar_render()
-    obs = obs + 0.001 * torch.arange(16.0).reshape(4, 4)  # median |error| = 0.0075 -> margin 0.0375
-    median = depth.clone()
-    obs[1, 1] = 1.5  # a missing object: the blend and the first surface are both the wall behind -> densify
-    obs[1, 2], median[1, 2] = 1.5, 1.5  # an edge: the blend is pulled back, the first surface is the object
-    obs[2, 1], median[2, 1] = 1.5, 1.52  # the object mapped within the margin -> keep
-    mask = densification_mask(alpha, depth, obs, cfg, median)
-    expected = torch.zeros(4, 4, dtype=torch.bool)
-    expected[1, 1] = True
-    assert torch.equal(mask, expected)
-    assert densification_mask(alpha, depth, obs, MapperConfig(densify_k=5.0), median)[1:3, 1:3].sum() == 3
-    with pytest.raises(ValueError, match="median_depth"):
-        densification_mask(alpha, depth, obs, cfg)
-
-
-def test_represented_pixels_hold_an_opaque_centre_on_the_observed_surface():
-    from activesplat.splat.densify import represented_mask
-
-    K = np.array([[8.0, 0, 8], [0, 8.0, 8], [0, 0, 1]])  # 16 x 16 image
-    depth = torch.full((16, 16), 2.0)
-    depth[:, :6] = 1.0  # a box face on the left
-    depth[12:, 12:] = 0.0  # unknown
-
-    def at(v, u, z):
-        return [(u + 0.5 - 8) / 8 * z, (v + 0.5 - 8) / 8 * z, z]
-
-    means = torch.tensor([at(4, 10, 2.0),  # on the wall -> marks (4, 10) and its 3 x 3 neighbours
-                          at(8, 3, 1.01),  # on the box within 2 % -> marks (8, 3)
-                          at(8, 10, 1.0),  # 1 m in front of the wall -> no
-                          at(2, 2, 2.0),  # on the wall behind the box, not what this pixel observes -> no
-                          at(10, 10, 2.0),  # on the wall but nearly transparent -> no
-                          at(13, 13, 2.0)])  # over unknown depth -> no
-    opacities = torch.tensor([0.9, 0.9, 0.9, 0.9, 0.1, 0.9])
-    got = represented_mask(means, opacities, np.eye(4), K, depth, tol=0.02, window_px=1)
-    expected = torch.zeros(16, 16, dtype=torch.bool)
-    expected[3:6, 9:12] = True
-    expected[7:10, 2:5] = True
-    assert torch.equal(got, expected)
-    assert int(represented_mask(means, opacities, np.eye(4), K, depth, 0.02, 0).sum()) == 2
-    assert not represented_mask(means[:0], opacities[:0], np.eye(4), K, depth, 0.02, 1).any()
-
-
-def test_the_depth_test_skips_represented_pixels_but_the_opacity_test_does_not():
-    alpha, depth, obs = _planar_render()
-    obs = obs + 0.001 * torch.arange(16.0).reshape(4, 4)
-    obs[1, 1] = obs[2, 2] = 1.5  # in front: both fail the depth test
-    alpha[3, 0] = 0.5  # a hole
-    represented = torch.zeros(4, 4, dtype=torch.bool)
-    represented[1, 1] = represented[3, 0] = True  # (1, 1): its surface is already in the map
-    mask = densification_mask(alpha, depth, obs, MapperConfig(densify_k=5.0), represented=represented)
-    expected = torch.zeros(4, 4, dtype=torch.bool)
-    expected[2, 2] = expected[3, 0] = True
-    assert torch.equal(mask, expected)
 
 
 def test_voxel_groups_sort_by_voxel_then_tiebreak_then_index_and_mark_each_first():
@@ -246,53 +188,21 @@ def _floor_depth(size=64, focal=32.0, height=1.0):
     return np.where(dy > 0, height / np.maximum(dy, 1e-9), 0.0).astype(np.float32)
 
 
-def test_surface_elongation_follows_the_viewing_angle_on_a_plane():
+def test_surface_frame_finds_the_plane_facing_the_camera_and_the_slant_under_the_ray():
     K = np.array([[32.0, 0, 32], [0, 32.0, 32], [0, 0, 1]])
-    depth = _floor_depth()
     v, u = np.array([40, 50, 60, 20, 33]), np.array([32, 10, 50, 32, 0])
-    _, axis, cos, ok = surface_frame(depth, v, u, K, 2, 0.02)
-    elongation = surface_elongation(cos, ok, 100.0)
+    normal, axis, ok = surface_frame(_floor_depth(), v, u, K, 2, 0.02)
+    assert ok.tolist() == [True, True, True, False, False]  # no depth (ceiling side), neighbour off the image
+    assert np.allclose(normal[:3], [0.0, -1.0, 0.0], atol=1e-5)  # the floor's normal, up to the camera
     rays = np.stack([(u + 0.5 - 32) / 32, (v + 0.5 - 32) / 32, np.ones(5)], axis=1)
-    rays /= np.linalg.norm(rays, axis=1, keepdims=True)
-    assert np.allclose(elongation[:3], 1.0 / rays[:3, 1], rtol=1e-4)  # 1 / cos to the floor normal (0, 1, 0)
     assert np.allclose(axis[:3, 1], 0.0, atol=1e-5)  # the axis lies in the floor...
     assert np.allclose(np.cross(axis[:3], rays[:3])[:, 1], 0.0, atol=1e-5)  # ...under the viewing ray
-    assert elongation[3] == 1.0 and elongation[4] == 1.0  # no depth (ceiling side) / neighbour off the image
-    capped = surface_elongation(cos, ok, 2.0)
-    assert capped.max() == 2.0 and np.all(capped >= 1.0)
-    assert np.all(surface_elongation(cos, ok, 1.0) == 1.0)  # 1 = off
-
-
-def test_surface_elongation_leaves_depth_edges_isotropic():
-    K = np.array([[32.0, 0, 32], [0, 32.0, 32], [0, 0, 1]])
+    assert not normal[3:].any() and not axis[3:].any()
     depth = np.full((64, 64), 3.0, np.float32)
     depth[:, 33:] = 1.5  # a box edge: neighbours off the plane
-    _, _, cos, ok = surface_frame(depth, np.array([20, 20]), np.array([32, 20]), K, 2, 0.02)
-    elongation = surface_elongation(cos, ok, 8.0)
-    assert elongation[0] == 1.0  # the edge
-    ray = np.array([(20.5 - 32) / 32, (20.5 - 32) / 32, 1.0])  # a wall facing the camera, seen off-axis
-    assert elongation[1] == pytest.approx(np.linalg.norm(ray), rel=1e-4)
-
-
-def test_elongated_gaussians_stretch_along_the_floor_under_the_ray():
-    cfg = MapperConfig(init_max_elongation=8.0, init_normal_scale=1.0)
-    K = np.array([[32.0, 0, 32], [0, 32.0, 32], [0, 0, 1]])
-    depth = torch.from_numpy(_floor_depth())
-    mask = torch.zeros(64, 64, dtype=torch.bool)
-    mask[47, 33] = True  # on the stride-2 grid (odd rows and columns)
-    mask[46, 33] = True  # off the grid: no Gaussian
-    raw = gaussians_from_pixels(mask, torch.zeros(64, 64, 3), depth, np.eye(4), K, cfg)
-    assert raw["means"].shape == (1, 3)
-    scales = torch.exp(raw["log_scales"][0])
-    rot = quat_to_rotmat(raw["quats"])[0]
-    z = float(depth[47, 33])
-    radius = cfg.init_radius_scale * 2 * z / 32.0
-    ray = np.array([(33.5 - 32) / 32, (47.5 - 32) / 32, 1.0])
-    ray /= np.linalg.norm(ray)
-    assert torch.allclose(scales[1:], torch.tensor([radius, radius]), rtol=1e-5)
-    assert float(scales[0]) == pytest.approx(radius / ray[1], rel=1e-3)
-    stretched = rot[:, 0].numpy()  # the rotation takes x onto the stretched axis: in the floor, under the ray
-    assert abs(stretched[1]) < 1e-4 and abs(np.cross(stretched, ray)[1]) < 1e-4
+    normal, _, ok = surface_frame(depth, np.array([20, 20]), np.array([32, 20]), K, 2, 0.02)
+    assert ok.tolist() == [False, True]  # the edge, and a wall facing the camera seen off-axis
+    assert np.allclose(normal[1], [0.0, 0.0, -1.0], atol=1e-5)
 
 
 def test_depth_edge_band_marks_the_near_side_of_a_jump_not_a_steep_plane():
@@ -375,7 +285,7 @@ def test_flat_gaussians_lie_in_the_floor_and_are_thin_along_its_normal():
     rot = quat_to_rotmat(raw["quats"])
     z = depth[[41, 47], [21, 33]]  # torch.nonzero order: row-major
     radius = cfg.init_radius_scale * 2 * z / 32.0
-    assert torch.allclose(scales[:, :2], radius[:, None].expand(2, 2), rtol=1e-5)  # no elongation (1 = off)
+    assert torch.allclose(scales[:, :2], radius[:, None].expand(2, 2), rtol=1e-5)  # the radius in the plane
     assert torch.allclose(scales[:, 2], 0.1 * radius, rtol=1e-5)
     normal = rot[:, :, 2]  # world floor normal (0, +-1, 0): the camera looks down on it from above
     assert torch.allclose(normal.abs(), torch.tensor([[0.0, 1.0, 0.0]]).expand(2, 3), atol=1e-4)
@@ -392,37 +302,6 @@ def test_flat_gaussians_lie_in_the_floor_and_are_thin_along_its_normal():
     assert torch.allclose(raw["log_scales"][0], raw["log_scales"][0, :1].expand(3))
     with pytest.raises(InvalidInputError):
         MapperConfig(init_normal_scale=0.0)
-
-
-def test_slant_fill_spreads_copies_over_the_footprint_on_the_floor():
-    cfg = MapperConfig(init_slant_fill=4)
-    K = np.array([[32.0, 0, 32], [0, 32.0, 32], [0, 0, 1]])
-    depth = torch.from_numpy(_floor_depth())
-    mask = torch.zeros(64, 64, dtype=torch.bool)
-    mask[47, 33] = True  # a slanted view of the floor
-    rgb = torch.tensor([0.2, 0.4, 0.6]).expand(64, 64, 3)  # uniform: the 2-px grid, no colour detail
-    raw = gaussians_from_pixels(mask, rgb, depth, np.eye(4), K, cfg)
-    single = gaussians_from_pixels(mask, rgb, depth, np.eye(4), K, MapperConfig())
-    z = float(depth[47, 33])
-    ray = np.array([(33.5 - 32) / 32, (47.5 - 32) / 32, 1.0])
-    cos = (ray / np.linalg.norm(ray))[1]  # the floor's normal is the camera's y axis
-    n = len(raw["means"])
-    assert n == min(4, int(np.floor(1 / cos + 0.5))) and n > 1
-    means = raw["means"].numpy()
-    floor_y = single["means"][0, 1].item()
-    assert np.allclose(means[:, 1], floor_y, atol=1e-5)  # every copy on the floor, at its own depth
-    assert np.allclose(means.mean(axis=0), single["means"][0].numpy(), atol=1e-5)  # centred on the pixel
-    spacing = np.linalg.norm(np.diff(means, axis=0), axis=1)
-    assert np.allclose(spacing, 2 * z / 32.0 / cos / n, rtol=1e-4)  # evenly over the footprint
-    for key in ("log_scales", "quats", "f_dc", "opacity_logits"):  # same shape, colour, opacity as one
-        assert torch.allclose(raw[key], single[key].expand_as(raw[key]), atol=1e-6), key
-    # a pixel seen head-on keeps one Gaussian
-    wall = torch.full((64, 64), 3.0)
-    one = torch.zeros(64, 64, dtype=torch.bool)
-    one[31, 31] = True
-    assert len(gaussians_from_pixels(one, rgb, wall, np.eye(4), K, cfg)["means"]) == 1
-    with pytest.raises(InvalidInputError):
-        MapperConfig(init_slant_fill=0)
 
 
 def test_rotmat_to_quat_inverts_quat_to_rotmat_including_half_turns():

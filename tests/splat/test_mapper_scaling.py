@@ -255,33 +255,6 @@ def test_what_is_out_of_view_is_not_forgotten_or_moved():
     assert before.shape == after.shape and not torch.equal(before, after)
 
 
-def test_culled_eq8_render_leaves_out_the_hidden_wall_and_still_densifies_the_new_box(monkeypatch):
-    """``cull_occluded_masks``: the eq. 8 render of a frame with a box in front of the mapped wall draws
-    fewer Gaussians (not the wall behind the box), and the box is densified all the same."""
-    drawn = {}
-    original = Mapper._render_or_blank
-
-    def spy(self, pose_, rows=None):
-        drawn[self.config.cull_occluded_masks] = len(self.gaussians) if rows is None else len(rows)
-        return original(self, pose_, rows)
-
-    monkeypatch.setattr(Mapper, "_render_or_blank", spy)
-    size, cam, box = 64, pose(), (-0.5, 0.5, -0.5, 0.5, 1.0)  # the box: the middle quarter of the image
-    added = {}
-    for culled in (False, True):
-        cfg = MapperConfig(schedule=Schedule(1, 1, 2), cull_occluded_masks=culled)
-        mapper = Mapper(intrinsics(size), size, size, cfg, backend="torch")
-        for _ in range(3):
-            mapper.add_frame(*observe(cam, size), cam)
-        wall = len(mapper.gaussians)
-        stats = mapper.add_frame(*observe(cam, size, box), cam)
-        new_z = mapper.gaussians.params["means"][wall:, 2]
-        assert stats.mapped and bool((new_z < 1.2).all())  # on the box, not the wall
-        added[culled] = len(new_z)
-    assert drawn[False] - drawn[True] >= 50  # the wall behind the middle of the box is not drawn
-    assert added[False] > 50 and abs(added[True] - added[False]) <= 0.1 * added[False]  # the box is mapped
-
-
 def test_the_map_appends_into_spare_rows_and_earlier_views_stay_as_they_were():
     """Appends (into spare capacity and with reallocation) and prunes give the parameters that concatenating
     and masking give; each parameter stays a contiguous leaf; and a view of the map taken before (as a

@@ -11,7 +11,9 @@ from dataclasses import dataclass, field, fields
 
 from activesplat.errors import InvalidInputError
 
-REMOVED_FIELDS = ("area_budget_slack", "area_budget_cell_m")
+REMOVED_FIELDS = ("area_budget_slack", "area_budget_cell_m", "densify_median_depth",
+                  "densify_represented_tol", "densify_represented_px", "densify_represented_age",
+                  "init_max_elongation", "init_slant_fill", "cull_occluded_masks")
 """MapperConfig fields removed since (each with its reason in `activesplat.config.REMOVED`): an older
 mapper.json that holds them still loads."""
 
@@ -92,50 +94,17 @@ class MapperConfig:
     (0.99, 2e-3) 2.03 cm; (0.99, 1e-3, radius 0.6) 2.24 cm (coverage holes); (0.99, 1e-3, w_d = 2)
     1.71 cm (kept the paper's w_d = 1: within noise).
 
-    Grazing surfaces (``init_max_elongation``; paper, release and SplaTAM: isotropic, i.e. 1). A pixel
-    block samples a patch of surface stride x depth / focal wide across the viewing ray but 1 / cos(theta)
-    times longer along the surface's slant (theta between the ray and the surface normal): a floor 4 m
-    ahead of a camera 1.2 m up is sampled every ~0.2 m along the ray by Gaussians of radius ~5 cm. Seen
-    from the camera that placed them the map looks complete, but from anywhere else, and in the top-down
-    render the workspace is built from, such a floor is a field of dots: the free-space grid ends where
-    the floor was only seen from afar, the Voronoi graph stops there, and the explorer never goes further
-    (rooms off a corridor it looked down but never walked). With elongation > 1 a new Gaussian's radius
-    along the slant direction (the viewing ray projected onto the surface) is multiplied by 1 / cos(theta),
-    capped at this value, so that it covers its footprint; across the ray and along the normal it keeps
-    the projective radius, and in the image it covers the same pixels as an isotropic one. The normal
-    comes from the back-projected neighbours ``pixel_stride`` pixels away; pixels whose neighbours are not
-    on one plane (``init_plane_tol``, inverse depth) stay isotropic. Off by default: on the replay of a
-    2000-step medium-2 exploration (``benchmarks/mapper.py --episode E --set init_max_elongation=4.0``)
-    it needs 20 % fewer Gaussians (384k vs 477k, 573 vs 711 per m^2) and fills more of what the test views
-    see (test 18.05 vs 17.54 dB, unmapped 28.0 vs 29.6 %), but the trajectory's own views lose (train
-    28.44 vs 28.85 dB, LPIPS 0.381 vs 0.324: texture smeared along the slant), and the floor far down a
-    corridor still does not join the free-space grid (4 is not enough beyond ~5 m).
-
-    Slant fill (``init_slant_fill``; paper, release and SplaTAM: none). The elongation above covers a
-    grazing footprint with one stretched Gaussian, which renders its centre's depth over its whole
-    length. With this > 1, a Gaussian whose pixel lies on a plane seen at a slant is instead replaced by
-    round(1 / cos(theta)) copies (at most this many), each of the projective radius, spaced evenly along
-    the slant direction over the pixel block's footprint: every copy sits on the plane at its own depth.
-    Seen from the camera that placed them, the copies overlap the same pixels; seen from elsewhere, the
-    rows of a floor or ceiling seen from afar no longer leave gaps between them. Replays with the area
-    texture filter: medium-0 test 26.53 -> 26.74 dB (2) / 26.79 dB (4), medium-2-plain 28.39 -> 28.66 /
-    28.63 dB, test depth L1 -0.5 to -0.8 cm, for 21-28 % more Gaussians; train LPIPS of the textured house
-    0.157 -> 0.166 / 0.176 (one colour repeated over the footprint). Off by default (docs/mapping.md). In the
-    loop (4, tuning houses x 2 seeds): completion 86.60 -> 86.28 %, mapper 38 -> 51
-    ms/step, 23 % more Gaussians; the live seed-0 maps test 28.22 -> 28.26 dB, LPIPS 0.250 -> 0.263, depth
-    L1 4.65 -> 4.25 cm, train LPIPS 0.170 -> 0.194 (docs/benchmark.md "Slant fill in the loop").
-
     Flat Gaussians (``init_normal_scale``; paper, release and SplaTAM: isotropic, i.e. 1). An isotropic
     Gaussian on a surface seen at a slant sticks out of it by its radius: seen along the surface (a
     corridor wall, the floor ahead) its disc covers the pixels of the surface farther on, in front of
     them, so the render's depth sits in front of the truth and colours smear along the wall. Below 1,
-    a new Gaussian whose pixel lies on one plane (the same test as the elongation above) is turned to
-    the plane and made this fraction of its radius thick along the normal: seen head-on it covers the
-    same pixels as before, seen edge-on it is a thin line. Default 0.1 (0.05 gives the same map).
+    a new Gaussian whose pixel lies on one plane is turned to the plane and made this fraction of its
+    radius thick along the normal: seen head-on it covers the same pixels as before, seen edge-on it is
+    a thin line. The plane comes from the back-projected neighbours ``pixel_stride`` pixels away; pixels
+    whose neighbours are not on one plane with them (``init_plane_tol``, inverse depth: a depth edge or a
+    curved surface) stay isotropic. Default 0.1 (0.05 gives the same map).
     Replays as above: medium-2-plain train / test 31.31 / 28.12 -> 31.99 / 28.35 dB at k = 5, depth L1
     4.76 / 8.10 -> 4.15 / 7.45 cm; the textured medium-0..3 in docs/mapping.md.
-    Flat and elongated together (``init_max_elongation`` 4) is worse than either: train 30.48 dB, depth L1
-    11.9 cm, because a stretched Gaussian renders its centre's depth over its whole length.
 
     Back faces (``densify_front_faces_only``; paper and release: every Gaussian counts). Eq. 8's opacity
     test is satisfied by whatever renders opaque, including the Gaussians of a wall's other face or the
@@ -190,38 +159,6 @@ class MapperConfig:
     19 % more Gaussians; small-100..103 test 29.99 -> 30.19 dB. The tuning explorations are not worse for
     it (with the explorer's detour rule: 86.21 % without it, 86.49 % with it; docs/benchmark.md "Rooms
     passed on the way"). None = the grid alone.
-
-    Depth test at edges (``densify_median_depth``; paper and release: the blended depth only). Where a
-    pixel straddles a depth jump the blended depth sum w_i z_i lies between the near and the far surface,
-    so eq. 8's depth test fires on the edges of objects that are mapped, on every frame that sees them
-    again: mapping medium-0's first 1000 steps a second time (``--steps 1000 --repeat 2``, nothing new)
-    added 8 % more Gaussians, 88 % of them from the depth test. With this rule the depth test also needs
-    the median depth (the first surface the render reaches) behind the observation by the same margin:
-    an object missing from the map still passes (the first surface is the wall behind it), a mapped one
-    whose edge blends does not. Measured before the depth edges above: second and third pass +3.3 % and
-    +2.0 % instead of +8.0 % and +5.6 %, but
-    the edges it leaves alone are also where new Gaussians sharpened the map: medium-0 train / test PSNR
-    -0.04 / -0.06 dB, medium-1 -0.24 / -0.24 dB, so it is off by default.
-
-    Surfaces already represented (``densify_represented_tol``; paper and release: none). The same
-    growth, attacked where it is added: a pixel fails eq. 8's depth test only because the blended depth
-    mixes two surfaces if the surface it observes is already in the map. Before the masks, the centres of
-    the view's front-facing Gaussians with opacity >= 0.5 are projected into the observed depth map; a
-    centre within ``densify_represented_tol`` x depth (at least 1 cm) of the depth observed at its pixel
-    marks that pixel and those within ``densify_represented_px`` of it as represented, and the depth test
-    does not add Gaussians there. A surface missing from the map has no centre on it and is added as
-    before; the opacity test (holes, translucent gaps) is unchanged. At 0.02, three passes over the first
-    1000 steps of a medium-0 run: +5.7 / +4.8 % Gaussians in passes 2 / 3 instead of +10.1 / +8.7 %, keyframe
-    PSNR 32.53 -> 32.72 dB; tuning explorations 85.79 -> 86.49 %, mostly one run whose route changed, but
-    fresh medium-102..109 86.69 -> 86.09 % (seven of eight lower), and medium-120..123 -1.17 points (four
-    of four lower), so off (docs/mapping.md, "Surfaces already represented"). Those runs part at the first
-    replan. With ``densify_represented_age`` > 0 only centres mapped at least that many frames earlier
-    mark pixels: a first pass over a place maps exactly as without the rule (the rows of the map are in
-    the order they were added; ``Mapper.save`` keeps the map's size over the last frames for ``load``), and
-    the rule acts on revisits. At 300 frames, the two-pass replay above:
-    +5.6 % Gaussians in pass 2 (defaults +10.1 %), keyframe PSNR 32.39 dB (defaults 32.24); medium-120..125
-    explorations +0.12 points (four of six higher), but tuning medium-0..3 x 2 seeds -0.40 and fresh
-    medium-100..109 -0.28 points, and final maps only 0.4 % smaller after 2000 steps: off.
 
     Voxel budget (``densify_voxel_m``; paper, release and SplaTAM: none; an option, off). A budget per
     observed surface area: a new Gaussian's centre (its back-projected pixel) must fall in a voxel of this
@@ -365,12 +302,6 @@ class MapperConfig:
     # project: with the cap, every pixel (not one per stride block) where the capped radius is under half
     # the grid's spacing (see class docstring "Capped birth radius")
     init_capped_fill: bool = False
-    # project: stretch a new Gaussian along the surface it samples by 1 / cos(viewing angle), at most this
-    # much (1 = isotropic, as paper and release; see class docstring "Grazing surfaces")
-    init_max_elongation: float = 1.0
-    # project: a new Gaussian on a plane seen at a slant is replaced by up to this many copies along the
-    # slant, covering the block's footprint without stretching (1 = off; see "Grazing surfaces")
-    init_slant_fill: int = 1
     # project: a new Gaussian on a plane is this fraction of its radius thick along the plane's normal
     # (paper, release and SplaTAM: 1 = isotropic; see class docstring "Flat Gaussians")
     init_normal_scale: float = 0.1
@@ -402,15 +333,6 @@ class MapperConfig:
     densify_voxel_m: float | None = None
     densify_voxel_radius: float = 1.0  # project: a kept Gaussian's radius is at least this x densify_voxel_m
     densify_voxel_depth_test_only: bool = False  # project: the budget spares the opacity test's holes
-    # project: the depth test also needs the median depth behind the observation (see "Depth test at edges")
-    densify_median_depth: bool = False
-    # project: the depth test skips pixels whose observed surface already holds an opaque Gaussian centre,
-    # within this fraction of the depth (see "Surfaces already represented"); None = off (paper, release)
-    densify_represented_tol: float | None = None
-    densify_represented_px: int = 1  # project: a centre marks the pixels within this many pixels of its own
-    # project: only centres mapped at least this many frames earlier mark pixels (0 = every centre): the
-    # rule then acts on revisits and leaves the first pass over a place as without it
-    densify_represented_age: int = 0
     # project: the eq. 8 / eq. 10 render leaves out the flat Gaussians seen from behind (the far face of a
     # wall or an object); False = every Gaussian, as paper and release (see class docstring "Back faces")
     densify_front_faces_only: bool = True
@@ -463,20 +385,9 @@ class MapperConfig:
     # not hide (centre behind every observed depth within cull_window_px by more than this margin, footprint
     # within the window; see gaussians.frustum_rows). None = frustum only. Where the map agrees with the
     # observation the render is unchanged; where a new object hides mapped surfaces, those are left as they
-    # are instead of being pushed to explain the object. The eq. 8 / eq. 10 render is not depth-culled
-    # unless cull_occluded_masks.
+    # are instead of being pushed to explain the object. The eq. 8 / eq. 10 render is not depth-culled.
     cull_occluded_margin_m: float | None = 0.1
     cull_window_px: int = 8
-    # project: the eq. 8 / eq. 10 render draws only the Gaussians of its view the observed depth does not
-    # hide, by the occlusion test of cull_occluded_margin_m (False = every Gaussian of the frustum, front
-    # faces only, as before). Where the map agrees with the observation the render is the same up to the
-    # 1e-4 transmittance a pixel stops at and the 2 % left behind a surface of opacity 0.98; where it has
-    # a hole, the hole reads as open (opacity test) instead of as the farther surfaces seen through it
-    # (depth test): both densify there. Saves part of the render: a medium-house view holds 2-4 times more
-    # Gaussians behind its walls than in front of them. Replays render the same; in the loop -0.66 points
-    # of completion over eight medium houses, so off (docs/mapping.md, "The eq. 8 render, culled like the
-    # iterations").
-    cull_occluded_masks: bool = False
 
     seed: int = 0  # ours: numpy generator for overlap sampling and window picks
 
@@ -488,7 +399,7 @@ class MapperConfig:
             if s.map_every < 1 or s.keyframe_every < 1 or s.iterations < 0:
                 raise InvalidInputError(f"MapperConfig.{name} needs map_every >= 1, keyframe_every >= 1 and "
                                         f"iterations >= 0, got {s}")
-        for name in ("pixel_stride", "mask_downscale", "train_downscale", "init_slant_fill"):
+        for name in ("pixel_stride", "mask_downscale", "train_downscale"):
             if getattr(self, name) < 1:
                 raise InvalidInputError(f"MapperConfig.{name} must be >= 1, got {getattr(self, name)}")
         if self.refresh_coarse_factor is not None and self.refresh_coarse_factor <= 1.0:

@@ -20,26 +20,16 @@ def opacity_test_mask(alpha: torch.Tensor, obs_depth: torch.Tensor, cfg: MapperC
 
 
 def densification_mask(alpha: torch.Tensor, depth: torch.Tensor, obs_depth: torch.Tensor,
-                       cfg: MapperConfig, median_depth: torch.Tensor | None = None,
-                       represented: torch.Tensor | None = None) -> torch.Tensor:
+                       cfg: MapperConfig) -> torch.Tensor:
     """Eq. 8: M_k = (O < tau_o1) or (D_obs < D_render and |D_obs - D_render| > k * median error),
-    only where the observed depth is valid. ``depth`` is the alpha-blended render (as SplaTAM).
-    With ``cfg.densify_median_depth`` the depth test also needs the render's ``median_depth`` behind the
-    observation by the same margin (MapperConfig "Depth test at edges"); the depth test never fires on the
-    ``represented`` pixels (:func:`represented_mask`, MapperConfig "Surfaces already represented")."""
+    only where the observed depth is valid. ``depth`` is the alpha-blended render (as SplaTAM)."""
     valid = obs_depth > 0
     error = (obs_depth - depth).abs()
     median_error = error[valid].median() if bool(valid.any()) else error.new_zeros(())
     margin = cfg.densify_k * median_error
     in_front = (obs_depth < depth) & (error > margin)
-    if cfg.densify_median_depth:
-        if median_depth is None:
-            raise ValueError("densification_mask: densify_median_depth needs the median_depth render")
-        in_front &= (median_depth - obs_depth) > margin
     if cfg.densify_max_depth_m is not None:
         in_front &= obs_depth < cfg.densify_max_depth_m
-    if represented is not None:
-        in_front &= ~represented
     return opacity_test_mask(alpha, obs_depth, cfg) | (valid & in_front)
 
 
@@ -125,19 +115,19 @@ def _colour_detail_torch(rgb: torch.Tensor, stride: int, colour_range: float) ->
 
 
 def surface_frame(depth: np.ndarray, v: np.ndarray, u: np.ndarray, K: np.ndarray, stride: int,
-                  plane_tol: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+                  plane_tol: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The observed surface around pixels (v, u) in the camera frame: ``normal`` (unit, facing the
     camera), ``along`` (unit, in the surface plane: the viewing ray projected onto it, or any tangent
-    where the ray is the normal), ``cos`` of the angle between ray and normal, and ``ok``. The normal
-    comes from the back-projected neighbours ``stride`` pixels away on either side in u and in v.
+    where the ray is the normal) and ``ok``. The normal comes from the back-projected neighbours
+    ``stride`` pixels away on either side in u and in v.
     Pixels whose neighbours are invalid, off the image, or not on one plane with it (inverse depth,
     which is affine in the pixel coordinates on a plane, departs from the neighbours' mean by more
     than ``plane_tol`` of its value: a depth edge or a curved surface) are not ``ok`` (their rows of
-    the other arrays are 0). Returns ((M, 3), (M, 3), (M,), (M,) bool)."""
+    the other arrays are 0). Returns ((M, 3), (M, 3), (M,) bool)."""
     m = len(v)
-    normal, along, cos = np.zeros((m, 3)), np.zeros((m, 3)), np.zeros(m)
+    normal, along = np.zeros((m, 3)), np.zeros((m, 3))
     if m == 0:
-        return normal, along, cos, np.zeros(0, dtype=bool)
+        return normal, along, np.zeros(0, dtype=bool)
     h, w = depth.shape
     s = stride
     ok = (u - s >= 0) & (u + s < w) & (v - s >= 0) & (v + s < h)
@@ -170,45 +160,8 @@ def surface_frame(depth: np.ndarray, v: np.ndarray, u: np.ndarray, K: np.ndarray
         a = np.where((norm_a > 1e-6)[:, None], a, x)
         a /= np.linalg.norm(a, axis=1, keepdims=True)
     ok &= np.isfinite(c) & (c > 0) & np.isfinite(n).all(axis=1) & np.isfinite(a).all(axis=1)
-    normal[ok], along[ok], cos[ok] = n[ok], a[ok], c[ok]
-    return normal, along, cos, ok
-
-
-def surface_elongation(cos: np.ndarray, ok: np.ndarray, max_elongation: float) -> np.ndarray:
-    """How far one pixel block's footprint on the observed surface stretches along the surface's slant
-    direction (the ``along`` axis of :func:`surface_frame`): 1 / cos(theta), theta between the viewing
-    ray and the surface normal, clipped to [1, ``max_elongation``]; 1 where :func:`surface_frame` found no
-    plane (not ``ok``) or ``max_elongation`` <= 1 (off). Returns (M,)."""
-    elongation = np.ones(len(cos))
-    if max_elongation > 1.0:
-        elongation[ok] = np.clip(1.0 / cos[ok], 1.0, max_elongation)
-    return elongation
-
-
-def slant_copies(points: torch.Tensor, colors: torch.Tensor, radii: torch.Tensor, ok: np.ndarray,
-                 frames: np.ndarray, factors: np.ndarray, copies: np.ndarray, footprint: np.ndarray):
-    """The slant fill (MapperConfig.init_slant_fill): each Gaussian i replaced by ``copies[i]`` ones
-    (1: itself) spaced evenly along its frame's slant axis over ``footprint`` (metres, per ``ok`` entry:
-    the length of its pixel block's footprint along the slant), with its colour, radius and frame.
-    ``frames`` / ``factors`` are rows of the ``ok`` entries. Returns the same six, expanded."""
-    n = len(points)
-    ok_index = np.nonzero(ok)[0]
-    position = np.full(n, -1)
-    position[ok_index] = np.arange(len(ok_index))
-    counts = np.where(ok, copies, 1).clip(1, None)
-    source = np.repeat(np.arange(n), counts)
-    rank = np.arange(len(source)) - np.repeat(np.cumsum(counts) - counts, counts)
-    step = np.zeros(n)
-    step[ok_index] = footprint / counts[ok_index]
-    axis = np.zeros((n, 3))
-    axis[ok_index] = frames[:, :, 0]
-    offset = (rank - 0.5 * (counts[source] - 1)) * step[source]
-    shift = torch.from_numpy((axis[source] * offset[:, None]).astype(np.float32))
-    idx = torch.from_numpy(source)
-    new_ok = ok[source]
-    rows = position[source[new_ok]]
-    colors = colors[idx.to(colors.device)]
-    return points[idx] + shift, colors, radii[idx], new_ok, frames[rows], factors[rows]
+    normal[ok], along[ok] = n[ok], a[ok]
+    return normal, along, ok
 
 
 def one_per_voxel(points: np.ndarray, fine: np.ndarray, occupied: np.ndarray, size: float) -> np.ndarray:
@@ -231,16 +184,13 @@ def gaussians_from_pixels(mask: torch.Tensor, rgb: torch.Tensor, depth: torch.Te
     mask does) on the ``pixel_stride`` grid: back-projected
     centre, radius = init_radius_scale * stride * depth / focal (projective scale), opacity
     ``init_opacity``, colour = the pixel's colour (docs/protocol.md §2, initialisation). Isotropic as the
-    paper when ``init_max_elongation`` and ``init_normal_scale`` are 1. Otherwise, where the observed
-    depth around the pixel is one plane (:func:`surface_frame`), the Gaussian is aligned with it: its
-    radius along the slant direction is stretched by 1 / cos(viewing angle) (at most
-    ``init_max_elongation``) so that a surface seen at a grazing angle is covered between the rows of
-    pixels that sample it, and its radius along the normal is ``init_normal_scale`` times the radius
-    (departures, see MapperConfig). With ``init_max_radius_m`` no radius exceeds it, and with
-    ``init_capped_fill`` every pixel where the capped radius is under half the grid's spacing is picked
-    (MapperConfig "Capped birth radius"). With ``occupied`` (sorted voxel keys of the map's centres in
-    view) and ``cfg.densify_voxel_m``, the picks are thinned by :func:`one_per_voxel`, except those on
-    ``exempt`` pixels ((H, W) bool)."""
+    paper when ``init_normal_scale`` is 1. Otherwise, where the observed depth around the pixel is one
+    plane (:func:`surface_frame`), the Gaussian is turned to it and its radius along the normal is
+    ``init_normal_scale`` times the radius (MapperConfig "Flat Gaussians"). With ``init_max_radius_m`` no
+    radius exceeds it, and with ``init_capped_fill`` every pixel where the capped radius is under half the
+    grid's spacing is picked (MapperConfig "Capped birth radius"). With ``occupied`` (sorted voxel keys of
+    the map's centres in view) and ``cfg.densify_voxel_m``, the picks are thinned by :func:`one_per_voxel`,
+    except those on ``exempt`` pixels ((H, W) bool)."""
     focal = 0.5 * (float(K[0, 0]) + float(K[1, 1]))
     pick = stride_mask(mask, cfg.pixel_stride)
     fine = None
@@ -279,20 +229,13 @@ def gaussians_from_pixels(mask: torch.Tensor, rgb: torch.Tensor, depth: torch.Te
         radii = torch.maximum(radii, floor.to(radii.dtype))
     colors = rgb[torch.from_numpy(v), torch.from_numpy(u)]
     frames = factors = None
-    if cfg.init_max_elongation > 1.0 or cfg.init_normal_scale < 1.0 or cfg.init_slant_fill > 1:
-        normal, along, cos, ok = surface_frame(depth_np, v, u, K, cfg.pixel_stride, cfg.init_plane_tol)
+    if cfg.init_normal_scale < 1.0:
+        normal, along, ok = surface_frame(depth_np, v, u, K, cfg.pixel_stride, cfg.init_plane_tol)
         rot = pose[:3, :3]
         # world-frame columns (slant axis, tangent across it, normal): a right-handed frame
         frames = np.stack([along @ rot.T, np.cross(normal, along) @ rot.T, normal @ rot.T], axis=2)[ok]
         factors = np.ones((int(ok.sum()), 3))
-        factors[:, 0] = surface_elongation(cos, ok, cfg.init_max_elongation)[ok]
         factors[:, 2] = cfg.init_normal_scale
-        if cfg.init_slant_fill > 1:
-            copies = np.floor(surface_elongation(cos, ok, float(cfg.init_slant_fill)) + 0.5).astype(np.int64)
-            block = radii.numpy().astype(np.float64) / cfg.init_radius_scale  # stride x depth / focal
-            footprint = block[ok] / np.maximum(cos[ok], 1e-6)
-            points, colors, radii, ok, frames, factors = slant_copies(
-                points, colors, radii, ok, frames, factors, copies, footprint)
         frames = torch.from_numpy(frames.astype(np.float32))
         factors = torch.from_numpy(factors.astype(np.float32))
         ok = torch.from_numpy(ok)
@@ -347,28 +290,6 @@ def _floaters_torch(z: torch.Tensor, u: torch.Tensor, v: torch.Tensor, inside: t
     idx = torch.nonzero(inside, as_tuple=True)[0]
     floater[idx] = z[idx] < nearest[v[idx], u[idx]] - margin_m
     return floater
-
-
-def represented_mask(means: torch.Tensor, opacities: torch.Tensor, pose: np.ndarray, K: np.ndarray,
-                     obs_depth: torch.Tensor, tol: float, window_px: int) -> torch.Tensor:
-    """(H, W) bool: pixels whose observed surface already holds a Gaussian centre (MapperConfig "Surfaces
-    already represented"): a centre with opacity >= 0.5 that projects into the image within max(1 cm,
-    ``tol`` x depth) of the depth observed at its pixel marks that pixel and its neighbours within
-    ``window_px``."""
-    h, w = obs_depth.shape
-    mark = torch.zeros((h, w), dtype=torch.bool, device=obs_depth.device)
-    if means.shape[0] == 0:
-        return mark
-    z, u, v, inside = _project(means, pose, K, h, w)
-    idx = torch.nonzero(inside & (opacities.detach().reshape(-1) >= 0.5), as_tuple=True)[0]
-    observed = obs_depth[v[idx], u[idx]]
-    on = (observed > 0) & ((z[idx] - observed).abs() <= torch.clamp(tol * observed, min=0.01))
-    mark[v[idx[on]], u[idx[on]]] = True
-    if window_px > 0:
-        k = 2 * window_px + 1
-        mark = torch.nn.functional.max_pool2d(mark[None, None].float(), k, stride=1, padding=window_px)
-        mark = mark[0, 0] > 0
-    return mark
 
 
 def coarse_mask(means: torch.Tensor, log_scales: torch.Tensor, pose: np.ndarray, K: np.ndarray,

@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import time
 import warnings
-from collections import deque
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -44,7 +43,6 @@ from activesplat.splat.densify import (
     high_loss_mask,
     opacity_test_mask,
     prune_mask,
-    represented_mask,
 )
 from activesplat.splat.frames import as_intrinsics, as_pose, check_frame, downsample_observation
 from activesplat.splat.gaussians import (
@@ -122,9 +120,6 @@ class Mapper:
         self.received = 0  # add_frame calls that passed the input checks (the frame index in messages)
         self.broken_depth_frames = 0  # frames with NaN / inf / negative depth pixels (made invalid)
         self.peak_gaussians = 0
-        # the map's size after each of the last frames (MapperConfig "Surfaces already represented": rows
-        # are in the order they were added, so the first _sizes[0] rows are that many frames old or more)
-        self._sizes: deque[int] = deque(maxlen=max(1, self.config.densify_represented_age))
         self._rng = np.random.default_rng(self.config.seed)
 
     # ------------------------------------------------------------------ rendering
@@ -256,7 +251,6 @@ class Mapper:
         if stats.keyframe:
             self.keyframes.append(Keyframe(rgb, depth, pose, step))
         stats.n_gaussians = len(self.gaussians)
-        self._sizes.append(len(self.gaussians))
         stats.ms = 1000.0 * (time.perf_counter() - t0)
         return stats
 
@@ -274,15 +268,10 @@ class Mapper:
             if cfg.densify_front_faces_only:
                 frustum, behind = self._facing_rows(pose, self.K, self.width, self.height)
                 front = frustum[~behind]
-            drawn = front
-            if cfg.cull_occluded_masks and cfg.cull_occluded_margin_m is not None:
-                drawn = self._view_rows(pose, self.K, self.width, self.height, obs_depth, front)
-            out = self._render_or_blank(pose, drawn)
+            out = self._render_or_blank(pose, front)
             hl = high_loss_mask(out["alpha"], out["median_depth"], obs_depth, cfg)
             self.high_loss_mask = hl.cpu().numpy()
-            represented = self._represented(pose, obs_depth, front)
-            new_mask = densification_mask(out["alpha"], out["depth"], obs_depth, cfg, out["median_depth"],
-                                          represented)
+            new_mask = densification_mask(out["alpha"], out["depth"], obs_depth, cfg)
             if footprint is not None:  # the retired Gaussians' footprint is covered anew, whatever is behind
                 new_mask |= footprint & (obs_depth > 0)
         clock.lap("render_masks")
@@ -320,23 +309,6 @@ class Mapper:
         stats.merged = int(merged.numel())
         stats.pruned = self._prune(torch.nonzero(touched, as_tuple=True)[0], pose, obs_depth, coarse, merged)
         clock.lap("prune")
-
-    def _represented(self, pose: np.ndarray, obs_depth: torch.Tensor, rows: torch.Tensor | None
-                     ) -> torch.Tensor | None:
-        """The pixels whose observed surface the map already holds (:func:`represented_mask`), from the
-        Gaussians of ``rows`` (default: the view's frustum); None when the rule is off."""
-        cfg = self.config
-        if cfg.densify_represented_tol is None:
-            return None
-        if rows is None:
-            rows = self._view_rows(pose, self.K, self.width, self.height)
-        if cfg.densify_represented_age > 0:  # only centres mapped that many frames ago or earlier
-            old = self._sizes[0] if len(self._sizes) == self._sizes.maxlen else 0
-            rows = rows[rows < old]
-        p = self.gaussians.params
-        opacities = torch.sigmoid(p["opacity_logits"].detach().index_select(0, rows))
-        return represented_mask(p["means"].index_select(0, rows), opacities, pose, self.K, obs_depth,
-                                cfg.densify_represented_tol, cfg.densify_represented_px)
 
     def _occupied(self, pose: np.ndarray, rows: torch.Tensor | None) -> np.ndarray | None:
         """Sorted voxel keys (``densify_voxel_m``) of the centres of ``rows`` (default: the view's frustum),

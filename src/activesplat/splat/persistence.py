@@ -1,7 +1,7 @@
 """A mapper on disk: the Gaussian map (``gaussians.ply``, the standard 3DGS layout), the keyframe buffer
 (``keyframes.npz``) and what is needed to go on mapping (``mapper.json``: intrinsics, image size, the
-:class:`MapperConfig`, the frame count and the map's recent sizes). The Adam state is not written: a
-loaded mapper starts with fresh moments."""
+:class:`MapperConfig` and the frame count). The Adam state is not written: a loaded mapper starts with
+fresh moments."""
 
 from __future__ import annotations
 
@@ -38,7 +38,7 @@ def save_mapper(mapper: Mapper, directory: str | Path) -> Path:
         step=np.array([k.step for k in kfs], dtype=np.int64),
     )
     meta = {"K": mapper.K.tolist(), "width": w, "height": h, "frames": mapper.frames,
-            "backend": mapper.backend, "config": asdict(mapper.config), "recent_sizes": list(mapper._sizes)}
+            "backend": mapper.backend, "config": asdict(mapper.config)}
     (directory / "mapper.json").write_text(json.dumps(meta, indent=1))
     return directory
 
@@ -60,8 +60,6 @@ def load_mapper(cls: type[Mapper], directory: str | Path, backend: str | None = 
         rgb, depth, pose, step = data["rgb"], data["depth"], data["pose"], data["step"]
     mapper.keyframes = [Keyframe(rgb[i], depth[i], pose[i], int(step[i])) for i in range(len(step))]
     mapper.frames = int(meta["frames"])
-    # the map's size over the last frames (the age rule); a folder without it: every row counts as old
-    mapper._sizes.extend(meta.get("recent_sizes", [len(mapper.gaussians)] * mapper._sizes.maxlen))
     return mapper
 
 
