@@ -3,7 +3,7 @@
     python benchmarks/position_selection.py EPISODE [--panoramas 30] [--threads 2] [--seed 0]
 
 Loads EPISODE's final map and renders scoring panoramas as a replan does (from the coarser copy,
-``PanoramaConfig.score_lod_voxel_m``, with the scores' face settings) at ``--panoramas`` positions of
+``PanoramaConfig.score_lod_voxel_m``, plain opacity) at ``--panoramas`` positions of
 the trajectory, then prints one table: the merge into the coarser copy
 (its first call, when its arrays are new, and a repeat), and per panorama the render, split by the
 rasterizer's kernels (cProfile's own time per function), the rotation targets, the hull volume and the
@@ -63,16 +63,14 @@ def main() -> None:
     first, copy = _ms(voxel_lod, params, voxel)
     repeat, _ = _ms(voxel_lod, params, voxel)
     snap = mapper.snapshot(lod_voxel_m=voxel)
-    front = dict(front_faces=pcfg.panorama.front_faces_scores,
-                 back_face_seen=pcfg.panorama.scores_back_face_seen)
-    warm = render_panorama(snap, origins[0], pcfg.panorama, **front)  # merge, activation, kernels loaded
+    warm = render_panorama(snap, origins[0], pcfg.panorama)  # merge, activation, kernels loaded
     rotation_candidates(warm, pcfg.rotation)
     hull_volume(warm, pcfg.hull)
     totals = {"render": 0.0, "rotation targets": 0.0, "hull volume": 0.0, "invisible share": 0.0}
     prof = cProfile.Profile()
     for origin in origins:
         prof.enable()
-        ms, pano = _ms(render_panorama, snap, origin, pcfg.panorama, **front)
+        ms, pano = _ms(render_panorama, snap, origin, pcfg.panorama)
         prof.disable()
         totals["render"] += ms
         totals["rotation targets"] += _ms(rotation_candidates, pano, pcfg.rotation)[0]

@@ -318,6 +318,40 @@ def test_a_removed_field_at_its_off_value_reads_and_any_other_value_is_refused(c
     assert not (tmp_path / "never").exists()
 
 
+def test_options_measured_off_and_removed_read_at_their_off_value_and_refused_at_another(capsys, tmp_path):
+    # an episode.json of the commit before their removal holds every one of them at its off value
+    def off(d):
+        e = d["explorer"]
+        e.update(global_tour=False, route_memory_m=None, route_min_info=20.0, collision_fail_after=2,
+                 unsampled_views=0, unsampled_voxel_m=0.1, flat_until_step=None)
+        e["planning"]["score"].update(w_q=0.0, quality_in_local=True, inv_reference=None,
+                                      vol_reference_m3=None)
+        e["planning"]["panorama"].update(front_faces_scores=False, scores_back_face_seen=0.0)
+        e["planning"]["high_loss"].update(forget_resolved=False, resolved_tolerance_m=0.3)
+    ep = _old_episode(tmp_path, off)
+    assert load_run_config(ep) == RunConfig(steps=5, refine=load_run_config(ep).refine)
+    ep = _old_episode(tmp_path, lambda d: d["explorer"].update(global_tour=True))
+    code, _, err = _run(capsys, "explore", "--config", str(ep), "--out", str(tmp_path / "never"))
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert ("explorer.global_tour was removed (2026-12-05, measured off and removed; last in commit "
+            "9d426c9)") in err
+
+
+@pytest.mark.parametrize("argv, flag", [
+    (["--explorer.global-tour"], "--explorer.global-tour"),
+    (["--explorer.no-global-tour"], "--explorer.no-global-tour"),
+    (["--explorer.route-memory-m", "2"], "--explorer.route-memory-m"),
+    (["--explorer.planning.score.w-q=10"], "--explorer.planning.score.w-q"),
+])
+def test_a_removed_option_on_the_command_line_says_when_it_was_removed(capsys, tmp_path, argv, flag):
+    code, _, err = _run(capsys, "explore", *argv, "--out", str(tmp_path / "never"))
+    assert code == 2 and err.strip() == (f"activesplat: error: {flag} was removed (2026-12-05, measured off "
+                                         f"and removed; last in commit 9d426c9)"), err
+    code, _, err = _run(capsys, "benchmark", *argv, "--root", str(tmp_path / "never"))
+    assert code == 2 and f"{flag} was removed" in err and len(err.strip().splitlines()) == 1, err
+    assert not (tmp_path / "never").exists()
+
+
 def test_an_old_episode_reruns_with_the_values_of_its_version_for_later_fields(tmp_path):
     def old(d):
         del d["explorer"]["leave_when_cut_off"], d["explorer"]["way_back_m"], d["sim"]["texture_filter"]

@@ -143,6 +143,19 @@ def command_fields(cls) -> dict:
     return {f.name: strip_annotated(hints[f.name]) for f in dataclasses.fields(cls)}
 
 
+def _removed(flag: str) -> str | None:
+    """When and why the field of option `flag` (``--explorer.global-tour``, or a boolean's
+    ``--explorer.no-global-tour``) was removed from RunConfig (`config.REMOVED`); None for any other."""
+    from activesplat.config import REMOVED
+
+    group, _, name = flag[2:].replace("-", "_").rpartition(".")
+    for leaf in (name, name.removeprefix("no_")):
+        entry = REMOVED.get(f"{group}.{leaf}" if group else leaf)
+        if entry is not None:
+            return entry[1]
+    return None
+
+
 def _parse_error(event, options: list[str]) -> str:
     """One line for a tyro parse failure, naming the option."""
     import difflib
@@ -162,6 +175,9 @@ def _parse_error(event, options: list[str]) -> str:
         source = DERIVED.get(name[2:].replace("-", "_"))
         if source is not None:
             return f"{name} is derived from the robot's settings: set --sim.{source.replace('_', '-')}"
+        removed = _removed(name)
+        if removed is not None:
+            return f"{name} was removed ({removed})"
         near = difflib.get_close_matches(name, options, n=1)
         return f"unknown option {name}" + (f" (did you mean {near[0]}?)" if near else "")
     if isinstance(event, _errors.InvalidChoice):

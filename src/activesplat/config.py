@@ -53,6 +53,7 @@ an old episode.json reads as the run it recorded or is refused with a line sayin
 these two tables cannot describe (a field whose meaning changed)."""
 
 _ANY = object()  # a removed field that only tuned another removed one: any value reads
+_MEASURED_OFF = "2026-12-05, measured off and removed; last in commit 9d426c9"
 
 REMOVED: dict[str, tuple[Any, str]] = {
     "mapper.area_budget_slack": (None, "2026-12-02, measured and reverted"),
@@ -63,15 +64,53 @@ REMOVED: dict[str, tuple[Any, str]] = {
     "explorer.multi_stop_frontier_m": (None, "2026-11-29, measured and reverted"),
     "explorer.multi_stop_frontier_cells": (_ANY, "2026-11-29, with multi_stop_frontier_m"),
     "explorer.front_faces_scores_after": (None, "2026-12-02, measured and removed"),
-    "mapper.densify_median_depth": (False, "2026-12-05, measured off and removed; last in commit 9d426c9"),
-    "mapper.densify_represented_tol": (None, "2026-12-05, measured off and removed; last in commit 9d426c9"),
+    "explorer.tilt_within_deg": (None, _MEASURED_OFF),
+    "explorer.unsampled_views": (0, _MEASURED_OFF),
+    "explorer.unsampled_radius_m": (_ANY, _MEASURED_OFF),
+    "explorer.unsampled_voxel_m": (_ANY, _MEASURED_OFF),
+    "explorer.unsampled_min_weight": (_ANY, _MEASURED_OFF),
+    "explorer.global_halving_m": (None, _MEASURED_OFF),
+    "explorer.bridge_gain_m": (None, _MEASURED_OFF),
+    "explorer.neck_travel": (False, _MEASURED_OFF),
+    "explorer.cut_off_look_m": (None, _MEASURED_OFF),
+    "explorer.global_tour": (False, _MEASURED_OFF),
+    "explorer.route_memory_m": (None, _MEASURED_OFF),
+    "explorer.route_min_info": (_ANY, _MEASURED_OFF),
+    "explorer.route_in_place": (False, _MEASURED_OFF),
+    "explorer.last_call_steps": (None, _MEASURED_OFF),
+    "explorer.last_call_min_info": (_ANY, _MEASURED_OFF),
+    "explorer.last_call_steps_per_m": (_ANY, _MEASURED_OFF),
+    "explorer.out_of_reach_last": (False, _MEASURED_OFF),
+    "explorer.keep_promise_m": (None, _MEASURED_OFF),
+    "explorer.commit_global_m": (None, _MEASURED_OFF),
+    "explorer.postpone_once_m": (None, _MEASURED_OFF),
+    "explorer.collision_obstacle_m": (None, _MEASURED_OFF),
+    "explorer.collision_arrive_m": (None, _MEASURED_OFF),
+    "explorer.collision_fail_after": (_ANY, _MEASURED_OFF),
+    "explorer.flat_until_step": (None, _MEASURED_OFF),
+    "explorer.planning.panorama.front_faces_scores": (False, _MEASURED_OFF),
+    "explorer.planning.panorama.scores_back_face_seen": (0.0, _MEASURED_OFF),
+    "explorer.planning.panorama.back_faces_in_window": (False, _MEASURED_OFF),
+    "explorer.planning.rotation.max_cluster_yaw_deg": (None, _MEASURED_OFF),
+    "explorer.planning.high_loss.forget_resolved": (False, _MEASURED_OFF),
+    "explorer.planning.high_loss.resolved_tolerance_m": (_ANY, _MEASURED_OFF),
+    "explorer.planning.score.w_q": (0.0, _MEASURED_OFF),
+    "explorer.planning.score.quality_in_local": (_ANY, _MEASURED_OFF),
+    "explorer.planning.score.quality_radius_m": (_ANY, _MEASURED_OFF),
+    "explorer.planning.score.quality_voxel_m": (_ANY, _MEASURED_OFF),
+    "explorer.planning.score.quality_reference": (_ANY, _MEASURED_OFF),
+    "explorer.planning.score.quality_below_invisible": (_ANY, _MEASURED_OFF),
+    "explorer.planning.score.inv_reference": (None, _MEASURED_OFF),
+    "explorer.planning.score.vol_reference_m3": (None, _MEASURED_OFF),
+    "mapper.densify_median_depth": (False, _MEASURED_OFF),
+    "mapper.densify_represented_tol": (None, _MEASURED_OFF),
     "mapper.densify_represented_px": (
         _ANY, "2026-12-05, with densify_represented_tol; last in commit 9d426c9"),
     "mapper.densify_represented_age": (
         _ANY, "2026-12-05, with densify_represented_tol; last in commit 9d426c9"),
-    "mapper.init_max_elongation": (1.0, "2026-12-05, measured off and removed; last in commit 9d426c9"),
-    "mapper.init_slant_fill": (1, "2026-12-05, measured off and removed; last in commit 9d426c9"),
-    "mapper.cull_occluded_masks": (False, "2026-12-05, measured off and removed; last in commit 9d426c9"),
+    "mapper.init_max_elongation": (1.0, _MEASURED_OFF),
+    "mapper.init_slant_fill": (1, _MEASURED_OFF),
+    "mapper.cull_occluded_masks": (False, _MEASURED_OFF),
 }
 """Fields removed from RunConfig: dotted path -> (the value that behaves as today's code, when and why). An
 old file holding that value (or any value, for a field that only tuned a removed one) reads without it; any

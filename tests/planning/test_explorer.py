@@ -28,7 +28,7 @@ from activesplat.workspace.voronoi import build_voronoi_graph  # noqa: E402
 
 WCFG = WorkspaceConfig(resolution=RES)
 HERE = np.array([1.0, 1.5])
-OBSERVED_ONLY = {"neck_margin_m": None, "neck_travel": False}  # paths on observed floor only (the release)
+OBSERVED_ONLY = {"neck_margin_m": None}  # paths on observed floor only (the release)
 WORLD = SimpleNamespace(gaussians=None, high_loss_mask=None, render=None)
 
 
@@ -161,27 +161,6 @@ def test_a_goal_the_agent_stands_on_is_skipped(monkeypatch):
     assert not ex.dense_mapping  # travelling
 
 
-def test_goals_are_ranked_flat_until_the_given_step_and_hierarchically_after(monkeypatch):
-    """`flat_until_step`: the replans before that step rank as `no-hp` does, the later ones local-then-global;
-    unset, every replan is hierarchical."""
-    ws = extract_workspace(corridor(), HERE, WCFG)
-    graph = build_voronoi_graph(ws, WCFG)
-    far = max(graph.nodes, key=lambda n: graph.nodes[n]["pos"][0])
-    monkeypatch.setattr(explorer_module, "build_plan", lambda *a, **k: Plan(workspace=ws, graph=graph))
-    seen = []  # rules.hierarchical of each replan (rank_goals' ninth argument)
-    monkeypatch.setattr(explorer_module, "rank_goals",
-                        lambda *a, **k: seen.append(a[8].hierarchical) or [far])
-    obs = _obs(HERE)
-    for flat_until, expected in ((None, True), (80, False), (73, True)):
-        ex = ActiveSplatExplorer(WORLD, 0.0, ExplorerConfig(workspace=WCFG, flat_until_step=flat_until))
-        _after_bootstrap(ex, obs)  # 72 actions: the first replan comes at the 73rd step
-        seen.clear()
-        ex.act(obs)
-        assert len(ex.visited) == 73 and seen == [expected], (flat_until, seen)
-    with pytest.raises(InvalidInputError, match="flat_until_step"):
-        ExplorerConfig(flat_until_step=0)
-
-
 def test_a_multi_connected_stop_takes_its_own_view_budget_and_is_counted_as_such(monkeypatch):
     import networkx as nx
 
@@ -299,40 +278,6 @@ def test_a_goal_behind_a_neck_of_observed_floor_gets_a_path_on_grown_floor(monke
     assert ex.replans[-1]["grown"] and ex.plan.workspace is not ws
     assert ex.plan.workspace.mask.sum() > ws.mask.sum()
     assert path_ahead_clear(ex.plan.workspace, start, ex.follower.waypoints[0], 10.0, 0.0, WCFG)
-
-
-def test_neck_travel_ranks_with_the_grown_floor_and_builds_it_once_per_replan(monkeypatch):
-    """`neck_travel`: the ranking gets the travel on the grown floor for nodes with no path, and the path
-    to the chosen goal is then found on that same grown plan (one build per replan)."""
-    start = np.array([1.0, 1.0])
-    grids = two_rooms_seen_at_a_slant()
-    ws = extract_workspace(grids, start, WCFG)
-    graph = build_voronoi_graph(ws, WCFG)
-    room, goal = max(graph.nodes) + 1, np.array([6.0, 3.0])
-    graph.add_node(room, pos=tuple(goal))
-    monkeypatch.setattr(explorer_module, "build_plan",
-                        lambda *a, **k: Plan(grids=grids, workspace=ws, graph=graph))
-    estimates = []
-
-    def rank(*args):
-        no_path_travel = args[-1]
-        estimates.append(None if no_path_travel is None else no_path_travel(goal[None])[0])
-        return [room]
-
-    monkeypatch.setattr(explorer_module, "rank_goals", rank)
-    builds = []
-    grow = explorer_module.grown_plan
-    monkeypatch.setattr(explorer_module, "grown_plan", lambda *a, **k: builds.append(1) or grow(*a, **k))
-    obs = _obs(start)
-    for neck_travel in (False, True):
-        ex = ActiveSplatExplorer(WORLD, 0.0, ExplorerConfig(workspace=WCFG, neck_margin_m=0.1,
-                                                            neck_travel=neck_travel))
-        _after_bootstrap(ex, obs)
-        builds.clear()
-        ex.act(obs)
-        assert np.allclose(ex.plan.goal, goal) and ex.replans[-1]["grown"] and len(builds) == 1
-    straight = float(np.hypot(*(goal - start)))
-    assert estimates[0] is None and straight <= estimates[1] < 1.5 * straight
 
 
 def test_an_agent_with_no_path_to_any_goal_escapes_instead_of_turning_on_the_spot(monkeypatch):
@@ -500,37 +445,6 @@ def test_a_global_replan_stops_first_at_a_node_worth_a_detour(monkeypatch):
         assert ex.replans[-1]["on_the_way"] == (expected == mid)
 
 
-def test_a_goal_put_off_for_a_detour_is_gone_to_straight_the_next_time(monkeypatch):
-    """`postpone_once_m`: the replan after a detour toward the same ranked goal takes no second detour."""
-    ws = extract_workspace(corridor(), HERE, WCFG)
-    graph = build_voronoi_graph(ws, WCFG)
-    pos = {n: np.asarray(d["pos"], float) for n, d in graph.nodes(data=True)}
-    far = max(pos, key=lambda n: pos[n][0])
-    mid = sorted(pos, key=lambda n: pos[n][0])[len(pos) // 2]
-
-    def rank(plan, here, *a, **k):
-        plan.stage = "global"
-        plan.scores, plan.info = {far: 40.0, mid: 25.0}, {far: 30.0, mid: 12.0}
-        plan.travel = {n: float(abs(pos[n][0] - here[0])) for n in (far, mid)}
-        return [far, mid]
-
-    monkeypatch.setattr(explorer_module, "build_plan", lambda *a, **k: Plan(workspace=ws, graph=graph))
-    monkeypatch.setattr(explorer_module, "rank_goals", rank)
-    obs = _obs(HERE)
-    for once, second in ((None, mid), (1.0, far)):
-        cfg = ExplorerConfig(workspace=WCFG, detour_m=5.0, postpone_once_m=once)
-        ex = ActiveSplatExplorer(WORLD, 0.0, cfg)
-        _after_bootstrap(ex, obs)
-        ex.act(obs)
-        assert np.allclose(ex.plan.goal, pos[mid]) and ex.replans[-1]["on_the_way"]  # the first detour
-        ex.replan(obs.pose)  # the same ranking again, from the same spot
-        assert np.allclose(ex.plan.goal, pos[second]), once
-        assert ex.replans[-1]["on_the_way"] == (second == mid)
-        assert ex.replans[-1].get("put_off_before", False) == (second == far)
-    with pytest.raises(InvalidInputError, match="postpone_once_m"):
-        ExplorerConfig(postpone_once_m=0.0)
-
-
 def test_a_rotation_stop_on_the_way_keeps_the_travelling_schedule(monkeypatch):
     """docs/protocol.md §2: the dense schedule while the agent turns on the spot with no path (bootstrap,
     arrival, escapes); a stop at a multi-connected node turns with its path still waiting and keeps the
@@ -610,59 +524,6 @@ def test_a_stop_turns_to_a_wall_it_has_only_seen_from_the_other_side_unless_told
     assert yaws[False] == []  # with every Gaussian's opacity the wall looks seen: nothing to turn to
 
 
-def test_passing_a_goal_that_had_no_path_turns_toward_it_once_then_replans(monkeypatch):
-    """`cut_off_look_m`: a goal worth a visit skipped for want of a path is remembered; passing within the
-    radius, the agent turns toward it with the camera one tilt down, then replans (the goal may have a path
-    once its floor is seen from in front). One look per goal; off (the default), no look."""
-    import math
-
-    ws = extract_workspace(corridor(), HERE, WCFG)
-    graph = build_voronoi_graph(ws, WCFG)
-    pos = {n: np.asarray(d["pos"], float) for n, d in graph.nodes(data=True)}
-    far = max(pos, key=lambda n: pos[n][0])
-    mid = sorted(pos, key=lambda n: pos[n][0])[len(pos) // 2]
-    plans = []
-
-    def build(*a, **k):
-        plans.append(Plan(workspace=ws, graph=graph, info={far: 20.0, mid: 10.0}))
-        return plans[-1]
-
-    monkeypatch.setattr(explorer_module, "build_plan", build)
-    monkeypatch.setattr(explorer_module, "rank_goals", lambda *a, **k: [far, mid])
-    real = explorer_module.plan_safe_path
-    monkeypatch.setattr(explorer_module, "plan_safe_path",
-                        lambda g, w, a, b, c: None if np.allclose(b, pos[far]) else real(g, w, a, b, c))
-    for radius in (None, 100.0):
-        plans.clear()
-        ex = ActiveSplatExplorer(WORLD, 0.0, ExplorerConfig(workspace=WCFG, cut_off_look_m=radius,
-                                                            **OBSERVED_ONLY))
-        _after_bootstrap(ex, _obs(HERE))
-        yaw, pitch, causes, looked_yaw = 0.0, 0.0, [], None
-        for _ in range(40):
-            action = ex.act(SimpleNamespace(pose=camera_pose([HERE[0], 1.25, HERE[1]], yaw, pitch),
-                                            collided=False, step=0))
-            causes.append(ex.last_cause)
-            if ex.last_cause == "level" and looked_yaw is None:
-                looked_yaw = yaw  # the look is done: the camera levels again
-            if action == "move_forward":
-                break
-            yaw += math.radians(10.0) * {"turn_left": 1, "turn_right": -1}.get(action, 0)
-            pitch += math.radians(15.0) * {"look_up": 1, "look_down": -1}.get(action, 0)
-        if radius is None:
-            assert "look_cut_off" not in causes and ex.cut_off == [] and len(plans) == 1
-            continue
-        looks = [s for s in ex.stops if s["cause"] == "look_cut_off"]
-        assert len(looks) == 1 and np.allclose(looks[0]["toward"], pos[far], atol=1e-3)
-        assert looks[0]["targets"][0]["pitch_deg"] == -15.0
-        toward = math.atan2(*(pos[far] - HERE))
-        assert causes.index("look_cut_off") < causes.index("level")  # turned and tilted toward it, levelled
-        assert abs(math.degrees(float(wrap_angle(looked_yaw - toward)))) <= 10.0
-        assert len(plans) == 2  # a replan after the look; it skipped the goal again and kept no second look
-        assert ex.cut_off == [] and len(ex.looked) == 1
-    with pytest.raises(InvalidInputError, match="cut_off_look_m"):
-        ExplorerConfig(cut_off_look_m=0.0)
-
-
 def test_an_agent_cut_off_from_every_goal_worth_a_visit_leaves_instead_of_shuttling(monkeypatch):
     """`leave_when_cut_off`: the goal worth a visit has no path, the only goal with one promises nothing.
     On, the replan leaves the spot (its own steps back or the escape) instead of walking to it; off, it
@@ -699,66 +560,17 @@ def test_an_agent_cut_off_from_every_goal_worth_a_visit_leaves_instead_of_shuttl
             assert np.allclose(ex.plan.goal, pos[near]) and ex.last_cause == "path"
 
 
-@pytest.mark.parametrize("radius", [None, 0.05])
-def test_a_refusal_on_the_way_marks_the_spot_and_keeps_the_goal_open_until_the_second(radius):
+def test_a_refusal_on_the_way_fails_the_goal_and_escapes():
     # following a path down the corridor, the scene refuses a forward move 3 m short of the goal: the
-    # paper's rule fails the goal at once; `collision_obstacle_m` marks the floor ahead as an obstacle for
-    # the next workspaces and fails the goal only at the second refusal on the way to it
-    cfg = ExplorerConfig(workspace=WCFG, collision_obstacle_m=radius)
-    ex = ActiveSplatExplorer(WORLD, 0.0, cfg)
+    # paper's rule fails the goal at once, and the agent escapes
+    ex = ActiveSplatExplorer(WORLD, 0.0, ExplorerConfig(workspace=WCFG))
     ex.queue, ex.queue_causes = [], []
     ex.plan = Plan(workspace=extract_workspace(corridor(), HERE, WCFG))
     goal = np.array([5.0, 1.5])
-    east = np.pi / 2  # yaw toward +x
-    for refusal in (1, 2):
-        ex.go_to(goal, np.stack([HERE, goal]))
-        ex.act(_obs(HERE, east, collided=True))
-        assert ex.follower is None and ex.last_cause == "escape"
-        if radius is None:
-            assert len(ex.failed) == 1 and ex.workspace_obstacles() == {} and ex.failures[-1]["refused"]
-            return
-        assert len(ex.failed) == refusal - 1
-        assert ex.failures[-1]["why"] == ("collision, kept" if refusal == 1 else "blocked")
-        assert ex.failures[-1]["refused"]
-        marks = ex.workspace_obstacles()
-        assert marks["obstacle_radius_m"] == 0.05 and len(marks["obstacles"]) == refusal
-        ahead = WCFG.agent_radius + cfg.controller.forward_m
-        assert np.allclose(marks["obstacles"][-1], HERE + [ahead, 0.0], atol=1e-9)
-        ex.queue, ex.queue_causes = [], []
-    # a refusal while escaping (no path followed) marks the spot only; forgetting the failures clears all
-    ex.act(_obs(HERE, 0.0, collided=True))
-    assert len(ex.failed) == 1 and len(ex.workspace_obstacles()["obstacles"]) == 3
+    ex.go_to(goal, np.stack([HERE, goal]))
+    ex.act(_obs(HERE, np.pi / 2, collided=True))  # facing +x, toward the goal
+    assert ex.follower is None and ex.last_cause == "escape"
+    assert len(ex.failed) == 1 and np.allclose(ex.failed[0], goal)
+    assert ex.failures[-1]["why"] == "blocked" and ex.failures[-1]["refused"]
     ex.forget_failures()
-    assert not ex.failed and ex.workspace_obstacles() == {}
-
-
-def test_the_collision_obstacle_options_reject_bad_values():
-    for kwargs in ({"collision_obstacle_m": 0.0}, {"collision_obstacle_m": -0.1}, {"collision_fail_after": 0},
-                   {"collision_arrive_m": 0.0}):
-        with pytest.raises(InvalidInputError, match="collision"):
-            ExplorerConfig(**kwargs)
-
-
-def test_a_refusal_near_the_goal_is_an_arrival_with_its_rotation_targets(monkeypatch):
-    # refused 0.2 m short of the goal: with `collision_arrive_m` the agent turns to the rotation targets
-    # from where it stands (no escape, the goal stays open); farther than that, or with the option off,
-    # the refusal is handled as before
-    target = SimpleNamespace(yaw=np.pi, pitch=0.0)
-    monkeypatch.setattr(ActiveSplatExplorer, "_rotation_targets", lambda self, pose, views: [target])
-    goal = np.array([2.2, 1.5])
-    east = np.pi / 2
-    for near, short_m, arrives in ((0.5, 0.2, True), (0.5, 0.8, False), (None, 0.2, False)):
-        cfg = ExplorerConfig(workspace=WCFG, collision_arrive_m=near, collision_obstacle_m=0.05)
-        ex = ActiveSplatExplorer(WORLD, 0.0, cfg)
-        ex.queue, ex.queue_causes = [], []
-        ex.plan = Plan(workspace=extract_workspace(corridor(), HERE, WCFG))
-        here = goal - [short_m, 0.0]
-        ex.go_to(goal, np.stack([here, goal]))
-        action = ex.act(_obs(here, east, collided=True))
-        assert ex.follower is None and not ex.failed
-        if arrives:
-            assert action in ("turn_left", "turn_right") and ex.last_cause == "arrival"
-            assert ex.rotation_targets == [target] and not ex.queue and not ex.failures
-            assert len(ex.workspace_obstacles()["obstacles"]) == 1
-        else:
-            assert ex.last_cause == "escape" and ex.failures[-1]["why"] == "collision, kept"
+    assert not ex.failed

@@ -7,9 +7,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from activesplat.errors import InvalidInputError
 from activesplat.geometry import camera_pose, heading, wrap_angle
-from activesplat.planning.config import HighLossConfig, PanoramaConfig, RotationCandidateConfig, ScoreConfig
+from activesplat.planning.config import HighLossConfig, PanoramaConfig, ScoreConfig
 from activesplat.planning.panorama import render_panorama
 from activesplat.planning.viewpoints import (
     HighLossTracker,
@@ -55,24 +54,6 @@ def test_front_faces_asks_the_world_for_front_facing_opacity_when_it_can_give_it
     assert invisible_share(render_panorama(faces, ORIGIN)) == 0.0
     assert invisible_share(render_panorama(faces, ORIGIN, front_faces=True)) == pytest.approx(1.0)
     assert invisible_share(render_panorama(plain, ORIGIN, front_faces=True)) == 0.0  # plain opacity
-    # a surface seen only from behind counts as the given share seen (PanoramaConfig.scores_back_face_seen)
-    half = render_panorama(faces, ORIGIN, front_faces=True, back_face_seen=0.5)
-    assert np.allclose(half.invisibility, 0.5)
-    assert np.allclose(render_panorama(faces, ORIGIN, front_faces=True, back_face_seen=1.0).invisibility, 0.0)
-    with pytest.raises(InvalidInputError, match="scores_back_face_seen"):
-        PanoramaConfig(scores_back_face_seen=1.5)
-    # PanoramaConfig.back_faces_in_window reaches a world that takes it, and not one that does not
-    asked = []
-
-    def windowed(pose, K, width, height, front_alpha=False, behind_margin_deg=0.0, behind_in_window=False):
-        asked.append(behind_in_window)
-        return faces(pose, K, width, height, front_alpha, behind_margin_deg)
-
-    render_panorama(windowed, ORIGIN, PanoramaConfig(back_faces_in_window=True), front_faces=True)
-    render_panorama(windowed, ORIGIN, PanoramaConfig(), front_faces=True)
-    assert asked == [True] * 3 + [False] * 3
-    # a world without the parameter (faces) is not asked for it
-    render_panorama(faces, ORIGIN, PanoramaConfig(back_faces_in_window=True), front_faces=True)
 
 
 def test_panorama_rays_point_where_the_pose_looks():
@@ -98,24 +79,6 @@ def test_rotation_candidate_points_at_the_hole(yaw_centre):
     t = targets[0]
     assert math.degrees(abs(wrap_angle(t.yaw - math.radians(yaw_centre)))) < 4
     assert math.degrees(t.pitch) == pytest.approx(5, abs=6)
-
-
-@pytest.mark.parametrize("yaw_centre", [90.0, 60.0])  # 60 deg: the hole straddles the panorama's seam
-def test_a_hole_wider_than_the_sector_limit_gets_a_target_per_sector(yaw_centre):
-    """RotationCandidateConfig.max_cluster_yaw_deg: a 200 deg hole, 90 deg sectors -> three targets spread
-    over the hole (one view at its middle would leave both ends unseen); a 40 deg hole stays one."""
-    wide = render_panorama(fake_renderer((yaw_centre - 100, yaw_centre + 100), (-10, 20)), ORIGIN)
-    cfg = RotationCandidateConfig(max_cluster_yaw_deg=90.0)
-    assert len(rotation_candidates(wide)) == 1
-    targets = rotation_candidates(wide, cfg)
-    assert len(targets) == 3
-    offsets = sorted(math.degrees(wrap_angle(t.yaw - math.radians(yaw_centre))) for t in targets)
-    assert offsets == pytest.approx([-67, 0, 67], abs=5)  # the middles of three 67 deg sectors
-    assert sum(t.weight for t in targets) == pytest.approx(rotation_candidates(wide)[0].weight, rel=1e-6)
-    narrow = render_panorama(fake_renderer((yaw_centre - 20, yaw_centre + 20), (-10, 20)), ORIGIN)
-    assert len(rotation_candidates(narrow, cfg)) == 1
-    with pytest.raises(InvalidInputError, match="max_cluster_yaw_deg"):
-        RotationCandidateConfig(max_cluster_yaw_deg=0.0)
 
 
 def test_no_candidate_when_everything_is_seen():
@@ -150,19 +113,6 @@ def test_high_loss_tracker_adds_then_drops_sample():
     assert target.yaw < 0 and target.pitch > 0
     tracker.observe(camera_pose(ORIGIN, target.yaw, target.pitch))
     assert tracker.samples == []
-
-
-def test_a_sample_seen_again_without_high_loss_is_forgotten_only_when_asked_and_not_hidden():
-    pose = camera_pose(ORIGIN, 0.3)  # the sample lies off the heading: the 5 deg rule keeps it
-    mask = np.zeros((128, 128), bool)
-    mask[20:50, 90:120] = True
-    clear = np.zeros_like(mask)
-    for forget, again, seen_depth, kept in ((False, clear, DEPTH_2M, 1), (True, clear, DEPTH_2M, 0),
-                                            (True, mask, DEPTH_2M, 2), (True, clear, DEPTH_2M - 1.0, 1)):
-        tracker = HighLossTracker(HighLossConfig(forget_resolved=forget))
-        tracker.update(mask, DEPTH_2M, pose, K_128, step=0)
-        tracker.update(again, seen_depth, pose, K_128, step=1)  # hidden behind 1 m nearer depth: kept
-        assert len(tracker.samples) == kept, (forget, kept)
 
 
 def test_only_the_heaviest_high_loss_samples_become_targets():
@@ -201,18 +151,3 @@ def test_panorama_config_shape():
     cfg = PanoramaConfig(width_per_camera=60, height=75)
     pano = render_panorama(fake_renderer((0, 0), (0, 0)), ORIGIN, cfg)
     assert pano.shape == (75, 180)
-
-
-def test_an_absolute_information_scale_does_not_lift_the_best_node_to_full_marks():
-    from activesplat.planning.viewpoints import information_scores
-
-    inv, vol = np.array([0.04, 0.02, 0.0]), np.array([1.5, 0.5, 0.0])
-    assert information_scores(inv, vol, ScoreConfig())[0] == pytest.approx(30.0)  # relative: best = w_o + w_c
-    absolute = ScoreConfig(inv_reference=0.4, vol_reference_m3=30.0)
-    expected = [20 * 0.1 + 10 * 0.05, 20 * 0.05 + 10 / 60, 0.0]
-    assert information_scores(inv, vol, absolute) == pytest.approx(expected)
-    assert information_scores(np.array([0.8]), np.array([90.0]), absolute) == pytest.approx([30.0])  # capped
-    with pytest.raises(InvalidInputError, match="set together"):
-        ScoreConfig(inv_reference=0.4)
-    with pytest.raises(InvalidInputError, match="inv_reference must be > 0"):
-        ScoreConfig(inv_reference=0.0, vol_reference_m3=30.0)

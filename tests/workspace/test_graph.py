@@ -233,34 +233,6 @@ def test_grown_plan_gives_the_neck_a_path_from_the_same_grids_and_leaves_the_pla
         ExplorerConfig(neck_margin_m=0.0)
 
 
-def test_nodes_with_no_path_rank_by_their_travel_on_the_grown_floor_when_asked():
-    """`ExplorerConfig.neck_travel`: a node behind the slanted door has no path on the observed graph, so
-    its travel was three times the straight distance; on the grown graph it is the way through the door."""
-    from activesplat.planning.explorer_config import ExplorerConfig
-    from activesplat.planning.travel import NO_PATH_FACTOR, graph_travel, travel_lengths
-    from activesplat.workspace.plan import Plan, grown_plan
-
-    start, goal = np.array([1.0, 1.0]), np.array([6.0, 3.0])
-    grids = two_rooms_seen_at_a_slant()
-    observed, graph = topology(grids, start)
-    grown = grown_plan(Plan(grids=grids, workspace=observed, graph=graph), start, CFG, 0.1)
-    room = max(graph.nodes) + 1
-    graph.add_node(room, pos=tuple(goal))  # cut off at the door
-    straight = float(np.hypot(*(goal - start)))
-    assert np.isinf(graph_travel(graph, start, goal[None])[0])  # nearest node of the observed graph: no path
-    stand_in = travel_lengths(graph, start, [room], goal[None])
-    assert stand_in[0] == pytest.approx(NO_PATH_FACTOR * straight)
-    asked = travel_lengths(graph, start, [room], goal[None], lambda p: graph_travel(grown.graph, start, p))
-    path = plan_safe_path(grown.graph, grown.workspace, start, goal, CFG)
-    assert straight <= asked[0] < 1.5 * straight and asked[0] == pytest.approx(path_length(path), rel=0.35)
-    own = [n for n in graph.nodes if n != room][:3]  # nodes the observed graph reaches keep their travel
-    own_pos = np.array([graph.nodes[n]["pos"] for n in own])
-    np.testing.assert_allclose(travel_lengths(graph, start, own, own_pos, lambda p: p[:, 0] * np.nan),
-                               travel_lengths(graph, start, own, own_pos))
-    with pytest.raises(Exception, match="neck_margin_m"):
-        ExplorerConfig(neck_travel=True, neck_margin_m=None)
-
-
 def test_growing_into_unknown_never_covers_obstacles_and_zero_changes_nothing():
     from activesplat.workspace.clean import grow_into_unknown
 

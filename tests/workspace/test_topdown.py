@@ -16,7 +16,7 @@ from activesplat.workspace.config import WorkspaceConfig
 from activesplat.workspace.draw import draw_topdown
 from activesplat.workspace.paths import plan_safe_path
 from activesplat.workspace.subregions import partition_subregions
-from activesplat.workspace.topdown import GridGeometry, observed_ground, render_topdown, with_obstacles
+from activesplat.workspace.topdown import GridGeometry, observed_ground, render_topdown
 from activesplat.workspace.voronoi import build_voronoi_graph
 
 FLOOR = 0.3  # floor height, not 0, so the height bands are really relative to it
@@ -171,24 +171,3 @@ def test_draw_topdown_writes_a_png(tmp_path):
     # Grids alone (no workspace, no graph) and an empty graph draw too.
     draw_topdown(tmp_path / "bare.png", grids, graph=nx.Graph())
     assert (tmp_path / "bare.png").stat().st_size > 0
-
-
-def test_a_refused_spot_marked_obstacle_leaves_the_workspace_and_the_path_goes_round_it():
-    # the 3 x 3 m left room of `two_rooms`: a straight path across it, then the same with a spot marked
-    # obstacle on that line (what the explorer does with a forward move the scene refused)
-    cfg = WorkspaceConfig(resolution=RES)
-    start, goal, spot = np.array([1.0, 2.0]), np.array([3.0, 2.0]), np.array([2.0, 2.0])
-    plain = two_rooms()
-    marked = with_obstacles(plain, spot[None], 0.1)
-    assert with_obstacles(plain, np.zeros((0, 2)), 0.1) is plain
-    assert marked.obstacle.sum() - plain.obstacle.sum() == 13  # a 0.1 m disc: 13 pixels at 5 cm
-    assert not (marked.free & marked.obstacle).any() and not (marked.unknown & marked.obstacle).any()
-    ws_plain, ws = extract_workspace(plain, start, cfg), extract_workspace(marked, start, cfg)
-    assert ws_plain.clearance_at(spot) > 1.0 and ws.clearance_at(spot) == 0.0
-    assert plan_safe_path(build_voronoi_graph(ws_plain, cfg), ws_plain, start, goal, cfg).shape == (2, 2)
-    path = plan_safe_path(build_voronoi_graph(ws, cfg), ws, start, goal, cfg)
-    assert path is not None and len(path) > 2
-    dense = np.concatenate([np.linspace(a, b, 50) for a, b in zip(path[:-1], path[1:], strict=True)])
-    assert np.hypot(*(dense - spot).T).min() > cfg.agent_radius
-    # off the grid: nothing changes
-    assert (with_obstacles(plain, np.array([[-5.0, -5.0]]), 0.1).obstacle == plain.obstacle).all()

@@ -17,12 +17,8 @@ from activesplat.planning.controller import floor_xz, yaw_toward
 from activesplat.planning.explorer import Explorer, WorldModel, snapshot_render
 from activesplat.planning.explorer_config import ExplorerConfig, GoalRules
 from activesplat.planning.goals import rank_goals
-from activesplat.planning.hierarchical import last_call_first, reachable_first
-from activesplat.planning.observed import unsampled_views
-from activesplat.planning.on_the_way import bridge_toward, closer_on_the_way, worth_a_detour
+from activesplat.planning.on_the_way import closer_on_the_way, worth_a_detour
 from activesplat.planning.panorama import render_panorama
-from activesplat.planning.replan_memory import Commitment, Promises, RouteMemory
-from activesplat.planning.travel import graph_travel
 from activesplat.planning.viewpoints import RotationTarget, rotation_candidates, select_rotation_targets
 from activesplat.timing import Timers
 from activesplat.workspace.paths import path_length, plan_safe_path
@@ -37,13 +33,10 @@ class _Choice:
     node: int
     goal: np.ndarray
     path: np.ndarray
-    how: str = "direct"
-    """"direct": a path on the observed floor; "grown": on the floor grown into unknown (`neck_margin_m`);
-    "bridge": the goal had no path, `goal` is a node on the way to it (`bridge_gain_m`)."""
+    grown: bool = False
+    """The path lies on the floor grown into unknown (`neck_margin_m`), not on the observed floor."""
     on_the_way: bool = False
     """`goal` is a stop on the way to the node (`detour_m`, the release's long-path rule)."""
-    straight: bool = False
-    """Put off once for a stop on the way already: no stop this time (`postpone_once_m`)."""
 
 
 class _Floors:
@@ -55,17 +48,12 @@ class _Floors:
         self.plan, self.here, self.cfg, self.timers = plan, here, cfg, timers
         self._grown: Plan | None = None
 
-    def grown(self, timers: Timers | None = None) -> Plan:
-        """The floor grown into unknown (its build timed on `timers`, default the explorer's)."""
+    def grown(self) -> Plan:
+        """The floor grown into unknown."""
         if self._grown is None:
             self._grown = grown_plan(self.plan, self.here, self.cfg.workspace, self.cfg.neck_margin_m,
-                                     self.timers if timers is None else timers)
+                                     self.timers)
         return self._grown
-
-    def grown_travel(self, pos: np.ndarray) -> np.ndarray:
-        """The graph travel to `pos` on the grown floor (`neck_travel`); its build is timed as position
-        selection, which calls this."""
-        return graph_travel(self.grown(Timers()).graph, self.here, pos)
 
     def path(self, goal: np.ndarray, on: Plan | None = None) -> np.ndarray | None:
         """A safe path to `goal` on the observed floor, or `on` another plan; None where there is none."""
@@ -90,18 +78,6 @@ class ActiveSplatExplorer(Explorer):
         """Every rotation stop: step, cause (arrival / multi_stop), floor position, the targets chosen
         (source, yaw / pitch in degrees, weight) and how many candidates each source offered (the
         episode's stops.json)."""
-        self.promises = None if self.cfg.keep_promise_m is None else Promises(self.cfg.keep_promise_m)
-        """What the nodes outside the agent's subregion promised at earlier replans (`keep_promise_m`)."""
-        self.commitment = None if self.cfg.commit_global_m is None else Commitment(self.cfg.commit_global_m)
-        """The goal of the last global choice, followed until reached or seen (`commit_global_m`)."""
-        self.route_memory = (None if self.cfg.route_memory_m is None
-                             else RouteMemory(self.cfg.route_memory_m, self.cfg.route_min_info))
-        """The order of the last global route through the subregions (`route_memory_m`)."""
-        self.cut_off: list[np.ndarray] = []
-        """Goals worth a visit that a replan skipped for want of a path, not looked at yet
-        (`cut_off_look_m`)."""
-        self.looked: list[np.ndarray] = []  # the cut-off goals looked at
-        self._put_off: np.ndarray | None = None  # the ranked goal the last replan put off (postpone_once_m)
         self._ranked: list = []  # the best candidates of the current replan, for its record
         self.replans: list[dict] = []
         """Every replan: step, floor position, stage (local / global, `Plan.stage`), the goal (None: idle),
@@ -124,51 +100,31 @@ class ActiveSplatExplorer(Explorer):
         measurements behind each option in docs/exploration.md and docs/benchmark.md."""
         here = floor_xz(pose)
         plan = self.plan = build_plan(self.world.gaussians, self.floor_height, here, self.cfg.workspace,
-                                      self.timers, **self.workspace_obstacles())
+                                      self.timers)
         floors = _Floors(plan, here, self.cfg, self.timers)
-        rules = self._goal_rules()
-        order = self._rank_goals(plan, here, rules, floors)
+        rules = goal_rules(self.cfg)
+        order = self._rank_goals(plan, here, rules)
         self._ranked = order[:self.cfg.replan_log_top]
         choice, skipped = self._first_reachable(plan, here, order, floors)
         if choice is None:
             self._no_goal(pose, here, skipped)
             return
-        if choice.how == "direct":
+        if not choice.grown:
             choice = self._with_a_stop_on_the_way(plan, choice, rules, floors)
         self.go_to(choice.goal, choice.path)
-        self._commit(choice.node)
         self._record_replan(here, choice)
-        if choice.how == "grown":  # followed and checked ahead on the grown floor
+        if choice.grown:  # followed and checked ahead on the grown floor
             plan.workspace = floors.grown().workspace
 
-    def _goal_rules(self) -> GoalRules:
-        """The goal-selection knobs; flat, as `no-hp`, before step `flat_until_step` (ours, off)."""
-        rules = goal_rules(self.cfg)
-        if self.cfg.flat_until_step is not None and len(self.visited) < self.cfg.flat_until_step:
-            rules = dataclasses.replace(rules, hierarchical=False)
-        return rules
-
-    def _rank_goals(self, plan: Plan, here: np.ndarray, rules: GoalRules, floors: _Floors) -> list[int]:
+    def _rank_goals(self, plan: Plan, here: np.ndarray, rules: GoalRules) -> list[int]:
         """Step 2 of `replan`: the candidate nodes best first (`planning.goals.rank_goals`, timed as position
         selection), scored on panoramas of a coarser snapshot of the map (ours, `score_lod_voxel_m`;
-        docs/protocol.md §4). Then two reorderings for the end of the step budget (ours, off): the node on
-        its last call first (`last_call_steps`), and the nodes the steps left can reach ahead of the
-        others (`out_of_reach_last`)."""
+        docs/protocol.md §4)."""
         cfg = self.cfg
         pano = cfg.planning.panorama
         render = snapshot_render(self.world, pano.score_lod_voxel_m, pano.score_lod_inflate)
-        order = self.timers.time("position_selection", rank_goals, plan, here, render, self.floor_height,
-                                 self.visited, self.failed, cfg.planning, cfg.workspace, rules, self.rng,
-                                 self.observed, self.promises, self.commitment, self.route_memory,
-                                 floors.grown_travel if cfg.neck_travel else None)
-        radius = cfg.planning.score.unvisited_radius_m
-        if cfg.last_call_steps is not None and self.steps_left is not None and plan.stage:
-            order = last_call_first(order, plan, self.steps_left, self.visited, self.failed, radius,
-                                    cfg.last_call_steps, cfg.last_call_min_info, cfg.last_call_steps_per_m)
-        if cfg.out_of_reach_last and self.steps_left is not None and plan.stage:
-            order = reachable_first(order, plan, self.steps_left, self.visited, self.failed, radius,
-                                    cfg.last_call_steps_per_m, cfg.local_score_threshold)
-        return order
+        return self.timers.time("position_selection", rank_goals, plan, here, render, self.floor_height,
+                                self.visited, self.failed, cfg.planning, cfg.workspace, rules, self.rng)
 
     def _first_reachable(self, plan: Plan, here: np.ndarray, order: list[int],
                          floors: _Floors) -> tuple[_Choice | None, bool]:
@@ -178,10 +134,10 @@ class ActiveSplatExplorer(Explorer):
         spot for 200 steps that way, replanning four times per step).
 
         A goal with no path on the observed floor (this project's handling; docs/protocol.md §3, §5):
-        a path on the floor grown into unknown (`neck_margin_m`, on), else a bridge toward it
-        (`bridge_gain_m`, off), else it is skipped for this replan (`retry_unreachable`, on; the release
-        marks it failed). Once every goal worth a visit is cut off so, the rest, which promise nothing,
-        are left too (`leave_when_cut_off`, on): no goal, counted as skipped."""
+        a path on the floor grown into unknown (`neck_margin_m`, on), else it is skipped for this replan
+        (`retry_unreachable`, on; the release marks it failed). Once every goal worth a visit is cut off
+        so, the rest, which promise nothing, are left too (`leave_when_cut_off`, on): no goal, counted as
+        skipped."""
         cfg = self.cfg
         info = np.array([plan.info.get(n, 0.0) for n in order])
         worth = worth_a_visit(info, True, cfg.local_score_threshold)
@@ -199,13 +155,7 @@ class ActiveSplatExplorer(Explorer):
             if cfg.neck_margin_m is not None:
                 path = floors.path(goal, floors.grown())
                 if path is not None:
-                    return _Choice(node, goal, path, how="grown"), skipped
-            self._remember_cut_off(plan, node, goal)
-            bridge = self._bridge(plan, here, node, goal, floors.path)
-            if bridge is not None:
-                # not marked failed: from the bridge node it may have a path (each bridge is a node not yet
-                # visited and nearer to the goal, so the bridges toward one goal end)
-                return _Choice(node, *bridge, how="bridge"), skipped
+                    return _Choice(node, goal, path, grown=True), skipped
             cut_off = cut_off or bool(worth[k])
             if cfg.retry_unreachable:
                 self._log_failure(goal, "no path, skipped")
@@ -219,26 +169,23 @@ class ActiveSplatExplorer(Explorer):
         """Step 3 of `replan`, for a goal with a path on the observed floor: go there, or first to a node
         worth a visit on the way (docs/protocol.md §5): a room passed on the way to a global goal (ours,
         `detour_m`, on; `worth_a_detour`), and the release's long-path rule for a path longer than
-        `long_path_m` (`closer_on_the_way`). Neither for the goal the last replan put off so (ours,
-        `postpone_once_m`, off); the goal put off now is remembered for that."""
+        `long_path_m` (`closer_on_the_way`)."""
         cfg = self.cfg
         radius = cfg.planning.score.unvisited_radius_m
         goal, path, on_the_way = choice.goal, choice.path, False
-        straight = self._put_off_before(goal)  # put off once already: no stop on the way this time
-        if not straight and cfg.detour_m is not None and plan.stage == "global":
+        if cfg.detour_m is not None and plan.stage == "global":
             stop = worth_a_detour(plan, choice.node, self.visited, self.failed, radius, cfg.detour_m,
                                   cfg.detour_min_info)
             stop_pos = None if stop is None else node_xz(plan.graph, stop)
             detour = None if stop_pos is None else floors.path(stop_pos)
             if detour is not None:
                 goal, path, on_the_way = stop_pos, detour, True
-        if not straight and path_length(path) > cfg.long_path_m:
+        if path_length(path) > cfg.long_path_m:
             way_goal = goal
             goal, path = closer_on_the_way(plan, goal, path, self.visited, self.failed, radius, rules,
                                            floors.path)
             on_the_way = on_the_way or goal is not way_goal
-        self._put_off = choice.goal if on_the_way else None
-        return dataclasses.replace(choice, goal=goal, path=path, on_the_way=on_the_way, straight=straight)
+        return dataclasses.replace(choice, goal=goal, path=path, on_the_way=on_the_way)
 
     def _no_goal(self, pose: np.ndarray, here: np.ndarray, skipped: bool) -> None:
         """Step 4 of `replan`: no goal with a path. The release's fallback: forget the failed goals (the next
@@ -251,72 +198,6 @@ class ActiveSplatExplorer(Explorer):
         self.forget_failures()
         self.idle(pose, stuck)
 
-    def _put_off_before(self, goal: np.ndarray) -> bool:
-        """Whether `goal` is the one the last replan put off for a stop on the way (`postpone_once_m`)."""
-        limit = self.cfg.postpone_once_m
-        return (limit is not None and self._put_off is not None
-                and float(np.hypot(*(goal - self._put_off))) <= limit)
-
-    def _commit(self, node: int) -> None:
-        """Remember the goal of a global choice (`commit_global_m`): the ranked node, not a stop on the
-        way or a bridge toward it."""
-        if self.commitment is not None and self.plan.stage == "global":
-            self.commitment.pos = node_xz(self.plan.graph, node).copy()
-
-    def _worth_a_visit(self, plan: Plan, node: int) -> bool:
-        """Whether a ranked node promises something to see (`worth_a_visit`: information above the local
-        threshold)."""
-        return bool(worth_a_visit(plan.info.get(node, 0.0), True, self.cfg.local_score_threshold))
-
-    def _remember_cut_off(self, plan: Plan, node: int, goal: np.ndarray) -> None:
-        """Keep a goal with no path for a look when the agent passes it (`cut_off_look_m`): one worth a
-        visit, not near a goal looked at already."""
-        radius = self.cfg.cut_off_look_m
-        if radius is None:
-            return
-        if not self._worth_a_visit(plan, node):
-            return
-        if any(np.hypot(*(goal - g)) <= radius for g in self.looked):
-            return
-        if not any(np.hypot(*(goal - g)) < 1e-6 for g in self.cut_off):
-            self.cut_off.append(goal.copy())
-
-    def _look_at_cut_off(self, pose: np.ndarray) -> bool:
-        """Passing within `cut_off_look_m` of a goal kept by :meth:`_remember_cut_off`: turn toward it with
-        the camera one tilt down, then replan (the path is dropped). The goals within `cut_off_look_m` of it
-        are dropped from the list, as looked at with it."""
-        radius = self.cfg.cut_off_look_m
-        if radius is None or not self.cut_off:
-            return False
-        here = floor_xz(pose)
-        near = [g for g in self.cut_off if np.hypot(*(g - here)) <= radius]
-        if not near:
-            return False
-        goal = min(near, key=lambda g: float(np.hypot(*(g - here))))
-        self.looked.append(goal)
-        self.cut_off = [g for g in self.cut_off if np.hypot(*(g - goal)) > radius]
-        target = RotationTarget(yaw_toward(here, goal), -math.radians(self.cfg.controller.look_deg), 0.0,
-                                "cut_off")
-        self.rotation_targets = [target]
-        self.rotation_cause = "look_cut_off"
-        self.follower = None  # replan once the look is done: the goal may have a path now
-        self.stops.append({"step": len(self.visited) - 1, "cause": self.rotation_cause,
-                           "xz": rounded(here), "candidates": {}, "toward": rounded(goal),
-                           "targets": [target_record(target)]})
-        return True
-
-    def _bridge(self, plan: Plan, here: np.ndarray, node: int, goal: np.ndarray,
-                find_path) -> tuple[np.ndarray, np.ndarray] | None:
-        """Where to go instead of a goal worth a visit that has no safe path (`bridge_gain_m`)."""
-        cfg = self.cfg
-        if cfg.bridge_gain_m is None:
-            return None
-        if not self._worth_a_visit(plan, node):
-            return None
-        radius = cfg.planning.score.unvisited_radius_m
-        return bridge_toward(plan, here, goal, self.visited, self.failed, radius, cfg.workspace,
-                             cfg.bridge_gain_m, find_path)
-
     def _record_replan(self, here: np.ndarray, choice: _Choice | None) -> None:
         plan, thr = self.plan, self.cfg.local_score_threshold
         rec = {"step": len(self.visited) - 1, "xz": rounded(here), "stage": plan.stage,
@@ -324,15 +205,13 @@ class ActiveSplatExplorer(Explorer):
                "max_invisible": round(plan.max_invisible, 4), "goal": None}
         if choice is not None:
             node = choice.node
-            rec.update(goal=rounded(plan.goal), on_the_way=choice.on_the_way, committed=plan.committed,
+            # "committed" is always false: the option that set it, a global choice followed through to its
+            # subregion, was measured and removed; readers of stops.json may still look for the key
+            rec.update(goal=rounded(plan.goal), on_the_way=choice.on_the_way, committed=False,
                        score=round(plan.scores.get(node, float("nan")), 2),
                        info=round(plan.info.get(node, float("nan")), 2),
                        path_m=round(path_length(choice.path), 2))
-            if choice.how == "bridge":  # the goal ranked first had no safe path: `plan.goal` is on the way
-                rec["bridge_to"] = rounded(plan.graph.nodes[node]["pos"])
-            if choice.straight:  # put off once for a stop on the way already (`postpone_once_m`): no stop now
-                rec["put_off_before"] = True
-            if choice.how == "grown":  # no path on the observed floor, one on the floor grown into unknown
+            if choice.grown:  # no path on the observed floor, one on the floor grown into unknown
                 rec["grown"] = True
         rec["ranked"] = [ranked_entry(plan, n) for n in self._ranked]
         self.replans.append(rec)
@@ -358,10 +237,7 @@ class ActiveSplatExplorer(Explorer):
         self.rotation_targets = self.timers.time("rotation_selection", self._rotation_targets, pose, views)
 
     def stop_on_the_way(self, pose: np.ndarray) -> bool:
-        """Passing a multi-connected node: a short rotation stop there (paper sec. III-D3); passing a goal
-        that had no path: a look toward it (`cut_off_look_m`)."""
-        if self._look_at_cut_off(pose):
-            return True
+        """Passing a multi-connected node: a short rotation stop there (paper sec. III-D3)."""
         if not self.cfg.multi_stops:
             return False
         here = floor_xz(pose)
@@ -384,19 +260,13 @@ class ActiveSplatExplorer(Explorer):
         pano = self.last_panorama = render_panorama(self.world.render, origin, pcfg.panorama,
                                                     pcfg.panorama.front_faces_targets)
         targets = rotation_candidates(pano, pcfg.rotation) + self.high_loss.targets(origin, max_distance=4.0)
-        if self.sampled is not None:
-            c, e = self.cfg.controller, self.cfg
-            targets += unsampled_views(pano, self.sampled, e.unsampled_radius_m, e.unsampled_views,
-                                       e.unsampled_min_weight, turn_deg=c.turn_deg, look_deg=c.look_deg,
-                                       max_pitch_deg=c.max_pitch_deg)
         yaw, pitch = pose_yaw_pitch(pose)
         ctrl = self.cfg.controller if self.cfg.fewest_action_tour else None
         resume = None  # a stop on the way turns back toward the path afterwards: count those turns too
         if self.follower is not None and not self.follower.done:
             resume = yaw_toward(floor_xz(pose), self.follower.waypoints[0])
-        sources = ("panorama", "high_loss", *(("unsampled",) if self.sampled is not None else ()))
-        chosen = select_rotation_targets(targets, yaw, pcfg, max_views, pitch, ctrl, resume,
-                                         self.cfg.tilt_within_deg)
+        sources = ("panorama", "high_loss")
+        chosen = select_rotation_targets(targets, yaw, pcfg, max_views, pitch, ctrl, resume)
         self.stops.append({
             "step": len(self.visited) - 1, "cause": self.rotation_cause,
             "xz": rounded(floor_xz(pose)),
@@ -423,15 +293,11 @@ def target_record(t: RotationTarget) -> dict:
 
 def ranked_entry(plan: Plan, node: int) -> dict:
     """One ranked candidate of a replan for stops.json: floor position, subregion, eq. 12 score, its
-    information part (0 without a panorama), the graph travel to it and, with the sampled-surface term
-    on, its poorly sampled share."""
-    entry = {"xz": rounded(plan.graph.nodes[node]["pos"], 2),
-             "subregion": plan.subregions.get(node), "score": round(plan.scores.get(node, float("nan")), 2),
-             "info": round(plan.info.get(node, float("nan")), 2),
-             "travel_m": round(plan.travel.get(node, float("nan")), 2)}
-    if node in plan.poor:  # the sampled-surface term is on
-        entry["poor"] = round(plan.poor[node], 4)
-    return entry
+    information part (0 without a panorama) and the graph travel to it."""
+    return {"xz": rounded(plan.graph.nodes[node]["pos"], 2),
+            "subregion": plan.subregions.get(node), "score": round(plan.scores.get(node, float("nan")), 2),
+            "info": round(plan.info.get(node, float("nan")), 2),
+            "travel_m": round(plan.travel.get(node, float("nan")), 2)}
 
 
 __all__ = ["ActiveSplatExplorer", "goal_rules"]

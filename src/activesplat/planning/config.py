@@ -43,29 +43,12 @@ class PanoramaConfig:
     or an object counts as its near face, so a room seen only through its door looks complete from
     inside, and the agent inside never turns to the wall it came through. Completion neutral (medium-0..3
     x 2 seeds 86.20 -> 85.87 %, fresh medium-100..109 seed 0 85.87 -> 86.13 %), worst room of the fresh
-    houses 84.0 -> 87.1 % of its ceiling (docs/benchmark.md "Front faces")."""
-    front_faces_scores: bool = False
-    """The same for the panoramas that score candidate nodes (eq. 12's s_o and s_c; ours). Off: every
-    interior node then promises the back faces around it; medium-0..3 x 2 seeds 84.26 % against 85.87."""
-    scores_back_face_seen: float = 0.0
-    """With ``front_faces_scores``, the share of a surface seen only from behind that the scoring panoramas
-    count as seen (ours; 0: none of it, the option as it was measured; 1: all of it, the paper's opacity).
-    In between, a room seen only from its door promises its unseen door wall without every back face of
-    the map counting as much as empty space. Renders each scoring panorama twice. 0.5: medium-0..3 x 2
-    seeds 85.87 -> 86.85 %, but fresh medium-100..105 seed 0 84.35 -> 79.49 % with rooms never looked into
-    (docs/benchmark.md "A wide unseen region, one view per yaw sector")."""
+    houses 84.0 -> 87.1 % of its ceiling (docs/benchmark.md "Front faces"). The panoramas that score
+    candidate nodes keep the plain opacity: with front faces there too, every interior node promised the
+    back faces around it (medium-0..3 x 2 seeds 85.87 -> 84.26 %)."""
     back_face_margin_deg: float = 15.0
-    """With the two options above, a Gaussian is seen from behind only when the camera lies this far behind
+    """With ``front_faces_targets``, a Gaussian is seen from behind only when the camera lies this far behind
     its plane (ours): walls and floors seen edge-on would otherwise flicker between seen and unseen."""
-    back_faces_in_window: bool = False
-    """With the two options above, a Gaussian seen from behind is drawn only if its centre lies within the
-    window where the projection's Jacobian is not clamped (ours; `Mapper.render`'s ``behind_in_window``).
-    At a stop 0.2 m from a wall, the far face's Gaussians beside the camera fall outside that window; the
-    rasterizer draws them, as 3DGS does, with the Jacobian of the window's edge, as blobs that cover the
-    near face, so a third of a camera's view read as unseen (medium-1: the front-faces panorama's seen
-    share 0.64 -> 0.97 for the camera facing the wall). Rare in the loop: medium-0..3, seed 0, two runs
-    bit-identical to the defaults', medium-0 87.08 -> 85.92 %, medium-1 89.17 -> 89.37 %, rotations 45.7 /
-    50.4 -> 48.9 / 51.6 % of the actions; off (docs/benchmark.md "Back faces beside the camera")."""
     score_lod_voxel_m: float | None = 0.05
     """The panoramas that score candidate nodes are rendered from a coarser copy of the map, its Gaussians
     merged per voxel of this size (ours; `splat.lod.voxel_lod`; None = the map itself, as the paper). A
@@ -79,12 +62,8 @@ class PanoramaConfig:
 
     def __post_init__(self) -> None:
         check_fields(self, positive=("hfov_deg", "vfov_deg", "score_lod_voxel_m", "score_lod_inflate"),
-                     non_negative=("scores_back_face_seen",),
                      at_least_one=("n_cameras", "width_per_camera", "height"),
                      optional=("score_lod_voxel_m",))
-        if self.scores_back_face_seen > 1.0:
-            raise InvalidInputError(f"PanoramaConfig.scores_back_face_seen is a share in [0, 1], got "
-                                    f"{self.scores_back_face_seen}")
         if not 0 <= self.back_face_margin_deg < 90:
             raise InvalidInputError(f"PanoramaConfig.back_face_margin_deg must be in [0, 90) degrees (the "
                                     f"camera's angle behind a Gaussian's plane), got "
@@ -110,14 +89,6 @@ class RotationCandidateConfig:
     """A cluster is kept when the sum of its invisibility exceeds this (release: 25)."""
     min_offset_deg: float = 15.0
     """A target is used only if more than this off the current heading (release: 15 deg)."""
-    max_cluster_yaw_deg: float | None = None
-    """A cluster spanning more yaw than this is split into equal yaw sectors no wider than this, each a
-    target of its own (ours; None: one target per cluster, at its mean direction, as paper and release).
-    One view of a 90 deg camera toward the middle of a cluster wrapping half the panorama leaves most of
-    it unseen: a room entered by a step, whose door wall behind the agent and far side ahead read as one
-    unseen region, got a single turn (medium-0 seed 0, step 240). 90: medium-0..3 x 2 seeds 85.87 ->
-    86.33 % (62.4 -> 66.1 % at step 1000), fresh medium-100..109 seed 0 86.13 -> 86.36 % (67.1 -> 67.6 %),
-    so off (docs/benchmark.md "A wide unseen region, one view per yaw sector")."""
     min_relative_weight: float = 0.0
     """A stop turns to a target only when its weight is at least this share of the heaviest target of the
     same source there (ours; 0: off, as paper and release). A look-around costs ~40 actions, most of the
@@ -129,9 +100,6 @@ class RotationCandidateConfig:
                      non_negative=("min_cluster_invisibility",),
                      at_least_one=("downsample", "dbscan_min_samples"))
         _check_heading_angles(self, "min_offset_deg")
-        if self.max_cluster_yaw_deg is not None and not 0 < self.max_cluster_yaw_deg <= 360:
-            raise InvalidInputError(f"RotationCandidateConfig.max_cluster_yaw_deg must be in (0, 360] or "
-                                    f"None, got {self.max_cluster_yaw_deg}")
 
 
 @dataclass(frozen=True)
@@ -181,18 +149,10 @@ class HighLossConfig:
     and a stop spent its 5 views on them instead of on the panorama's unseen directions; medium-0..3 x
     2 seeds, 84.66 -> 85.37 % completion, 71.1 -> 75.8 % of the ceiling at step 1000, docs/benchmark.md
     "Tuning log")."""
-    forget_resolved: bool = False
-    """Also forget a sample once a later mapped frame sees it again (inside the image, nothing observed
-    more than `resolved_tolerance_m` in front of it) with no high-loss pixel within `dbscan_eps` grid
-    cells of it (ours: the mapper has filled the region in; the release forgets samples only by heading,
-    so the agent turns back to regions already mapped)."""
-    resolved_tolerance_m: float = 0.3
-    """How far in front of a sample the observed depth may be before the sample counts as hidden (ours;
-    eq. 10's epsilon_1)."""
 
     def __post_init__(self) -> None:
         check_fields(self, positive=("dbscan_eps",), non_negative=("min_pixels", "min_cluster_sum",
-                                                                   "resolved_tolerance_m", "max_targets"),
+                                                                   "max_targets"),
                      at_least_one=("grid", "dbscan_min_samples", "max_samples"))
         _check_heading_angles(self, "min_offset_deg", "drop_within_deg")
 
@@ -221,58 +181,9 @@ class ScoreConfig:
     """A node is unvisited when farther than this from every past position (release: 10 x 0.065 m)."""
     preset: Literal["paper", "release"] = "paper"
     """"paper" (continuous shares, weights above) or "release" (the release's quantised formula)."""
-    w_q: float = 0.0
-    """Weight of a fifth, information term (ours; 0 = off, eq. 12 as published): the share of the node's
-    panorama showing mapped surface within `quality_radius_m` that none of the agent's depth points has
-    sampled (`planning.observed`), divided by its maximum over the candidates like s_o and s_c. A room
-    looked into from its door is mapped, so eq. 12 sees nothing left there, but its floor was sampled
-    10-20 cm apart and the completion measure does not count it. 20 on medium-0..3 x 2 seeds: 86.02 ->
-    84.61 % counted in the global stage only, 4 runs 86.00 -> 82.70 % in both stages, so off
-    (docs/benchmark.md "A route through the subregions, and a sampled-surface term")."""
-    quality_in_local: bool = True
-    """The w_q term counts in the local stage too (whether a node of the agent's own subregion is still
-    worth a visit); False: only in the global stage, where it makes a room sampled from afar worth the
-    trip, and the local stage keeps eq. 12's information."""
-    quality_radius_m: float = 2.5
-    """Surface within this of a node counts for the w_q term (ours: close enough that a look from the node
-    samples it densely)."""
-    quality_voxel_m: float = 0.1
-    """Voxel size of the sampled-surface memory (ours: twice the completion measure's 5 cm threshold)."""
-    quality_reference: float | None = None
-    """When set, the w_q term is w_q * min(1, share / this) instead of the share divided by its maximum over
-    the candidates: an absolute scale for the sampled-surface term (ours; None = relative). Relative to its
-    maximum the term always leaves some node near the agent worth a visit; on an absolute scale a room whose
-    near surface is sampled promises nothing more. w_q 10 with 0.25 in both stages, medium-0 seed 0: 86.29
-    -> 82.58 %, 69.0 -> 46.7 % by step 1000 (docs/benchmark.md "The sampled-surface term on an absolute
-    scale")."""
-    quality_below_invisible: float | None = None
-    """When set, the w_q term counts only at replans where no scored candidate's panorama is this much
-    invisible (its share, s_o before normalising): the sampled-surface term decides once eq. 12 finds little
-    unseen space left, and eq. 12 alone before (ours; None = whenever w_q > 0). Early in an episode a new room
-    shows far more than the dense sampling of a room already mapped returns. 0.1 with w_q 10 and
-    `quality_reference` 0.25, medium-0..3 seed 0: +0.00 points (the gate opened at steps 1005-1889)."""
-    inv_reference: float | None = None
-    """When set (with `vol_reference_m3`), s_o = min(1, invisible share / this) instead of the share
-    divided by its maximum over the candidates: an absolute information scale (ours; None = relative, as
-    the paper). With the relative scale the best candidate always promises w_o + w_c, however little it
-    shows, and the global stage's cost per metre trades against that; with an absolute one a node that
-    shows little promises little wherever the others stand. 0.4 with 30 m^3 (about the best candidate's
-    values mid-episode) on medium-0 x seeds 0, 1: 85.68 / 85.88 -> 83.97 / 78.90 %, so off
-    (docs/benchmark.md "An absolute information scale")."""
-    vol_reference_m3: float | None = None
-    """The hull volume (m^3) that counts as full information, s_c = min(1, volume / this), with
-    `inv_reference` (ours; None = relative)."""
 
     def __post_init__(self) -> None:
-        check_fields(self, non_negative=("w_o", "w_c", "w_u", "w_h", "failed_penalty", "unvisited_radius_m",
-                                         "w_q"), positive=("quality_radius_m", "quality_voxel_m",
-                                                           "inv_reference", "vol_reference_m3",
-                                                           "quality_reference", "quality_below_invisible"),
-                     optional=("inv_reference", "vol_reference_m3", "quality_reference",
-                               "quality_below_invisible"))
-        if (self.inv_reference is None) != (self.vol_reference_m3 is None):
-            raise InvalidInputError("ScoreConfig.inv_reference and vol_reference_m3 are set together (an "
-                                    "absolute information scale) or both left None (relative)")
+        check_fields(self, non_negative=("w_o", "w_c", "w_u", "w_h", "failed_penalty", "unvisited_radius_m"))
         if self.preset not in ("paper", "release"):
             raise InvalidInputError(f"ScoreConfig.preset must be 'paper' or 'release', got {self.preset!r}")
 

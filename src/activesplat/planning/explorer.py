@@ -32,7 +32,6 @@ from activesplat.planning.controller import (
     turn_toward,
 )
 from activesplat.planning.explorer_config import ExplorerConfig
-from activesplat.planning.observed import ObservedSurface
 from activesplat.planning.panorama import Panorama
 from activesplat.planning.viewpoints import HighLossTracker, RotationTarget
 from activesplat.splat.lod import LOD_INFLATE
@@ -49,12 +48,10 @@ class WorldModel(Protocol):
     high_loss_mask: Any
 
     def render(self, pose: np.ndarray, K: np.ndarray | None = None, width: int | None = None,
-               height: int | None = None, front_alpha: bool = False, behind_margin_deg: float = 0.0,
-               behind_in_window: bool = False) -> Any:
+               height: int | None = None, front_alpha: bool = False, behind_margin_deg: float = 0.0) -> Any:
         """``alpha`` and ``median_depth`` of a view; with ``front_alpha`` the opacity of surfaces seen from
         the side that observed them (`Mapper.render`). A world without ``front_alpha`` gives the plain
-        opacity to the panoramas, one without ``behind_in_window`` ignores that option
-        (`planning.panorama.render_panorama`)."""
+        opacity to the panoramas (`planning.panorama.render_panorama`)."""
 
 
 def snapshot_render(world: WorldModel, lod_voxel_m: float | None = None,
@@ -181,11 +178,6 @@ class Explorer:
         self.timers = timers or Timers()
         self.rng = np.random.default_rng(self.cfg.seed)
         self.high_loss = HighLossTracker(self.cfg.planning.high_loss)
-        score_cfg = self.cfg.planning.score
-        self.observed = ObservedSurface(score_cfg.quality_voxel_m) if score_cfg.w_q > 0 else None
-        """The voxels the agent's own depth frames have sampled (only with the w_q score term)."""
-        self.sampled = ObservedSurface(self.cfg.unsampled_voxel_m) if self.cfg.unsampled_views > 0 else None
-        """The same at `unsampled_voxel_m`, for the rotation targets toward unsampled surface."""
         self.plan = Plan()
         self.follower: PathFollower | None = None
         self.rotation_targets: list[RotationTarget] = []
@@ -203,10 +195,6 @@ class Explorer:
         self.refused: list[tuple[np.ndarray, float]] = []
         """(floor position, yaw) of the refused forward moves at the agent's spot (older spots are dropped
         at the next refusal): the escape does not try a refused heading from the same spot again."""
-        self.collision_obstacles: list[np.ndarray] = []
-        """Floor points (x, z) just ahead of forward moves the scene refused, marked obstacle in every
-        workspace until the failures are forgotten (`collision_obstacle_m`; empty when off)."""
-        self._goal_collisions: list[tuple[np.ndarray, int]] = []  # (goal, refusals on the way to it)
         self._path_start: np.ndarray | None = None  # where the current path began (`go_to`)
         self.steps_left: int | None = None
         """Actions left in the episode's budget, counting the next one; the loop sets it before every `act`
@@ -224,14 +212,9 @@ class Explorer:
 
     # ------------------------------------------------------------------ the loop's interface
     def observe_mapping(self, obs: Any, K: np.ndarray) -> None:
-        """Called after the mapper processed `obs`: track its high-loss samples (eq. 10), and with the w_q
-        score term the voxels its depth sampled. The world's mask is None when the mapper did not map this
-        frame (its schedule maps every n-th frame): then only the samples this view looks at are
-        forgotten."""
-        if self.observed is not None:
-            self.timers.time("position_selection", self.observed.add, obs.depth, obs.pose, K)
-        if self.sampled is not None:
-            self.timers.time("rotation_selection", self.sampled.add, obs.depth, obs.pose, K)
+        """Called after the mapper processed `obs`: track its high-loss samples (eq. 10). The world's mask
+        is None when the mapper did not map this frame (its schedule maps every n-th frame): then only the
+        samples this view looks at are forgotten."""
         mask = getattr(self.world, "high_loss_mask", None)
         if mask is None:
             self.high_loss.observe(np.asarray(obs.pose, dtype=np.float64))
@@ -411,73 +394,16 @@ class Explorer:
         self.failures.append({"step": len(self.visited) - 1, "goal": [round(float(v), 3) for v in goal],
                               "why": why, "failed_now": len(self.failed), "refused": refused})
 
-    def workspace_obstacles(self) -> dict:
-        """The `build_plan` arguments that mark the refused spots as obstacles (`collision_obstacle_m`)."""
-        if self.cfg.collision_obstacle_m is None or not self.collision_obstacles:
-            return {}
-        return {"obstacles": np.array(self.collision_obstacles),
-                "obstacle_radius_m": self.cfg.collision_obstacle_m}
-
     def forget_failures(self) -> None:
-        """The fallback when no goal has a path: every failed goal gets a second chance, and the spots
-        refused on the way are forgotten (a spot marked in a narrow passage can close it in the workspace)."""
+        """The fallback when no goal has a path: every failed goal gets a second chance."""
         self.failed.clear()
-        self.collision_obstacles.clear()
-        self._goal_collisions = []
-
-    def _collide_on_the_way(self, pose: np.ndarray) -> None:
-        """`collision_obstacle_m`: remember the refused spot, and mark the goal failed only after
-        `collision_fail_after` refusals on the way to it; the next replan plans around the spot."""
-        self._mark_refused_spot(pose)
-        goal = self.plan.goal
-        if self.follower is None or goal is None:
-            return  # refused while escaping or turning back: no goal was being followed
-        self.follower = None
-        k = next((i for i, (g, _) in enumerate(self._goal_collisions) if np.hypot(*(g - goal)) <= 0.3), None)
-        count = 1 if k is None else self._goal_collisions[k][1] + 1
-        if k is None:
-            self._goal_collisions.append((np.asarray(goal, float), count))
-        else:
-            self._goal_collisions[k] = (self._goal_collisions[k][0], count)
-        if count >= self.cfg.collision_fail_after:
-            self._mark_failed(goal, "blocked", refused=True)
-        else:
-            self._log_failure(goal, "collision, kept", refused=True)
-
-    def _mark_refused_spot(self, pose: np.ndarray) -> None:
-        """Remember the floor one agent radius and one forward step ahead as an obstacle."""
-        yaw = pose_yaw_pitch(pose)[0]
-        ahead = self.cfg.workspace.agent_radius + self.cfg.controller.forward_m
-        self.collision_obstacles.append(floor_xz(pose) + ahead * np.array([math.sin(yaw), math.cos(yaw)]))
-
-    def _arrive_on_collision(self, pose: np.ndarray) -> bool:
-        """`collision_arrive_m`: a refusal this near the goal is an arrival there, with its rotation targets
-        from where the agent stands. False (nothing done but the arrival's bookkeeping) when the option is
-        off, the goal is farther, or the spot gives no rotation targets."""
-        near, goal = self.cfg.collision_arrive_m, self.plan.goal
-        if near is None or self.follower is None or goal is None or np.hypot(*(floor_xz(pose) - goal)) > near:
-            return False
-        self.arrive(pose)
-        if not self.rotation_targets:
-            return False
-        self.follower = None
-        self.queue, self.queue_causes = [], []
-        if self.cfg.collision_obstacle_m is not None:
-            self._mark_refused_spot(pose)
-        return True
 
     def _on_collision(self, pose: np.ndarray) -> None:
-        """A refused forward move: mark the goal failed (or, with `collision_obstacle_m`, mark the spot) and
-        escape toward the clearest heading not yet refused from this spot. Where the map shows free space
-        that the scene does not have (a chair leg, a door frame it has not mapped), the clearest heading on
-        the map is refused every time: without the memory an agent tried the same three headings for 1300
-        steps (fresh medium-101, seed 2). With `collision_arrive_m`, a refusal near the goal is an arrival."""
-        if self._arrive_on_collision(pose):
-            return
-        if self.cfg.collision_obstacle_m is None:
-            self._fail_goal(refused=True)
-        else:
-            self._collide_on_the_way(pose)
+        """A refused forward move: mark the goal failed and escape toward the clearest heading not yet
+        refused from this spot. Where the map shows free space that the scene does not have (a chair leg, a
+        door frame it has not mapped), the clearest heading on the map is refused every time: without the
+        memory an agent tried the same three headings for 1300 steps (fresh medium-101, seed 2)."""
+        self._fail_goal(refused=True)
         self.rotation_targets = []
         self.queue, self.queue_causes = [], []
         here = floor_xz(pose)

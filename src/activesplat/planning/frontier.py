@@ -150,7 +150,7 @@ class FrontierExplorer(Explorer):
         cfg = self.cfg
         here = floor_xz(pose)
         plan = self.plan = build_plan(self.world.gaussians, self.floor_height, here, cfg.workspace,
-                                      self.timers, graph=False, **self.workspace_obstacles())
+                                      self.timers, graph=False)
         stuck = bool(self.failed)
         path = self.timers.time("position_selection", nearest_frontier_path, plan.grids, plan.workspace,
                                 here, [*self.failed, *self.reached], cfg.workspace, self.fcfg)

@@ -3,33 +3,29 @@
 
 1. candidate nodes and their state (sec. III-B1; `planning.candidates`),
 2. panoramas at the candidates (sec. III-B2, III-D2) and 3. their eq. 12 scores (`planning.panorama_scores`),
-4. the local-then-global order over the UPGMA subregions (sec. III-C; `planning.hierarchical`, which also
-   holds the late-episode reorderings `last_call_first` / `reachable_first`).
+4. the local-then-global order over the UPGMA subregions (sec. III-C; `planning.hierarchical`).
 
-What the explorer does with the goal once chosen (the release's long-path rule, detours, bridges) is
+What the explorer does with the goal once chosen (the release's long-path rule, detours) is
 `planning.on_the_way`; the on-arrival rotation targets (sec. III-B3) are `planning.viewpoints`'."""
 
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
 from activesplat.planning.candidates import Candidates, candidate_states, worth_a_visit
 from activesplat.planning.config import PlanningConfig
 from activesplat.planning.explorer_config import GoalRules
-from activesplat.planning.hierarchical import global_stage_options, in_agent_subregion, local_then_global
-from activesplat.planning.observed import ObservedSurface
+from activesplat.planning.hierarchical import in_agent_subregion, local_then_global
 from activesplat.planning.panorama import RenderFn
 from activesplat.planning.panorama_scores import (
     eq12_scores,
     in_horizon_flags,
     information_part,
     render_panoramas,
-    sampled_surface,
 )
-from activesplat.planning.replan_memory import Commitment, Promises, RouteMemory
 from activesplat.planning.travel import travel_lengths
 from activesplat.workspace.config import WorkspaceConfig
 from activesplat.workspace.plan import Plan
@@ -37,10 +33,7 @@ from activesplat.workspace.plan import Plan
 
 def rank_goals(plan: Plan, here: np.ndarray, render: RenderFn, floor_height: float,
                visited: Sequence[np.ndarray], failed: Sequence[np.ndarray], pcfg: PlanningConfig,
-               wcfg: WorkspaceConfig, rules: GoalRules, rng: np.random.Generator,
-               observed: ObservedSurface | None = None, promises: Promises | None = None,
-               commitment: Commitment | None = None, route_memory: RouteMemory | None = None,
-               no_path_travel: Callable[[np.ndarray], np.ndarray] | None = None) -> list[int]:
+               wcfg: WorkspaceConfig, rules: GoalRules, rng: np.random.Generator) -> list[int]:
     """Candidate goal nodes of `plan.graph`, best first (eq. 12 scores; local-then-global, sec. III-C).
 
     1. Candidates (sec. III-B1): the view nodes and leaves of the Voronoi graph, each unvisited or not
@@ -61,16 +54,8 @@ def rank_goals(plan: Plan, here: np.ndarray, render: RenderFn, floor_height: flo
     Records every candidate's score, information part and travel in `plan.scores` / `plan.info` /
     `plan.travel`, the stage ("local", "global" or "flat") in `plan.stage`.
 
-    Options of this project (ours, all off by default; measured in docs/exploration.md and
-    docs/benchmark.md, "Tuning log"): `random_goals`: a random order of the open nodes, then the others (no
-    scores). With `observed` and a positive `ScoreConfig.w_q`, the information part also counts the surface
-    near each node that the agent's depth has not sampled (`planning.observed`, `sampled_surface_term`).
-    With `promises` (hierarchical only) a node outside the agent's subregion promises at least what it
-    promised at an earlier replan (`Promises`). With `route_memory` (or `global_tour`) the global stage
-    follows a route through the subregions whose order is kept across replans (`RouteMemory`,
-    `tour_first`). With `commitment` a global stage goes on toward the subregion chosen at an earlier
-    global replan while it holds something to see (`Commitment`); whether it did is `plan.committed`.
-    `no_path_travel` estimates the travel to nodes the graph gives no path to (`travel_lengths`)."""
+    `random_goals` (the `random` ablation): a random order of the open nodes, then the others (no
+    scores)."""
     graph, score_cfg = plan.graph, pcfg.score
     # 1. candidates (sec. III-B1)
     cand = candidate_states(graph, visited, failed, score_cfg.unvisited_radius_m)
@@ -79,30 +64,24 @@ def rank_goals(plan: Plan, here: np.ndarray, render: RenderFn, floor_height: flo
     if rules.random_goals:
         return _random_order(cand, rng)
     # 2. panoramas at the open candidates (sec. III-B2)
-    views = render_panoramas(plan, cand, here, render, floor_height, pcfg, rules, observed)
-    extra = sampled_surface(plan, cand, views, score_cfg)
+    views = render_panoramas(plan, cand, here, render, floor_height, pcfg, rules)
     # 3. eq. 12 scores and their information part; the agent's own subregion R_l (sec. III-C1)
     hierarchical = rules.hierarchical and bool(plan.subregions)  # flat: `no-hp`, or no subregions yet
     in_local = in_agent_subregion(plan, cand, here, hierarchical)
-    info, kept = information_part(cand, views, extra, in_local, hierarchical, score_cfg, promises)
+    info = information_part(views, score_cfg)
     in_horizon = in_horizon_flags(plan, cand, here, wcfg, hierarchical and not rules.local_in_horizon)
-    scores, global_scores = eq12_scores(cand, views, in_horizon, extra, kept, score_cfg, rules)
-    travel = travel_lengths(graph, here, cand.nodes, cand.pos, no_path_travel)
+    scores, global_scores = eq12_scores(cand, views, in_horizon, score_cfg, rules)
+    travel = travel_lengths(graph, here, cand.nodes, cand.pos)
     if hierarchical and rules.local_near_m is not None:  # nodes this near count as local (ours)
         in_local = in_local | (travel <= rules.local_near_m)
     plan.scores = {n: float(s) for n, s in zip(cand.nodes, scores, strict=True)}
     plan.travel = {n: float(t) for n, t in zip(cand.nodes, travel, strict=True)}
     plan.info = {n: float(v) for n, v in zip(cand.nodes, info, strict=True)}
-    # 4. local then global (sec. III-C2). With `quality_in_local` off the sampled-surface term does not keep
-    # the agent in its subregion: it only makes poorly sampled rooms worth a trip in the global stage
-    local_info = info if score_cfg.quality_in_local else info - extra
-    local_promising = worth_a_visit(local_info, cand.open_, rules.local_score_threshold) & in_local
+    # 4. local then global (sec. III-C2)
+    local_promising = worth_a_visit(info, cand.open_, rules.local_score_threshold) & in_local
     plan.stage = "flat" if not hierarchical else "local" if local_promising.any() else "global"
-    order = local_then_global(scores, local_info, travel, cand.open_, in_local,
-                              dataclasses.replace(rules, hierarchical=hierarchical), global_scores, info)
-    plan.committed = False
-    if plan.stage == "global":
-        order = global_stage_options(plan, cand, order, info, travel, rules, route_memory, commitment)
+    order = local_then_global(scores, info, travel, cand.open_, in_local,
+                              dataclasses.replace(rules, hierarchical=hierarchical), global_scores)
     return [cand.nodes[i] for i in order]
 
 

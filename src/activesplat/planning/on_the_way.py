@@ -1,8 +1,7 @@
 """The way to a chosen goal, once the ranking (sec. III-C2) has chosen it: the release's long-path rule
 (`closer_on_the_way`: a worthwhile node on a long path's way becomes the goal), and this project's
-detour to a node worth a visit on the way (`worth_a_detour`) and bridge toward a goal with no safe path
-(`bridge_toward`). Not in the paper; the explorer applies them to the goal `planning.goals.rank_goals`
-put first."""
+detour to a node worth a visit on the way (`worth_a_detour`). Not in the paper; the explorer applies them
+to the goal `planning.goals.rank_goals` put first."""
 
 from __future__ import annotations
 
@@ -13,37 +12,8 @@ import numpy as np
 
 from activesplat.planning.candidates import node_xz, open_node
 from activesplat.planning.explorer_config import GoalRules
-from activesplat.workspace.config import WorkspaceConfig
-from activesplat.workspace.paths import path_length, visible_nodes
+from activesplat.workspace.paths import path_length
 from activesplat.workspace.plan import Plan
-
-
-def bridge_toward(plan: Plan, here: np.ndarray, goal: np.ndarray, visited: Sequence[np.ndarray],
-                  failed: Sequence[np.ndarray], unvisited_radius: float, wcfg: WorkspaceConfig, gain_m: float,
-                  find_path: Callable[[np.ndarray], np.ndarray | None],
-                  tries: int = 3) -> tuple[np.ndarray, np.ndarray] | None:
-    """A way toward a goal that has no safe path from the agent, typically because the graph is cut where
-    the floor was only seen from afar (ours): the open (unvisited, not failed) node of the agent's own
-    graph component nearest to `goal`, if it is at least `gain_m` nearer to it than the agent is. Standing
-    there, the agent sees the gap from close by and the map joins the two parts. Returns (node position,
-    path) or None; the `tries` nearest candidates are planned to."""
-    graph = plan.graph
-    entries = visible_nodes(graph, plan.workspace, here, wcfg)
-    if not entries:
-        return None
-    component = nx.node_connected_component(graph, entries[0])
-    limit = float(np.hypot(*(goal - here))) - gain_m
-    candidates = []
-    for node in component:
-        pos = node_xz(graph, node)
-        gap = float(np.hypot(*(pos - goal)))
-        if gap <= limit and open_node(pos, visited, failed, unvisited_radius):
-            candidates.append((gap, node, pos))
-    for _, _, pos in sorted(candidates, key=lambda c: (c[0], c[1]))[:tries]:
-        path = find_path(pos)
-        if path is not None:
-            return pos, path
-    return None
 
 
 def distance_to_polyline(p: np.ndarray, path: np.ndarray) -> float:
@@ -106,4 +76,4 @@ def worth_a_detour(plan: Plan, goal_node: int, visited: Sequence[np.ndarray], fa
     return best
 
 
-__all__ = ["bridge_toward", "closer_on_the_way", "distance_to_polyline", "worth_a_detour"]
+__all__ = ["closer_on_the_way", "distance_to_polyline", "worth_a_detour"]

@@ -80,11 +80,10 @@ def panorama_poses(origin, cfg: PanoramaConfig) -> list[np.ndarray]:
 
 
 def render_panorama(render: RenderFn, origin, cfg: PanoramaConfig | None = None,
-                    front_faces: bool = False, back_face_seen: float = 0.0) -> Panorama:
+                    front_faces: bool = False) -> Panorama:
     """Render the visibility panorama at `origin` (world, camera height) with `render`. `front_faces`:
     visibility of surfaces from the side that observed them only (`PanoramaConfig.front_faces_targets`),
-    where `render` can tell (a ``front_alpha`` parameter); a surface seen only from behind then counts
-    as `back_face_seen` seen (`PanoramaConfig.scores_back_face_seen`; > 0 renders every camera twice)."""
+    where `render` can tell (a ``front_alpha`` parameter)."""
     cfg = cfg or PanoramaConfig()
     origin = np.asarray(origin, dtype=np.float64)
     poses = panorama_poses(origin, cfg)
@@ -93,16 +92,10 @@ def render_panorama(render: RenderFn, origin, cfg: PanoramaConfig | None = None,
     # a world model that cannot tell faces apart (no ``front_alpha`` parameter) gives the plain opacity
     front = ({"front_alpha": True, "behind_margin_deg": cfg.back_face_margin_deg}
              if front_faces and _takes(render, "front_alpha") else {})
-    if front and cfg.back_faces_in_window and _takes(render, "behind_in_window"):
-        front["behind_in_window"] = True
     K = geometry.K
     for pose in poses:
         out = render(pose, K=K, width=cfg.width_per_camera, height=cfg.height, **front)
-        seen = _np(out.alpha)
-        if front and back_face_seen > 0.0:
-            every = _np(render(pose, K=K, width=cfg.width_per_camera, height=cfg.height).alpha)
-            seen = seen + back_face_seen * np.maximum(every - seen, 0.0)
-        inv.append(1.0 - seen)
+        inv.append(1.0 - _np(out.alpha))
         med.append(_np(out.median_depth))
     return Panorama(
         origin=origin,

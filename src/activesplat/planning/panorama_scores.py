@@ -14,9 +14,7 @@ import numpy as np
 from activesplat.planning.candidates import Candidates
 from activesplat.planning.config import PlanningConfig, ScoreConfig
 from activesplat.planning.explorer_config import GoalRules
-from activesplat.planning.observed import ObservedSurface, poorly_observed_share
 from activesplat.planning.panorama import RenderFn, render_panorama
-from activesplat.planning.replan_memory import Promises
 from activesplat.planning.viewpoints import hull_volume, information_scores, invisible_share, node_scores
 from activesplat.workspace.config import WorkspaceConfig
 from activesplat.workspace.paths import line_of_sight
@@ -47,15 +45,6 @@ def panorama_candidates(nodes: list[int], dist: np.ndarray, open_: np.ndarray, s
     return chosen
 
 
-def sampled_surface_term(poor: np.ndarray, cfg: ScoreConfig) -> np.ndarray:
-    """The w_q information term of the candidates from their poorly sampled shares (`ScoreConfig.w_q`):
-    relative to the largest share, or on the absolute scale of `ScoreConfig.quality_reference`."""
-    poor = np.asarray(poor, float)
-    if cfg.quality_reference is not None:
-        return cfg.w_q * np.minimum(1.0, poor / cfg.quality_reference)
-    return cfg.w_q * poor / poor.max() if poor.size and poor.max() > 0 else np.zeros_like(poor)
-
-
 @dataclass
 class PanoramaTerms:
     """What the panoramas rendered at the candidates show (sec. III-B2), 0 where none was rendered."""
@@ -66,60 +55,32 @@ class PanoramaTerms:
     """eq. 12's s_c before normalising: the hull volume of its invisible regions (`hull_volume`)."""
     scored: np.ndarray
     """Whether a panorama was rendered at the node."""
-    poor: np.ndarray | None
-    """The share of nearby surface the agent's depth sampled poorly (ours); None when that term is off."""
 
 
 def render_panoramas(plan: Plan, cand: Candidates, here: np.ndarray, render: RenderFn,
-                     floor_height: float, pcfg: PlanningConfig, rules: GoalRules,
-                     observed: ObservedSurface | None) -> PanoramaTerms:
+                     floor_height: float, pcfg: PlanningConfig, rules: GoalRules) -> PanoramaTerms:
     """Step 2 of `rank_goals` (sec. III-B2, III-D2): a panorama `panorama_height_m` above the floor at each
-    node `panorama_candidates` picks, and its invisible share and hull volume; with the sampled-surface
-    term on (ours: `observed` and a positive `ScoreConfig.w_q`) also its poorly sampled share, recorded in
-    `plan.poor`. The largest invisible share is `plan.max_invisible`."""
+    node `panorama_candidates` picks, and its invisible share and hull volume. The largest invisible share
+    is `plan.max_invisible`."""
     n = len(cand.nodes)
-    quality = observed is not None and pcfg.score.w_q > 0
-    views = PanoramaTerms(np.zeros(n), np.zeros(n), np.zeros(n, bool), np.zeros(n) if quality else None)
+    views = PanoramaTerms(np.zeros(n), np.zeros(n), np.zeros(n, bool))
     height = floor_height + rules.panorama_height_m
     dist = np.hypot(*(cand.pos - here).T)
     for i in panorama_candidates(cand.nodes, dist, cand.open_, plan.subregions, rules.max_panoramas,
                                   rules.panorama_every_subregion):
-        pano = render_panorama(render, [cand.pos[i][0], height, cand.pos[i][1]], pcfg.panorama,
-                               pcfg.panorama.front_faces_scores, pcfg.panorama.scores_back_face_seen)
+        pano = render_panorama(render, [cand.pos[i][0], height, cand.pos[i][1]], pcfg.panorama)
         views.scored[i] = True
         views.invisible[i] = invisible_share(pano, pcfg.rotation)
         views.hull[i] = hull_volume(pano, pcfg.hull)
-        if views.poor is not None:
-            views.poor[i] = poorly_observed_share(pano, observed, pcfg.score.quality_radius_m)
     plan.max_invisible = float(views.invisible.max()) if views.scored.any() else 0.0
-    if views.poor is not None:
-        plan.poor = {n: float(v) for n, v, s in zip(cand.nodes, views.poor, views.scored, strict=True) if s}
     return views
 
 
-def sampled_surface(plan: Plan, cand: Candidates, views: PanoramaTerms, cfg: ScoreConfig) -> np.ndarray:
-    """The sampled-surface term of the candidates (ours, off by default; `sampled_surface_term`): 0 when it
-    is off, and, with the gate `ScoreConfig.quality_below_invisible`, until no panorama is that invisible."""
-    gate = cfg.quality_below_invisible
-    if views.poor is None or not (gate is None or plan.max_invisible < gate):
-        return np.zeros(len(cand.nodes))
-    return sampled_surface_term(views.poor, cfg)
-
-
-def information_part(cand: Candidates, views: PanoramaTerms, extra: np.ndarray, in_local: np.ndarray,
-                     hierarchical: bool, cfg: ScoreConfig, promises: Promises | None
-                     ) -> tuple[np.ndarray, np.ndarray]:
+def information_part(views: PanoramaTerms, cfg: ScoreConfig) -> np.ndarray:
     """Step 3 of `rank_goals`: the information part of eq. 12, w_o s_o + w_c s_c with the shares relative to
-    the best candidate (`information_scores`), plus the sampled-surface term `extra`: what keeps planning
-    local, and what makes a node worth a stop on a long path's way. Returns it with what a kept promise
-    (ours, `promises`, hierarchical only) added to it, which adds to the eq. 12 score alike; 0 in the
-    agent's own subregion and at visited nodes, so the local stage sees what the panoramas show."""
-    info = information_scores(views.invisible, views.hull, cfg) + extra
-    kept = np.zeros(len(cand.nodes))
-    if promises is not None and hierarchical:
-        kept = promises.keep(cand.pos, info, views.scored, in_local | ~cand.unvisited) - info
-        info = info + kept
-    return info, kept
+    the best candidate (`information_scores`): what keeps planning local, and what makes a node worth a
+    stop on a long path's way."""
+    return information_scores(views.invisible, views.hull, cfg)
 
 
 def in_horizon_flags(plan: Plan, cand: Candidates, here: np.ndarray, wcfg: WorkspaceConfig,
@@ -131,20 +92,19 @@ def in_horizon_flags(plan: Plan, cand: Candidates, here: np.ndarray, wcfg: Works
     return np.array([line_of_sight(plan.workspace, here, p, wcfg) for p in cand.pos])
 
 
-def eq12_scores(cand: Candidates, views: PanoramaTerms, in_horizon: np.ndarray, extra: np.ndarray,
-                kept: np.ndarray, cfg: ScoreConfig, rules: GoalRules
-                ) -> tuple[np.ndarray, np.ndarray | None]:
+def eq12_scores(cand: Candidates, views: PanoramaTerms, in_horizon: np.ndarray, cfg: ScoreConfig,
+                rules: GoalRules) -> tuple[np.ndarray, np.ndarray | None]:
     """Step 3 of `rank_goals`: eq. 12, S = w_o s_o + w_c s_c + w_u s_u + w_h s_h less the release's failure
-    penalty (`node_scores`), plus the sampled-surface term and kept promises; and the scores of the global
-    stage, None when they are the same (`global_in_horizon`). This project's global stage leaves the
-    in-horizon flag out: a node in sight of the agent is a local preference and, counted there too, keeps
-    the agent near (ours; docs/protocol.md §5, docs/exploration.md)."""
+    penalty (`node_scores`); and the scores of the global stage, None when they are the same
+    (`global_in_horizon`). This project's global stage leaves the in-horizon flag out: a node in sight of
+    the agent is a local preference and, counted there too, keeps the agent near (ours; docs/protocol.md §5,
+    docs/exploration.md)."""
 
     def eq12(s_h: np.ndarray) -> np.ndarray:
-        return node_scores(views.invisible, views.hull, cand.unvisited, s_h, cand.failed, cfg) + extra + kept
+        return node_scores(views.invisible, views.hull, cand.unvisited, s_h, cand.failed, cfg)
 
     return eq12(in_horizon), None if rules.global_in_horizon else eq12(np.zeros_like(in_horizon))
 
 
 __all__ = ["PanoramaTerms", "eq12_scores", "in_horizon_flags", "information_part", "panorama_candidates",
-           "render_panoramas", "sampled_surface", "sampled_surface_term"]
+           "render_panoramas"]

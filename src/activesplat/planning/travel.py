@@ -1,10 +1,9 @@
 """Travel on the Voronoi graph (paper sec. III-C's distances): how far each candidate is from the agent
-along the graph, path lengths between candidates, and the shortest open route through a set of stops
-(exact Held-Karp for a few, local search beyond). Goal selection (`planning.goals`) ranks with these."""
+along the graph (`travel_lengths`; goal selection, `planning.goals`, ranks with it), and the shortest open
+route through a set of stops (`shortest_tour`: exact Held-Karp for a few, local search beyond; the
+benchmarks' room tours)."""
 
 from __future__ import annotations
-
-from collections.abc import Callable, Sequence
 
 import networkx as nx
 import numpy as np
@@ -13,57 +12,19 @@ NO_PATH_FACTOR = 3.0
 """Travel to a node the graph gives no path to: this times the straight distance (a stand-in, ours)."""
 
 
-def _from_the_agent(graph: nx.Graph, here: np.ndarray) -> tuple[list[int], np.ndarray, float, dict]:
-    """The graph's nodes, their positions (N, 2), the straight hop from `here` to the node nearest it, and
-    the graph path lengths from that node (a non-empty graph)."""
+def travel_lengths(graph: nx.Graph, here: np.ndarray, nodes: list[int], pos: np.ndarray) -> np.ndarray:
+    """Approximate travel length to each node: from the graph node nearest the agent along the graph (plus
+    the straight hop to it); three times the Euclidean distance where the graph gives no path."""
+    if graph.number_of_nodes() == 0:
+        return np.hypot(*(pos - here).T)
     keys = list(graph.nodes)
     all_pos = np.stack([np.asarray(graph.nodes[n]["pos"], float) for n in keys])
     start = int(np.argmin(np.hypot(*(all_pos - here).T)))
     hop = float(np.hypot(*(all_pos[start] - here)))
-    return keys, all_pos, hop, nx.single_source_dijkstra_path_length(graph, keys[start], weight="weight")
-
-
-def graph_travel(graph: nx.Graph, here: np.ndarray, pos: np.ndarray) -> np.ndarray:
-    """Travel length from `here` to each floor position of `pos` (M, 2) along `graph`: the straight hop to
-    the graph node nearest the agent, the graph path from it to the node nearest the position, and the
-    hop from there; inf where the graph gives no path (or has no node)."""
-    pos = np.asarray(pos, float).reshape(-1, 2)
-    if graph.number_of_nodes() == 0:
-        return np.full(len(pos), np.inf)
-    keys, all_pos, hop, lengths = _from_the_agent(graph, here)
-    to_node = np.array([lengths.get(n, np.inf) for n in keys])
-    hop_from = np.hypot(*(all_pos[None] - pos[:, None]).transpose(2, 0, 1))  # (M, nodes)
-    nearest = np.argmin(hop_from, axis=1)
-    return hop + to_node[nearest] + hop_from[np.arange(len(pos)), nearest]
-
-
-def travel_lengths(graph: nx.Graph, here: np.ndarray, nodes: list[int], pos: np.ndarray,
-                   no_path_travel: Callable[[np.ndarray], np.ndarray] | None = None) -> np.ndarray:
-    """Approximate travel length to each node: from the graph node nearest the agent along the graph (plus
-    the straight hop to it). Where the graph gives no path: `no_path_travel` of those nodes' positions
-    (e.g. `graph_travel` on the floor grown into unknown), and where that is missing or infinite too,
-    three times the Euclidean distance."""
-    if graph.number_of_nodes() == 0:
-        return np.hypot(*(pos - here).T)
-    _, _, hop, lengths = _from_the_agent(graph, here)
+    lengths = nx.single_source_dijkstra_path_length(graph, keys[start], weight="weight")
     out = np.array([hop + lengths.get(n, np.inf) for n in nodes])
-    missing = ~np.isfinite(out)
-    if no_path_travel is not None and missing.any():
-        out[missing] = no_path_travel(pos[missing])
     eu = np.hypot(*(pos - here).T)
     return np.where(np.isfinite(out), out, eu * NO_PATH_FACTOR)
-
-
-def pairwise_travel(graph: nx.Graph, nodes: Sequence[int]) -> np.ndarray:
-    """Graph path lengths between `nodes` (K, K), three times the straight distance where the graph gives no
-    path (as `travel_lengths`)."""
-    pos = np.stack([np.asarray(graph.nodes[n]["pos"], float) for n in nodes]) if nodes else np.zeros((0, 2))
-    out = np.zeros((len(nodes), len(nodes)))
-    for i, a in enumerate(nodes):
-        lengths = nx.single_source_dijkstra_path_length(graph, a, weight="weight")
-        for j, b in enumerate(nodes):
-            out[i, j] = lengths.get(b, NO_PATH_FACTOR * float(np.hypot(*(pos[i] - pos[j]))))
-    return out
 
 
 def shortest_tour(start: np.ndarray, pairwise: np.ndarray, exact_up_to: int = 10,
@@ -142,4 +103,4 @@ def _held_karp(start: np.ndarray, pairwise: np.ndarray) -> list[int]:
     return route[::-1]
 
 
-__all__ = ["NO_PATH_FACTOR", "graph_travel", "pairwise_travel", "shortest_tour", "travel_lengths"]
+__all__ = ["NO_PATH_FACTOR", "shortest_tour", "travel_lengths"]

@@ -4,7 +4,6 @@ high-loss samples (eq. 10), the node score (eq. 12) and the choice of the on-arr
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -68,26 +67,8 @@ def _full_res(pix: np.ndarray, factor: int, shift: int, width: int) -> tuple[np.
     return rows, cols
 
 
-def _yaw_sectors(pix: np.ndarray, yaw: np.ndarray, max_yaw_deg: float) -> list[np.ndarray]:
-    """A cluster's pixels split into equal yaw ranges of at most `max_yaw_deg`
-    (`RotationCandidateConfig.max_cluster_yaw_deg`); `yaw`: each pixel's yaw (radians). The cluster's
-    pixels are seam-rolled, so along their columns the yaw changes by small steps and unwraps."""
-    if len(pix) < 2:
-        return [pix]
-    order = np.argsort(pix[:, 1], kind="stable")
-    offset = np.empty(len(pix))
-    unwrapped = np.unwrap(yaw[order])
-    offset[order] = np.abs(unwrapped - unwrapped[0])
-    n = math.ceil(float(offset.max()) / math.radians(max_yaw_deg) - 1e-9)
-    if n <= 1:
-        return [pix]
-    part = np.minimum((offset / (offset.max() / n)).astype(np.int64), n - 1)
-    return [pix[part == k] for k in range(n) if (part == k).any()]
-
-
 def rotation_candidates(pano: Panorama, cfg: RotationCandidateConfig | None = None) -> list[RotationTarget]:
-    """Cluster low-visibility pixels with DBSCAN; each cluster's mean ray gives a yaw/pitch target (with
-    ``max_cluster_yaw_deg``, each yaw sector of a wide cluster does).
+    """Cluster low-visibility pixels with DBSCAN; each cluster's mean ray gives a yaw/pitch target.
 
     Sorted by invisibility mass, largest first.
     """
@@ -98,14 +79,7 @@ def rotation_candidates(pano: Panorama, cfg: RotationCandidateConfig | None = No
     inv, mask = np.roll(inv, shift, axis=1), np.roll(mask, shift, axis=1)
     shift *= cfg.downsample
     targets = []
-    sectors = []
-    for cluster in _clusters(mask, cfg.dbscan_eps, cfg.dbscan_min_samples):
-        if cfg.max_cluster_yaw_deg is None:  # the paper's rule: the whole cluster is one target
-            sectors.append(cluster)
-            continue
-        rows, cols = _full_res(cluster, cfg.downsample, shift, pano.shape[1])
-        sectors += _yaw_sectors(cluster, pano.yaw[rows, cols], cfg.max_cluster_yaw_deg)
-    for pix in sectors:
+    for pix in _clusters(mask, cfg.dbscan_eps, cfg.dbscan_min_samples):
         mass = float(inv[pix[:, 0], pix[:, 1]].sum())
         if mass <= cfg.min_cluster_invisibility:
             continue
@@ -186,8 +160,7 @@ class HighLossTracker:
     Each mapped frame's eq. 10 mask (computed by the mapper before densification, see
     `activesplat.splat.densify.high_loss_mask`) is downsampled, clustered with DBSCAN and
     the largest cluster's centre is back-projected with the observed depth into a world point. A sample is
-    forgotten once the camera heading comes within `drop_within_deg` of it, and (`forget_resolved`) once a
-    later mapped frame sees it with no high-loss pixels around it.
+    forgotten once the camera heading comes within `drop_within_deg` of it.
     """
 
     def __init__(self, cfg: HighLossConfig | None = None):
@@ -199,11 +172,9 @@ class HighLossTracker:
         cfg = self.cfg
         self.observe(pose)
         mask = np.asarray(mask, bool)
-        small = cv2.resize(mask.astype(np.float32), (cfg.grid, cfg.grid), interpolation=cv2.INTER_AREA) > 0
-        if cfg.forget_resolved and self.samples:
-            self.samples = [s for s in self.samples if not self._resolved(s.point, small, depth, pose, K)]
         if mask.sum() <= cfg.min_pixels:
             return
+        small = cv2.resize(mask.astype(np.float32), (cfg.grid, cfg.grid), interpolation=cv2.INTER_AREA) > 0
         clusters = [c for c in _clusters(small, cfg.dbscan_eps, cfg.dbscan_min_samples)
                     if len(c) > cfg.min_cluster_sum]
         if not clusters:
@@ -221,24 +192,6 @@ class HighLossTracker:
         point = pose[:3, :3] @ cam + pose[:3, 3]
         self.samples.append(HighLossSample(point, float(len(best)), step))
         self.samples = self.samples[-cfg.max_samples:]
-
-    def _resolved(self, point: np.ndarray, small: np.ndarray, depth: np.ndarray, pose: np.ndarray,
-                  K: np.ndarray) -> bool:
-        """Whether this frame sees `point` (in the image, not hidden behind observed depth) and finds no
-        high-loss pixel near it in the downsampled mask `small`."""
-        cam = pose[:3, :3].T @ (np.asarray(point, float) - pose[:3, 3])
-        if cam[2] <= 1e-6:
-            return False
-        h, w = depth.shape
-        u, v = K[0, 0] * cam[0] / cam[2] + K[0, 2], K[1, 1] * cam[1] / cam[2] + K[1, 2]
-        if not (0 <= u < w and 0 <= v < h):
-            return False
-        observed = float(depth[int(v), int(u)])
-        if observed <= 0 or observed < cam[2] - self.cfg.resolved_tolerance_m:
-            return False
-        grid, r = self.cfg.grid, int(math.ceil(self.cfg.dbscan_eps))
-        gy, gx = int(v * grid / h), int(u * grid / w)
-        return not small[max(gy - r, 0): gy + r + 1, max(gx - r, 0): gx + r + 1].any()
 
     def observe(self, pose: np.ndarray) -> None:
         """Forget the samples the camera now looks straight at (within drop_within_deg)."""
@@ -269,16 +222,12 @@ class HighLossTracker:
 def information_scores(inv_share, hull_vol, cfg: ScoreConfig | None = None) -> np.ndarray:
     """The information part of eq. 12 (what a node promises to show): w_o s_o + w_c s_c, with s_o and s_c
     the invisible share and hull volume divided by their maximum over the candidates (release:
-    2*ceil(10*inv/max) + 1*ceil(10*vol/max)), or with `ScoreConfig.inv_reference` by fixed references."""
+    2*ceil(10*inv/max) + 1*ceil(10*vol/max))."""
     cfg = cfg or ScoreConfig()
     inv = np.asarray(inv_share, float)
     vol = np.asarray(hull_vol, float)
-    if cfg.inv_reference is not None:  # an absolute scale (ours, off by default)
-        s_o = np.minimum(1.0, inv / cfg.inv_reference)
-        s_c = np.minimum(1.0, vol / cfg.vol_reference_m3)
-    else:
-        s_o = inv / inv.max() if inv.size and inv.max() > 0 else np.zeros_like(inv)
-        s_c = vol / vol.max() if vol.size and vol.max() > 0 else np.zeros_like(vol)
+    s_o = inv / inv.max() if inv.size and inv.max() > 0 else np.zeros_like(inv)
+    s_c = vol / vol.max() if vol.size and vol.max() > 0 else np.zeros_like(vol)
     if cfg.preset == "release":
         return 2 * np.ceil(10 * s_o) + 1 * np.ceil(10 * s_c)
     if cfg.preset != "paper":
@@ -306,16 +255,14 @@ def node_scores(inv_share, hull_vol, unvisited, in_horizon, failed,
 # ------------------------------------------------------------------------- rotations on arrival (sec. III-B3)
 def select_rotation_targets(targets: Sequence[RotationTarget], yaw: float, pcfg: PlanningConfig,
                             max_views: int, pitch: float = 0.0, ctrl: ControllerConfig | None = None,
-                            final_yaw: float | None = None,
-                            tilt_within_deg: float | None = None) -> list[RotationTarget]:
+                            final_yaw: float | None = None) -> list[RotationTarget]:
     """On-arrival rotation targets (sec. III-B3): the heaviest panorama / high-loss targets, skipping those
     lighter than `RotationCandidateConfig.min_relative_weight` of their source's heaviest, those already in
     view (within their source's minimum offset of the heading, and less than 20 deg off level) and those
     within 20 deg of a chosen one, at most `max_views`. Returned in counter-clockwise order from
     the heading, or, given the controller `ctrl`, in the order that visits them in the fewest turns and
     tilts from (`yaw`, `pitch`), levelling and the turn back to `final_yaw` (if given) included
-    (`controller.fewest_actions_order`). Given `tilt_within_deg`, each chosen target's pitch is brought that
-    much closer to level (never past it): the tilt that puts the target that far from the image centre."""
+    (`controller.fewest_actions_order`)."""
     chosen: list[RotationTarget] = []
     heaviest: dict[str, float] = {}
     for t in targets:
@@ -331,10 +278,6 @@ def select_rotation_targets(targets: Sequence[RotationTarget], yaw: float, pcfg:
         chosen.append(t)
         if len(chosen) >= max_views:
             break
-    if tilt_within_deg is not None:
-        within = math.radians(tilt_within_deg)
-        chosen = [dataclasses.replace(t, pitch=math.copysign(max(0.0, abs(t.pitch) - within), t.pitch))
-                  for t in chosen]
     chosen.sort(key=lambda t: float(wrap_angle(t.yaw - yaw)) % (2 * math.pi))
     if ctrl is None:
         return chosen

@@ -306,21 +306,6 @@ def camera_points(means: torch.Tensor, pose) -> torch.Tensor:
     return (means.detach() - t) @ rot
 
 
-def in_clamp_window(means: torch.Tensor, pose, K, width: int, height: int) -> torch.Tensor:
-    """(N,) bool: the Gaussians whose centre lies in front of the camera-to-world ``pose`` and within the
-    window where the rasterizer's EWA Jacobian is not clamped (the image plus 30 % of its half-size on each
-    side, ``raster.torch_ref.in_window``). Outside that window a Gaussian near the camera is drawn with
-    the Jacobian of the window's edge: a blob over much of the image, not where the Gaussian is
-    (``RasterConstants.clamp_cull_depth``)."""
-    from activesplat.splat.raster.torch_ref import in_window
-
-    with torch.no_grad():
-        p = camera_points(means, pose)
-        z = p[:, 2]
-        K = torch.as_tensor(np.asarray(K, dtype=np.float32))
-        return (z > 0) & in_window(p[:, 0], p[:, 1], z.clamp_min(1e-12), K, width, height)
-
-
 def _frustum_rows_torch(means, log_scales, pose, K, width, height, depth, occlusion_margin_m,
                         occlusion_window_px) -> torch.Tensor:
     """:func:`frustum_rows` in torch (any device; the CPU uses the numba kernel)."""

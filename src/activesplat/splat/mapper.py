@@ -51,7 +51,6 @@ from activesplat.splat.gaussians import (
     back_facing,
     f_dc_to_rgb,
     frustum_rows,
-    in_clamp_window,
     rgb_to_f_dc,
 )
 from activesplat.splat.keyframes import Keyframe, mapping_window
@@ -124,7 +123,7 @@ class Mapper:
 
     # ------------------------------------------------------------------ rendering
     def render(self, pose, K=None, width: int | None = None, height: int | None = None,
-               front_alpha: bool = False, behind_margin_deg: float = 0.0, behind_in_window: bool = False):
+               front_alpha: bool = False, behind_margin_deg: float = 0.0):
         """Render the map from camera-to-world ``pose`` (no grad); intrinsics default to the sensor's.
 
         ``front_alpha``: the returned ``alpha`` (and ``rgb``, grey) counts only what the camera sees of
@@ -132,19 +131,15 @@ class Mapper:
         the far face of a wall, the back of an object) still hides what lies behind it, but adds nothing:
         from inside a room whose door wall was mapped only from the corridor, that wall reads as unseen,
         not as seen in the corridor's colours. Depths are those of every Gaussian. The planner's
-        visibility (``PanoramaConfig.front_faces_targets`` / ``front_faces_scores``).
+        visibility (``PanoramaConfig.front_faces_targets``).
         ``behind_margin_deg``: how far behind a plane the camera must be for its Gaussian to count as seen
-        from behind (:func:`back_facing`). ``behind_in_window``: with ``front_alpha``, a Gaussian seen from
-        behind is drawn only if its centre lies within the window where the projection's Jacobian is not
-        clamped (:func:`in_clamp_window`): the far face of a wall beside the camera, outside that window,
-        is otherwise drawn as a blob in front of the near face, and the near face reads as unseen."""
+        from behind (:func:`back_facing`)."""
         pose, K, width, height = self._camera(pose, K, width, height)
         with torch.no_grad():
             if not front_alpha:
                 return self._render(pose, K, width, height)
             rows, behind = self._facing_rows(pose, K, width, height, behind_margin_deg)
-            return self._draw_front(pose, K, width, height, activate(self.gaussians.rows(rows)), behind,
-                                    behind_in_window)
+            return self._draw_front(pose, K, width, height, activate(self.gaussians.rows(rows)), behind)
 
     def _camera(self, pose, K, width: int | None,
                 height: int | None) -> tuple[np.ndarray, np.ndarray, int, int]:
@@ -155,14 +150,9 @@ class Mapper:
         return as_pose(pose), K, width, height
 
     def _draw_front(self, pose: np.ndarray, K: np.ndarray, width: int, height: int,
-                    active: tuple[torch.Tensor, ...], behind: torch.Tensor, in_window: bool = False):
+                    active: tuple[torch.Tensor, ...], behind: torch.Tensor):
         """The ``front_alpha`` render of :meth:`render` from the activated rows ``active``: colours white,
-        black where ``behind`` (through the f_dc round trip of :func:`activate`), alpha = the red channel.
-        ``in_window``: the rows ``behind`` with their centre outside the clamp window left out
-        (:func:`in_clamp_window`)."""
-        if in_window and bool(behind.any()):
-            keep = ~behind | in_clamp_window(active[0], pose, K, width, height)
-            active, behind = tuple(t[keep] for t in active), behind[keep]
+        black where ``behind`` (through the f_dc round trip of :func:`activate`), alpha = the red channel."""
         grey = f_dc_to_rgb(rgb_to_f_dc((~behind).to(torch.float32)[:, None].expand(-1, 3)))
         out = self._draw(pose, K, width, height, (*active[:4], grey))
         out.alpha = out.rgb[..., 0].clamp(0.0, 1.0)

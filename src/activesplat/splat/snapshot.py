@@ -38,7 +38,7 @@ class MapSnapshot:
         self._params: dict[str, torch.Tensor] | None = None
 
     def __call__(self, pose, K=None, width: int | None = None, height: int | None = None,
-                 front_alpha: bool = False, behind_margin_deg: float = 0.0, behind_in_window: bool = False):
+                 front_alpha: bool = False, behind_margin_deg: float = 0.0):
         """:meth:`Mapper.render` of the snapshot's map (same arguments, same outputs)."""
         m = self._mapper
         if (m.received, len(m.gaussians)) != self._state:
@@ -60,4 +60,4 @@ class MapSnapshot:
                 self._facing = (is_flat(p["log_scales"]), quat_normal(p["quats"]))
             flat, normal = (t.index_select(0, rows) for t in self._facing)
             behind = seen_from_behind(flat, normal, active[0], pose[:3, 3], behind_margin_deg)
-            return m._draw_front(pose, K, width, height, tuple(active), behind, behind_in_window)
+            return m._draw_front(pose, K, width, height, tuple(active), behind)

@@ -15,7 +15,7 @@ from activesplat.timing import Timers
 from activesplat.workspace.clean import Workspace, extract_workspace
 from activesplat.workspace.config import WorkspaceConfig
 from activesplat.workspace.subregions import partition_subregions
-from activesplat.workspace.topdown import TopDownGrids, render_topdown, with_obstacles
+from activesplat.workspace.topdown import TopDownGrids, render_topdown
 from activesplat.workspace.voronoi import build_voronoi_graph
 
 
@@ -33,9 +33,6 @@ class Plan:
     info: dict[int, float] = field(default_factory=dict)
     """The information part of each node's score (w_o s_o + w_c s_c), see
     `activesplat.planning.viewpoints.information_scores`."""
-    poor: dict[int, float] = field(default_factory=dict)
-    """With the sampled-surface term on (`ScoreConfig.w_q`), each panorama-scored node's share of mapped
-    surface near it that the agent's depth has not sampled (`planning.observed`); empty otherwise."""
     max_invisible: float = 0.0
     """The largest invisible share (eq. 12's s_o before normalising) of the panoramas of the last ranking."""
     travel: dict[int, float] = field(default_factory=dict)
@@ -44,25 +41,18 @@ class Plan:
     """How the goal ranking went: "local" (a node of the agent's subregion promised something to see),
     "global" (score minus distance over every node), "flat" (no hierarchical planning); empty when the
     nodes were not ranked (random goals)."""
-    committed: bool = False
-    """The global stage went on toward the subregion of an earlier global choice
-    (`planning.replan_memory.Commitment`)."""
     goal: np.ndarray | None = None
     path: np.ndarray | None = None
 
 
 def build_plan(gaussians: Any, floor_height: float, agent_xz: np.ndarray, wcfg: WorkspaceConfig,
-               timers: Timers | None = None, graph: bool = True, obstacles: np.ndarray | None = None,
-               obstacle_radius_m: float = 0.0) -> Plan:
+               timers: Timers | None = None, graph: bool = True) -> Plan:
     """Top-down grids -> workspace -> Voronoi graph -> subregions of the current map (sec. III-A, III-C).
-    `graph=False` stops after the workspace (frontier exploration needs no graph). `obstacles` (K, 2): world
-    (x, z) points marked obstacle in the grids, discs of `obstacle_radius_m` (`topdown.with_obstacles`).
-    Each stage is timed under its Tab. VI module name."""
+    `graph=False` stops after the workspace (frontier exploration needs no graph). Each stage is timed under
+    its Tab. VI module name."""
     timers = timers or Timers()
     plan = Plan()
     plan.grids = timers.time("workspace", render_topdown, gaussians, floor_height, wcfg, agent_xz)
-    if obstacles is not None and len(obstacles):
-        plan.grids = with_obstacles(plan.grids, obstacles, obstacle_radius_m)
     plan.workspace = timers.time("workspace", extract_workspace, plan.grids, agent_xz, wcfg)
     if graph:
         plan.graph = timers.time("voronoi", build_voronoi_graph, plan.workspace, wcfg)

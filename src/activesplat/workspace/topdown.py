@@ -9,7 +9,7 @@ along world -y with OpenCV axes x_cam = +x, y_cam = +z, z_cam = -y, so its image
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Any
 
 import cv2
@@ -203,22 +203,6 @@ def render_topdown(gmap: Any, floor_height: float, cfg: WorkspaceConfig | None =
     ground_alpha = _band_alpha(ground_band, viewmat, K, width, height, cfg, backend)
     obstacle_alpha = _band_alpha(obstacle_band, viewmat, K, width, height, cfg, backend)
     return grids_from_alpha(geometry, ground_alpha, obstacle_alpha, floor_height, cfg)
-
-
-def with_obstacles(grids: TopDownGrids, points_xz: np.ndarray, radius_m: float) -> TopDownGrids:
-    """`grids` with a disc of `radius_m` around each world point (x, z) marked obstacle (neither free nor
-    unknown); points off the grid change nothing. The explorer's record of forward moves the scene refused
-    where the map showed floor (`ExplorerConfig.collision_obstacle_m`)."""
-    points = np.asarray(points_xz, dtype=np.float64).reshape(-1, 2)
-    if len(points) == 0:
-        return grids
-    geometry = grids.geometry
-    disc = np.zeros(geometry.shape, np.uint8)
-    radius_px = max(int(round(radius_m / geometry.resolution)), 0)
-    for row, col in geometry.pixel_index(points):
-        cv2.circle(disc, (int(col), int(row)), radius_px, 1, -1)
-    hit = disc.astype(bool)
-    return replace(grids, free=grids.free & ~hit, obstacle=grids.obstacle | hit, unknown=grids.unknown & ~hit)
 
 
 def frontier_cells(free: np.ndarray, unknown: np.ndarray) -> np.ndarray:
