@@ -205,9 +205,7 @@ class ActiveSplatExplorer(Explorer):
                "max_invisible": round(plan.max_invisible, 4), "goal": None}
         if choice is not None:
             node = choice.node
-            # "committed" is always false: the option that set it, a global choice followed through to its
-            # subregion, was measured and removed; readers of stops.json may still look for the key
-            rec.update(goal=rounded(plan.goal), on_the_way=choice.on_the_way, committed=False,
+            rec.update(goal=rounded(plan.goal), on_the_way=choice.on_the_way,
                        score=round(plan.scores.get(node, float("nan")), 2),
                        info=round(plan.info.get(node, float("nan")), 2),
                        path_m=round(path_length(choice.path), 2))
