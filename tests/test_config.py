@@ -270,6 +270,16 @@ def test_benchmark_refuses_a_root_run_with_other_settings(capsys, tmp_path, monk
     code, _, err = _run(capsys, *argv, "--mapper.pixel-stride", "3", "--mapper.densify-median-depth")
     assert code == 2 and ("was run before mapper.densify_median_depth existed (default False) but this "
                           "benchmark asks for True") in err, err
+    # a run older than a field whose default changed what runs do (ADDED) ran as the old value: not the
+    # same run as today's default, the same as the old value asked for
+    del recorded["explorer"]["leave_when_cut_off"]
+    (out / "episode.json").write_text(json.dumps({"config": recorded}))
+    code, _, err = _run(capsys, *argv, "--mapper.pixel-stride", "3")
+    assert code == 2 and ("was run before explorer.leave_when_cut_off existed (it ran as False) but this "
+                          "benchmark asks for True") in err, err
+    code, out_text, err = _run(capsys, *argv, "--mapper.pixel-stride", "3",
+                               "--explorer.no-leave-when-cut-off")
+    assert "1 already complete, 0 to run" in out_text, (out_text, err)
 
 
 def test_refine_takes_the_recorded_settings_then_the_options(capsys, tmp_path, monkeypatch):
