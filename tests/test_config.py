@@ -4,6 +4,7 @@ geometry, episode.json written and read back by --config (same actions), benchma
 import dataclasses
 import json
 import re
+import warnings
 from pathlib import Path
 
 import pytest
@@ -269,6 +270,16 @@ def test_benchmark_refuses_a_root_run_with_other_settings(capsys, tmp_path, monk
     code, _, err = _run(capsys, *argv, "--mapper.pixel-stride", "3", "--mapper.init-capped-fill")
     assert code == 2 and ("was run before mapper.init_capped_fill existed (default False) but this "
                           "benchmark asks for True") in err, err
+    # a run older than a field whose default changed what runs do (ADDED) ran as the old value: not the
+    # same run as today's default, the same as the old value asked for
+    del recorded["explorer"]["leave_when_cut_off"]
+    (out / "episode.json").write_text(json.dumps({"config": recorded}))
+    code, _, err = _run(capsys, *argv, "--mapper.pixel-stride", "3")
+    assert code == 2 and ("was run before explorer.leave_when_cut_off existed (it ran as False) but this "
+                          "benchmark asks for True") in err, err
+    code, out_text, err = _run(capsys, *argv, "--mapper.pixel-stride", "3",
+                               "--explorer.no-leave-when-cut-off")
+    assert "1 already complete, 0 to run" in out_text, (out_text, err)
 
 
 def test_refine_takes_the_recorded_settings_then_the_options(capsys, tmp_path, monkeypatch):
@@ -410,6 +421,49 @@ def test_refine_keeps_an_old_episodes_settings_when_another_group_cannot_be_read
     ep = _old_episode(tmp_path, lambda d: d["refine"].update(lambda_dssim="x"))
     code, _, err = _run(capsys, "refine", str(ep))
     assert code == 2 and "refine.lambda_dssim must be a number" in err and len(err.strip().splitlines()) == 1
+
+
+def test_refine_reads_an_old_episodes_refine_fields_added_since_as_its_version_ran(capsys, tmp_path,
+                                                                                  monkeypatch):
+    """`activesplat refine` starts from the recorded ``refine`` group: a field added to it later reads as
+    the episode's version ran (`ADDED`), with the warning `load_run_config` gives, not as today's default."""
+    import activesplat.config as config_module
+    import activesplat.refine as refine_module
+
+    seen = []
+    monkeypatch.setattr(refine_module, "refine_from_command", lambda cmd: seen.append(cmd) or 0)
+    monkeypatch.setitem(config_module.ADDED, "refine.percent_dense", 0.03)
+    ep = _old_episode(tmp_path, lambda d: d["refine"].pop("percent_dense"))
+    with pytest.warns(UserWarning, match=r"refine\.percent_dense=0\.03"):
+        assert main(["refine", str(ep)]) == 0
+    assert (seen[-1].refine.percent_dense, seen[-1].refine.lambda_dssim) == (0.03, 0.3)
+    with pytest.warns(UserWarning):  # the options still override it
+        assert main(["refine", str(ep), "--refine.percent-dense", "0.02"]) == 0
+    assert seen[-1].refine.percent_dense == 0.02
+    ep = _old_episode(tmp_path, lambda d: None)  # recorded with the field: its value, no warning
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert main(["refine", str(ep)]) == 0
+    assert seen[-1].refine.percent_dense == RunConfig().refine.percent_dense
+
+
+def test_an_episode_recorded_before_refine_planar_depth_refines_with_centre_depth(tmp_path, monkeypatch):
+    """Refinement rendered centre depth before ``refine.planar_depth`` existed, also for a map trained with
+    planar depth; today's default (None: as the map was trained) would refine such a map with planar depth."""
+    import activesplat.refine as refine_module
+
+    seen = []
+    monkeypatch.setattr(refine_module, "refine_from_command", lambda cmd: seen.append(cmd) or 0)
+    ep = _old_episode(tmp_path, lambda d: (d["refine"].pop("planar_depth"),  # a planar-depth map
+                                           d["mapper"].update(planar_depth=True)))
+    with pytest.warns(UserWarning, match="refine.planar_depth=false"):
+        assert main(["refine", str(ep)]) == 0
+    assert seen[-1].refine.planar_depth is False
+    with pytest.warns(UserWarning):
+        assert load_run_config(ep).refine.planar_depth is False
+    assert RunConfig().refine.planar_depth is None  # a new episode records None and keeps it
+    assert main(["refine", str(_old_episode(tmp_path, lambda d: None))]) == 0
+    assert seen[-1].refine.planar_depth is None
 
 
 def test_an_old_maps_settings_with_a_removed_field_still_read():

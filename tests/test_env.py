@@ -153,6 +153,41 @@ def test_blocked_moves_and_a_minority_of_short_ones_are_not_warned_about():
     assert check.path_length_m == pytest.approx(z + 0.002 * 2)
 
 
+def _off_axis(pose, ahead_m=0.15):
+    """`pose` of a camera mounted `ahead_m` in front of the robot's turning axis (at `pose`'s position)."""
+    pose = np.array(pose)
+    pose[:3, 3] += ahead_m * pose[:3, 2]
+    return pose
+
+
+def test_the_path_from_the_poses_counts_forward_moves_not_a_mounted_camera_swinging_in_turns():
+    """A camera 15 cm in front of the turning axis moves 2.6 cm sideways in every 10 degree turn on the spot;
+    the path from the poses is the forward moves' translations only, as path_length_m counts them."""
+    import warnings
+
+    from activesplat.env import ActionSizeCheck
+
+    check = ActionSizeCheck(SimConfig())
+    x = z = 0.0
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for k in range(12):
+            yaw = 10.0 * k
+            turned = _off_axis(_pose(x, z, yaw + 10))
+            check.observe("turn_left", _off_axis(_pose(x, z, yaw)), turned)
+            assert np.hypot(*(turned[[0, 2], 3] - _off_axis(_pose(x, z, yaw))[[0, 2], 3])) > 0.025
+            x, z = np.array([x, z]) + 0.065 * turned[[0, 2], 2]  # a step along the heading
+            check.observe("move_forward", turned, _off_axis(_pose(x, z, yaw + 10)))
+            check.observe("look_up", _off_axis(_pose(x, z, yaw + 10)),
+                          _off_axis(_pose(x, z, yaw + 10, pitch_deg=15)))  # a tilt swings it too
+            check.observe("look_down", _off_axis(_pose(x, z, yaw + 10, pitch_deg=15)),
+                          _off_axis(_pose(x, z, yaw + 10)))
+    assert check.path_length_m == pytest.approx(12 * 0.065)
+    m = check.metrics()
+    assert m["forward_step"]["measured"] == pytest.approx(0.065) and m["turn_deg"]["measured"] == \
+        pytest.approx(10.0)
+
+
 def test_each_kind_is_warned_about_once_after_five_moves():
     from activesplat.env import ActionSizeCheck
 

@@ -409,6 +409,29 @@ def test_evaluate_with_a_corrupt_metrics_file_is_one_line_error(capsys, episode,
     assert (out / "metrics.json").read_text() == '{"completion'  # left for the user to look at
 
 
+def test_ctrl_c_in_evaluate_is_one_line_and_leaves_metrics_json_as_it_was(capsys, episode, tmp_path,
+                                                                         monkeypatch):
+    """In the replay or in the write of metrics.json: one line saying nothing was written, exit code 130,
+    metrics.json as it was and no temporary file beside it."""
+    import shutil
+
+    from activesplat.eval import evaluate
+
+    out = shutil.copytree(episode[0], tmp_path / "copy")
+    before = (out / "metrics.json").read_bytes()
+    line = (f"evaluate interrupted: nothing written ({out / 'metrics.json'} as it was); run the same command "
+            f"again")
+    monkeypatch.setattr(evaluate, "replay_coverage", _ctrl_c)
+    code, err = _cli(capsys, "evaluate", str(out))
+    assert (code, err.strip()) == (130, line)
+    monkeypatch.setattr(evaluate, "replay_episode", lambda ep: dict.fromkeys(evaluate.COMPLETION_KEYS, 1))
+    monkeypatch.setattr("activesplat.episode.os.replace", _ctrl_c)  # its temporary file is written
+    code, err = _cli(capsys, "evaluate", str(out))
+    assert (code, err.strip()) == (130, line)
+    assert (out / "metrics.json").read_bytes() == before
+    assert sorted(p.name for p in out.iterdir()) == sorted(p.name for p in episode[0].iterdir())
+
+
 def test_a_budget_inside_the_first_look_around_is_warned_about(tmp_path):
     with pytest.warns(UserWarning, match="within the first look-around"):
         run_exploration("small-0", steps=4, seed=0, out=tmp_path / "short", **TINY)

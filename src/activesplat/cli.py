@@ -55,8 +55,16 @@ def _cmd_scenes_export(args: argparse.Namespace) -> int:
     if Path(args.file).suffix.lower() != ".glb":  # checked before the (slow) scene build
         raise InvalidInputError(f"export file must end in .glb: {args.file}")
     check_output_file(args.file)
-    scene = load_scene(args.name, z_up=args.z_up, floor=args.floor)
-    path = scene.export(args.file)
+    existed = Path(args.file).exists()
+    try:
+        scene = load_scene(args.name, z_up=args.z_up, floor=args.floor)
+        path = scene.export(args.file)  # written under a temporary name, renamed when complete
+    except KeyboardInterrupt:
+        from activesplat.errors import interrupted
+
+        kept = "the file already there is kept as it was" if existed else "no partial file is left"
+        raise interrupted(f"scenes export interrupted: {args.file} is not written ({kept}); run the same "
+                          f"command again") from None
     print(f"wrote {path}")
     return 0
 
@@ -71,9 +79,16 @@ def _cmd_explore(argv: Sequence[str]) -> int:
 
 # --------------------------------------------------------------------------- evaluate
 def _cmd_evaluate(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from activesplat.errors import interrupted
     from activesplat.eval.evaluate import evaluate_episode
 
-    m = evaluate_episode(args.dir)
+    try:
+        m = evaluate_episode(args.dir)  # metrics.json is replaced at the end, in one rename
+    except KeyboardInterrupt:
+        raise interrupted(f"evaluate interrupted: nothing written ({Path(args.dir) / 'metrics.json'} as it "
+                          f"was); run the same command again") from None
     uncapped = m["completion_cm_uncapped"]
     print(f"completion ratio {m['completion_ratio_pct']:.2f} %  completion {m['completion_cm']:.2f} cm  "
           f"(uncapped {'n/a' if uncapped is None else f'{uncapped:.2f}'} cm)  "

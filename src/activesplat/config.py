@@ -139,13 +139,15 @@ ADDED: dict[str, Any] = {
     "explorer.planning.high_loss.max_targets": 0,
     "explorer.planning.panorama.front_faces_targets": False,
     "explorer.planning.panorama.score_lod_voxel_m": None,
+    "refine.planar_depth": False,
 }
 """Fields added to RunConfig with a default that is not what runs did before them (a rule added on, or added
 off and turned on later): dotted path -> the value that does what the code did before the field existed. A
 field whose default keeps the old behaviour (an option added off and still off, or one that only tunes an
 option whose entry here turns it off) needs none. An episode.json that lacks one (written before it) reads
 as that value, with a warning naming it; a hand-written partial config file takes today's defaults. The
-``mapper`` entries are also `activesplat.splat.config.ADDED_FIELDS`, for an older mapper.json."""
+``mapper`` entries are also `activesplat.splat.config.ADDED_FIELDS`, for an older mapper.json; the ``refine``
+entries also fill the recorded settings ``activesplat refine`` starts from (`recorded_refine_config`)."""
 
 DERIVED: dict[str, str] = {
     "explorer.workspace.agent_radius": "agent_radius",
@@ -375,7 +377,9 @@ def recorded_refine_config(episode_dir: str | Path) -> RefineConfig | None:
     """The ``refine`` settings an episode's episode.json records, None when it records none (an episode of
     a version before RunConfig, or no episode.json). Only the ``refine`` group is read, so a field of
     another group that this version removed does not keep the recorded settings from counting; a
-    ``refine`` group this version cannot read is an InvalidInputError naming the field."""
+    ``refine`` field added since the episode was recorded reads as its version ran (`ADDED`, with a
+    warning naming it); a ``refine`` group this version cannot read is an InvalidInputError naming the
+    field."""
     from activesplat.episode import read_meta
     from activesplat.errors import EpisodeError
 
@@ -385,7 +389,11 @@ def recorded_refine_config(episode_dir: str | Path) -> RefineConfig | None:
         return None  # the refine command names a missing or unreadable episode itself
     if not isinstance(config, dict) or "refine" not in config:
         return None
-    return _build(RefineConfig, config["refine"], "refine.", str(Path(episode_dir) / "episode.json"))
+    path = Path(episode_dir) / "episode.json"
+    refine = config["refine"]
+    if isinstance(refine, dict):  # fields added since read as its version ran, as in load_run_config
+        refine = _fill_added({"refine": refine}, path, only="refine.")["refine"]
+    return _build(RefineConfig, refine, "refine.", str(path))
 
 
 def load_run_config(path: str | Path) -> RunConfig:
@@ -408,15 +416,17 @@ def load_run_config(path: str | Path) -> RunConfig:
     return RunConfig.from_dict(data, source=str(p))
 
 
-def _fill_added(config: dict, path: Path) -> dict:
+def _fill_added(config: dict, path: Path, only: str = "") -> dict:
     """An episode.json's recorded config with each `ADDED` field it lacks set to the value its version ran
     with, and a warning naming them (episode.json records every field, so a missing one is younger than
-    the file)."""
+    the file). ``only``: just the fields whose dotted path starts with it (``"refine."``)."""
     import copy
 
     config = copy.deepcopy(config)
     filled = []
     for dotted, old in ADDED.items():
+        if not dotted.startswith(only):
+            continue
         *groups, name = dotted.split(".")
         inner = config
         for g in groups:

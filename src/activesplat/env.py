@@ -19,7 +19,7 @@ configuration's ``sim`` group (``--sim.turn-deg``, ``--sim.forward-step``, ``--s
 environment's own sizes. The loop checks the poses against them (`ActionSizeCheck`): in an environment
 other than the run's own simulator it warns when an action kind's median move is off by more than 25 %, and
 metrics.json records the measured sizes (``measured_action_sizes``) and the path length from the poses
-(``path_length_poses_m``).
+(``path_length_poses_m``: the camera's horizontal path over the forward moves).
 
 Optionally, an environment may have ``waypoint(xz)``: the loop calls it before every ``step`` with the
 world (x, z) point the planner's path follower heads for (None while it follows no path: look-around,
@@ -106,7 +106,10 @@ class ActionSizeCheck:
     Forward moves reported as collisions that still moved the camera are counted apart: when they are most
     of the forward moves (`ACTION_SIZE_MIN_MOVES` of them or more), the robot's steps may be shorter than
     the configured one (a bridge reports a move of under half a step as a collision), and that is warned
-    about once too. `path_length_m` sums the camera's horizontal path over every pose."""
+    about once too. `path_length_m` sums the camera's horizontal path over the forward moves (each
+    ``move_forward``'s translation, collisions included), what the run's ``path_length_m`` counts with the
+    configured step: a camera mounted off the robot's turning axis also moves sideways in a turn on the
+    spot, which is no path walked."""
 
     def __init__(self, sim_config):
         self.configured = {kind: float(getattr(sim_config, field))
@@ -122,11 +125,11 @@ class ActionSizeCheck:
         """Action `action` took the camera from pose `before` to pose `after` (4x4 camera-to-world)."""
         before, after = np.asarray(before, dtype=np.float64), np.asarray(after, dtype=np.float64)
         moved = float(np.hypot(*(after[[0, 2], 3] - before[[0, 2], 3])))
-        self.path_length_m += moved
         kind = next((k for k, (actions, *_) in ACTION_KINDS.items() if action in actions), None)
         if kind is None:
             return
         if kind == "forward_step":
+            self.path_length_m += moved
             size = moved
         else:
             cos = (np.trace(before[:3, :3].T @ after[:3, :3]) - 1.0) / 2.0

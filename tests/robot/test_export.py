@@ -113,3 +113,40 @@ def test_a_corrupt_poses_file_is_refused_in_one_line(map_folder, tmp_path, capsy
         trajectory = [json.loads(m.data) for _, c, m in mcap_reader.make_reader(f).iter_messages()
                       if c.topic == "/trajectory"]
     assert len(trajectory[0]["poses"]) == len(lines) - 1
+
+
+def test_ctrl_c_leaves_no_half_written_file_and_says_what_is_written(map_folder, tmp_path, capsys,
+                                                                     monkeypatch):
+    """A Ctrl-C while a file is written leaves no partial file (nor replaces one already there), and its one
+    line (exit code 130) says which file is written and which is not."""
+    from activesplat.robot import export
+    from activesplat.splat import ply
+
+    def cut_short(gmap, path, *args, **kwargs):  # a PLY half written when Ctrl-C comes
+        path.write_bytes(b"ply\nformat binary_little_endian 1.0\n")
+        raise KeyboardInterrupt
+
+    def ctrl_c(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    out, ply_out = tmp_path / "e.mcap", tmp_path / "e.ply"
+    monkeypatch.setattr(ply, "save_ply", cut_short)
+    assert main(["export", str(map_folder), "--ply", str(ply_out), "--mcap", str(out)]) == 130
+    assert capsys.readouterr().err.strip() == (f"export interrupted while writing --ply {ply_out}: {ply_out} "
+                                               f"is not written (no partial file is left); run the same "
+                                               f"command again")
+    assert list(tmp_path.iterdir()) == []
+    monkeypatch.undo()
+    monkeypatch.setattr(export, "_point_cloud", ctrl_c)  # the last message: the rest is in the file
+    assert main(["export", str(map_folder), "--ply", str(ply_out), "--mcap", str(out)]) == 130
+    assert capsys.readouterr().err.strip() == (f"export interrupted while writing --mcap {out}: {ply_out} is "
+                                               f"written (complete), {out} is not written (no partial file "
+                                               f"is left); run it again without --ply {ply_out}")
+    assert [p.name for p in tmp_path.iterdir()] == ["e.ply"]
+    out.write_bytes(b"an older export")
+    assert main(["export", str(map_folder), "--mcap", str(out), "--overwrite"]) == 130
+    assert capsys.readouterr().err.strip() == (f"export interrupted while writing --mcap {out}: {out} is not "
+                                               f"written (the file already there is kept as it was); run the "
+                                               f"same command again")
+    assert out.read_bytes() == b"an older export" and sorted(p.name for p in tmp_path.iterdir()) == [
+        "e.mcap", "e.ply"]

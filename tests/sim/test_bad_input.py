@@ -123,6 +123,36 @@ def test_cli_export_writes_loadable_glb(capsys, tmp_path, small0):
     np.testing.assert_array_equal(loaded.mesh.faces, small0.mesh.faces)
 
 
+def test_ctrl_c_in_scenes_export_is_one_line_and_leaves_no_partial_glb(capsys, tmp_path, box, monkeypatch):
+    """While the scene is built or while the file is written: one line (exit code 130) saying the file is
+    not written; a file already there is kept as it was, and no half-written .glb is left."""
+    import activesplat.sim
+    from activesplat.sim import gltf
+
+    def ctrl_c(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    target = tmp_path / "box.glb"
+    monkeypatch.setattr(activesplat.sim, "load_scene", ctrl_c)
+    code, _, err = _run_cli(capsys, ["scenes", "export", "small-0", str(target)])
+    assert (code, err.strip()) == (130, f"scenes export interrupted: {target} is not written (no partial "
+                                        f"file is left); run the same command again")
+    monkeypatch.setattr(activesplat.sim, "load_scene", lambda *a, **k: box)
+    monkeypatch.setattr(gltf.os, "replace", ctrl_c)  # the whole file written under its temporary name
+    code, _, err = _run_cli(capsys, ["scenes", "export", "small-0", str(target)])
+    assert code == 130 and "no partial file is left" in err and list(tmp_path.iterdir()) == []
+    target.write_bytes(b"an older export")
+    code, _, err = _run_cli(capsys, ["scenes", "export", "small-0", str(target)])
+    assert (code, err.strip()) == (130, f"scenes export interrupted: {target} is not written (the file "
+                                        f"already there is kept as it was); run the same command again")
+    assert target.read_bytes() == b"an older export" and list(tmp_path.iterdir()) == [target]
+    monkeypatch.undo()
+    monkeypatch.setattr(activesplat.sim, "load_scene", lambda *a, **k: box)
+    code, _, _ = _run_cli(capsys, ["scenes", "export", "small-0", str(target)])
+    assert code == 0 and load_scene(target).mesh.faces.shape == box.mesh.faces.shape
+    assert list(tmp_path.iterdir()) == [target]
+
+
 @pytest.mark.parametrize("case", ["millimetres", "stray_triangle"])
 def test_mesh_too_large_for_the_grid_is_refused_at_once(box, tmp_path, case):
     """A mesh in millimetres, or one with a speck of geometry 500 m away, once ran out of memory in the

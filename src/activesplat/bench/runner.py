@@ -157,9 +157,13 @@ def check_configs(specs: Sequence[RunSpec], config) -> None:
     """Refuse a ROOT whose finished runs were made with other settings than `config` (a RunConfig whose
     scene, policy, seed and steps each run replaces): one table would mix configurations.
 
-    A setting the recorded config lacks (an option added after the run) differs only when asked for at
-    another value than its default: options arrive off by default, so the run behaved as the default does."""
+    A setting the recorded config lacks (an option added after the run) ran as its version's code did: the
+    value `activesplat.config.ADDED` gives it (a field whose default changed what runs do), else the
+    default (an option added off keeps the old behaviour)."""
+    from activesplat.config import ADDED
+
     defaults = _flat(type(config)().to_dict())
+    ran_as = {**defaults, **ADDED}
     for spec in specs:
         if read_metrics(spec.out) is None:
             continue
@@ -170,10 +174,11 @@ def check_configs(specs: Sequence[RunSpec], config) -> None:
         want = config.replace(scene=spec.scene, policy=spec.policy, seed=spec.seed,
                               steps=recorded.get("steps")).to_dict()
         was, now = _flat(recorded), _flat(want)
-        differ = [k for k in now if was.get(k, defaults.get(k)) != now[k]]
+        differ = [k for k in now if was.get(k, ran_as.get(k)) != now[k]]
         if differ:
             key = differ[0]
             then = (f"with {key} = {was[key]!r}" if key in was
+                    else f"before {key} existed (it ran as {ran_as.get(key)!r})" if key in ADDED
                     else f"before {key} existed (default {defaults.get(key)!r})")
             raise InvalidInputError(f"{spec.out} was run {then} but this benchmark asks for {now[key]!r}: "
                                     f"use another --root")

@@ -369,12 +369,36 @@ def export_from_args(args) -> int:
             check_output_file(out, label)
             if Path(out).is_file() and not args.overwrite:
                 raise EpisodeError(f"{out} exists; pass --overwrite to replace it")
-    if args.ply is not None:
-        sh = 0 if args.sh_degree is None else args.sh_degree
-        export_ply(args.dir, args.ply, sh_degree=sh, overwrite=args.overwrite)
-        zero = " (higher coefficients zero)" if sh else ""
-        print(f"wrote {args.ply}: the map's Gaussians, SH degree {sh}{zero}")
-    if args.mcap is not None:
-        counts = export_mcap(args.dir, args.mcap, overwrite=args.overwrite, max_points=args.max_points)
-        print(f"wrote {args.mcap}: " + ", ".join(f"{t} {n}" for t, n in counts.items()))
+    written: list = []  # the files complete so far
+    current = None  # (option, file, whether a file was there before) of the file being written
+    try:
+        if args.ply is not None:
+            sh = 0 if args.sh_degree is None else args.sh_degree
+            current = ("--ply", args.ply, Path(args.ply).exists())
+            export_ply(args.dir, args.ply, sh_degree=sh, overwrite=args.overwrite)
+            written.append(args.ply)
+            zero = " (higher coefficients zero)" if sh else ""
+            print(f"wrote {args.ply}: the map's Gaussians, SH degree {sh}{zero}")
+        if args.mcap is not None:
+            current = ("--mcap", args.mcap, Path(args.mcap).exists())
+            counts = export_mcap(args.dir, args.mcap, overwrite=args.overwrite, max_points=args.max_points)
+            written.append(args.mcap)
+            print(f"wrote {args.mcap}: " + ", ".join(f"{t} {n}" for t, n in counts.items()))
+    except KeyboardInterrupt:
+        raise _interrupted(current, written) from None
     return 0
+
+
+def _interrupted(current: tuple | None, written: list):
+    """The `Interrupted` of a Ctrl-C in `export`, its line printed: the file being written is left as it was
+    (its partial copy, under a temporary name, is removed); a file written before it is complete."""
+    from activesplat.errors import interrupted
+
+    if current is None or current[1] in written:  # between the files' writes
+        return interrupted(f"export interrupted: {' and '.join(map(str, written)) or 'nothing'} written")
+    done = f"{written[0]} is written (complete)" if written else ""
+    label, out, existed = current
+    kept = "the file already there is kept as it was" if existed else "no partial file is left"
+    again = f"run it again without --ply {written[0]}" if written else "run the same command again"
+    return interrupted(f"export interrupted while writing {label} {out}: {done + ', ' if done else ''}{out} "
+                      f"is not written ({kept}); {again}")

@@ -20,6 +20,7 @@ from __future__ import annotations
 import base64
 import io
 import json
+import os
 import struct
 import warnings
 from pathlib import Path
@@ -378,7 +379,8 @@ def _check_uvs(surface: Surface, path: Path) -> None:
 def write_glb(path, vertices: np.ndarray, faces: np.ndarray, surface: Surface) -> Path:
     """Binary glTF of a mesh and its Surface: one primitive per material (its faces in order,
     unshared corners so per-corner UVs and colours survive), PNG textures, NEAREST samplers with the
-    material's wrap modes. read_gltf of the file gives back the same triangles and pixels."""
+    material's wrap modes. read_gltf of the file gives back the same triangles and pixels. Written under a
+    temporary name and renamed when complete."""
     path = Path(path)
     tri = np.asarray(vertices, dtype=np.float64)[np.asarray(faces)]
     chunks: list[bytes] = []
@@ -435,14 +437,23 @@ def write_glb(path, vertices: np.ndarray, faces: np.ndarray, surface: Surface) -
     text = json.dumps(header, separators=(",", ":")).encode()
     text += b" " * (-len(text) % 4)
     total = 12 + 8 + len(text) + 8 + len(binary)
+    tmp = path.with_name(path.name + ".partial")  # renamed when complete: no half-written .glb is left
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        with path.open("wb") as f:
-            f.write(struct.pack("<III", _GLB_MAGIC, 2, total))
-            f.write(struct.pack("<II", len(text), _JSON_CHUNK) + text)
-            f.write(struct.pack("<II", len(binary), _BIN_CHUNK) + binary)
-    except OSError as exc:
-        raise cannot_write(path, exc) from None
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            with tmp.open("wb") as f:
+                f.write(struct.pack("<III", _GLB_MAGIC, 2, total))
+                f.write(struct.pack("<II", len(text), _JSON_CHUNK) + text)
+                f.write(struct.pack("<II", len(binary), _BIN_CHUNK) + binary)
+            os.replace(tmp, path)
+        except OSError as exc:
+            raise cannot_write(path, exc) from None
+    except BaseException:
+        try:
+            tmp.unlink(missing_ok=True)
+        except OSError:  # never created (its folder is missing or not a folder)
+            pass
+        raise
     return path
 
 
