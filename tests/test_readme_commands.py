@@ -316,6 +316,7 @@ def test_readme_commands_parse(config_file):
     ("activesplat view DIR --port PORT", "placeholder PORT"),
     ("python benchmarks/sweep.py --spacingg 1", "--spacingg"),
     ("python benchmarks/nothere.py", "no such script"),
+    ("python benchmarks/render.py --iters 2000", "required: episode"),  # no default on one machine
     ("bash benchmarks/gpu_sped.sh", "no such script benchmarks/gpu_sped.sh"),
     ("--explorer.cut-off-look", "unknown option --explorer.cut-off-look"),
     ("--mapper.edge-band-px two", "--mapper.edge-band-px"),
