@@ -1,10 +1,11 @@
 """Rendering quality of an episode's online map and of its offline refinements, like the paper's Tab. V
 (post-processing ablation on Gibson-Denmark).
 
-    python benchmarks/render.py [EPISODE] [--iters 2000] [--budget-min 30] [--methods 3dgs 2dgs]
+    python benchmarks/render.py EPISODE [--iters 2000] [--budget-min 30] [--methods 3dgs 2dgs]
                                 [--n-train 50] [--n-test 50] [--backend auto]
 
-EPISODE defaults to /work/episodes/small-0-activesplat-s0 (a complete 1000-step small-0 episode).
+EPISODE: a complete episode folder (the README's numbers: a 1000-step small-0 episode of
+`activesplat explore --scene small-0`).
 
 1. **online**: ``render_eval`` of EPISODE/gaussians.ply (EPISODE/render_metrics.json).
 2. **short refinement**: for each method, ``refine(EPISODE, method, --iters)`` into
@@ -29,7 +30,6 @@ from pathlib import Path
 from activesplat.eval.render_eval import render_eval
 from activesplat.refine import refine
 
-DEFAULT_EPISODE = "/work/episodes/small-0-activesplat-s0"
 PAPER_ITERATIONS = 30_000
 # Tab. V of the paper, with depth loss: (train, test) x (depth L1 cm, PSNR, SSIM, LPIPS)
 PAPER = {
@@ -98,7 +98,7 @@ def table(rows: list[dict]) -> str:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("episode", nargs="?", default=DEFAULT_EPISODE, help="complete episode folder")
+    parser.add_argument("episode", help="complete episode folder")
     parser.add_argument("--iters", type=int, default=2000, help="iterations of the short refinements")
     parser.add_argument("--budget-min", type=float, default=30.0,
                         help="minutes per method for the long refinement (0 = none)")

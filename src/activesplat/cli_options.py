@@ -216,10 +216,9 @@ def parse_command(cls, argv: Sequence[str], prog: str, own: Sequence[str] = (), 
         path = _config_path(argv)
         default = cls(run=load_run_config(path)) if path is not None else cls()
     hidden = _hidden_fields(own)
-    options = _options(cls, hidden)
 
-    def fail(event) -> None:
-        raise CommandLineError(_parse_error(event, options))
+    def fail(event) -> None:  # the options for "did you mean": listed only here (half a parse's time)
+        raise CommandLineError(_parse_error(event, _options(cls, hidden)))
 
     try:
         with _errors.on_parse_error(fail):
