@@ -150,10 +150,6 @@ class PathFollower:
     def done(self) -> bool:
         return not self.waypoints
 
-    @property
-    def remaining(self) -> np.ndarray:
-        return np.array(self.waypoints).reshape(-1, 2)
-
     def next_action(self, pose: np.ndarray) -> str | None:
         """The next action, or None when the last waypoint is reached."""
         while self.waypoints:

@@ -297,14 +297,6 @@ def _median_height(h: np.ndarray, a: np.ndarray) -> float:
     return float(h[order][np.searchsorted(cum, 0.5 * cum[-1])])
 
 
-def estimate_floor_height(mesh: trimesh.Trimesh, bin_size: float = 0.05) -> float:
-    """y of the walkable floor: the height bin holding the largest area of upward-facing faces."""
-    h, a, _ = _upward_faces(mesh)
-    bins = np.floor((h - h.min()) / bin_size).astype(np.int64)
-    in_bin = bins == int(np.argmax(np.bincount(bins, weights=a)))
-    return _median_height(h[in_bin], a[in_bin])
-
-
 def find_storeys(mesh: trimesh.Trimesh, bin_size: float = 0.05, min_gap: float = STOREY_MIN_GAP,
                  floors: np.ndarray | None = None) -> list[Storey]:
     """Levels of a mesh, bottom to top: height bins of upward area at least STOREY_MIN_AREA_FRACTION
