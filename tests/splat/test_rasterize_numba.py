@@ -235,6 +235,24 @@ def test_binning_leaves_out_the_tiles_the_alpha_box_misses():
     assert sorted(tile_of[slot[emit[2]:emit[3]]].tolist()) == [7, 8, 13, 14]
 
 
+def test_binning_a_box_that_starts_far_past_the_grid():
+    """A faint Gaussian far right of and below the image whose given rectangle still reaches the last tile:
+    its alpha >= 1/255 box starts millions of tiles past the grid, so it gets no instance, and its tile
+    counts stay inside the grid (no write far outside the kernel's arrays)."""
+    from activesplat.splat.raster import numba_tiles as tiles
+
+    grid_x, grid_y = 4, 3
+    rects = np.array([[3, 4, 2, 3], [0, 2, 0, 1]], np.int32)
+    means2d = np.array([[1e9, 1e9], [10.0, 8.0]], np.float32)
+    args = (means2d, np.ones((2, 3), np.float32) * np.array([1, 0, 1], np.float32),
+            np.full(2, 0.5, np.float32), np.ones((2, 3), np.float32), np.ones(2, np.float32),
+            np.zeros((2, 2), np.float32))
+    starts, feat, emit, slot = tiles.bin_features(np.arange(2), rects, grid_x, grid_x * grid_y, *args)
+    assert np.diff(emit).tolist() == [0, 1]
+    assert np.diff(starts).tolist() == [1] + [0] * (grid_x * grid_y - 1)
+    assert slot.tolist() == [0] and feat[0, tiles.MX] == 10.0
+
+
 @pytest.mark.parametrize("backend", ["numba", "torch"])
 @pytest.mark.parametrize("planar", [False, True])
 def test_prepare_backend_renders_a_tiny_image_and_reports_its_time(backend, planar):
