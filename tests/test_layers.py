@@ -11,7 +11,7 @@ ROOT = Path(activesplat.__file__).parent
 BASE = ("errors", "geometry", "timing", "episode", "env")
 """Top-level helpers every layer may use."""
 LAYERS = [BASE, ("sim",), ("splat",), ("workspace",), ("planning",), ("eval", "refine"), ("viz",),
-          ("config", "explore", "explore_setup", "live_completion", "explore_summary", "bench", "cli",
+          ("config", "config_history", "explore", "explore_setup", "live_completion", "explore_summary", "bench", "cli",
            "cli_options", "__main__", "robot")]
 
 
