@@ -62,11 +62,11 @@ def write_json_atomic(path: Path, data: dict) -> None:
         tmp.write_text(json.dumps(data, indent=2))
         os.replace(tmp, path)
     except BaseException:
-        _remove_quietly(tmp)
+        remove_quietly(tmp)
         raise
 
 
-def _remove_quietly(path: Path) -> None:
+def remove_quietly(path: Path) -> None:
     """Remove the temporary file `path` of a write that failed or was interrupted, if it was made."""
     try:
         path.unlink(missing_ok=True)
@@ -90,7 +90,7 @@ def write_npz(path: Path, compresslevel: int = 1, **arrays: np.ndarray) -> None:
                     np.lib.format.write_array(f, np.asanyarray(value), allow_pickle=False)
         os.replace(tmp, path)
     except BaseException:
-        _remove_quietly(tmp)
+        remove_quietly(tmp)
         raise
 
 

@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from activesplat.episode import remove_quietly
 from activesplat.errors import EpisodeError, InvalidInputError, cannot_write, check_output_file
 from activesplat.geometry import K_to_opencv
 
@@ -215,10 +216,7 @@ def export_mcap(
             writer.finish()
         os.replace(tmp, out)
     except BaseException:
-        try:
-            tmp.unlink(missing_ok=True)
-        except OSError:  # never created (its folder is missing or not a folder)
-            pass
+        remove_quietly(tmp)  # never a half-written file
         raise
     return counts
 
@@ -347,10 +345,7 @@ def export_ply(folder: str | Path, out: str | Path, sh_degree: int = 0, overwrit
             raise cannot_write(out, exc, "--ply") from None
         os.replace(tmp, out)
     except BaseException:
-        try:
-            tmp.unlink(missing_ok=True)
-        except OSError:
-            pass
+        remove_quietly(tmp)  # never a half-written file
         raise
     return out
 

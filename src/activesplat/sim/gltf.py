@@ -29,6 +29,7 @@ from urllib.parse import unquote
 import numpy as np
 from PIL import Image
 
+from activesplat.episode import remove_quietly
 from activesplat.errors import SceneError, cannot_write
 from activesplat.sim.materials import (
     CLAMP_TO_EDGE,
@@ -449,10 +450,7 @@ def write_glb(path, vertices: np.ndarray, faces: np.ndarray, surface: Surface) -
         except OSError as exc:
             raise cannot_write(path, exc) from None
     except BaseException:
-        try:
-            tmp.unlink(missing_ok=True)
-        except OSError:  # never created (its folder is missing or not a folder)
-            pass
+        remove_quietly(tmp)  # never a half-written file
         raise
     return path
 

@@ -70,6 +70,23 @@ MAX_TILE_LIST = 1 << 24  # list positions are held as float32 in the tile state:
 LIVE_CHECK_EVERY = 32
 
 
+@njit(cache=True, error_model="numpy")
+def list_positions(counts):
+    """From the instance counts per chunk and tile (n_chunks, n_tiles): tile_starts (n_tiles+1,), where
+    each tile's list begins, and fill (n_chunks, n_tiles), where each chunk's first instance in each tile
+    goes (the chunks in order within a tile, so the lists keep the depth order)."""
+    n_chunks, n_tiles = counts.shape
+    tile_starts = np.zeros(n_tiles + 1, np.int64)
+    fill = np.empty((n_chunks, n_tiles), np.int64)
+    for t in range(n_tiles):
+        pos = tile_starts[t]
+        for c in range(n_chunks):
+            fill[c, t] = pos
+            pos += counts[c, t]
+        tile_starts[t + 1] = pos
+    return tile_starts, fill
+
+
 @njit(cache=True, parallel=True, error_model="numpy")
 def tile_offsets(order, rects, grid_x, n_tiles):
     """Counting pass of a stable, parallel counting sort of (Gaussian, tile) instances by tile.
@@ -93,14 +110,7 @@ def tile_offsets(order, rects, grid_x, n_tiles):
                 for tx in range(rects[g, 0], rects[g, 1]):
                     counts[c, ty * grid_x + tx] += 1
     emit_start = np.cumsum(per_gauss)
-    tile_starts = np.zeros(n_tiles + 1, np.int64)
-    fill = np.empty((n_chunks, n_tiles), np.int64)
-    for t in range(n_tiles):
-        pos = tile_starts[t]
-        for c in range(n_chunks):
-            fill[c, t] = pos
-            pos += counts[c, t]
-        tile_starts[t + 1] = pos
+    tile_starts, fill = list_positions(counts)
     return tile_starts, emit_start, bounds, fill
 
 
@@ -277,14 +287,7 @@ def bin_features(order, rects, grid_x, n_tiles, means2d, conics, opacities, colo
             for tx in range(grid_x):
                 run += corners[c, ty * gx1 + tx]
                 counts[c, ty * grid_x + tx] = run + (counts[c, (ty - 1) * grid_x + tx] if ty > 0 else 0)
-    tile_starts = np.zeros(n_tiles + 1, np.int64)
-    fill = np.empty((n_chunks, n_tiles), np.int64)
-    for t in range(n_tiles):
-        pos = tile_starts[t]
-        for c in range(n_chunks):
-            fill[c, t] = pos
-            pos += counts[c, t]
-        tile_starts[t + 1] = pos
+    tile_starts, fill = list_positions(counts)
     feat = np.empty((emit_start[-1], N_FEAT), F32)
     slot = np.empty(emit_start[-1], np.int64)
     for ch in prange(n_chunks):
