@@ -11,8 +11,8 @@ ROOT = Path(activesplat.__file__).parent
 BASE = ("errors", "geometry", "timing", "episode", "env")
 """Top-level helpers every layer may use."""
 LAYERS = [BASE, ("sim",), ("splat",), ("workspace",), ("planning",), ("eval", "refine"), ("viz",),
-          ("config", "config_history", "explore", "explore_setup", "live_completion", "explore_summary", "bench", "cli",
-           "cli_options", "__main__", "robot")]
+          ("config", "config_history", "explore", "explore_setup", "live_completion", "explore_summary",
+           "bench", "cli", "cli_options", "__main__", "robot")]
 
 
 def _layer(name: str) -> int:
