@@ -23,12 +23,10 @@ second parallel loop sums them per Gaussian (no atomics).
 from __future__ import annotations
 
 import numpy as np
-from llvmlite import ir
-from numba import njit, prange, types
-from numba.core import cgutils
-from numba.extending import intrinsic
+from numba import njit, prange
 
 from activesplat.splat.raster.constants import RASTER
+from activesplat.splat.raster.intrinsics import copy_row, fma, prefetch
 
 F32 = np.float32
 TILE = RASTER.tile_size
@@ -167,52 +165,6 @@ def stable_depth_order(candidates, depths):
     return order
 
 
-@intrinsic
-def prefetch(typingctx, arr, i):
-    """Hint the CPU to fetch row ``i`` of ``arr`` into the cache (llvm.prefetch: read, keep); no effect on
-    any value."""
-    if isinstance(arr, types.Array) and isinstance(i, types.Integer):
-        def codegen(context, builder, signature, args):
-            data, stride = array_row(context, builder, signature.args[0], args[0])
-            row = context.cast(builder, args[1], signature.args[1], types.intp)
-            ptr = builder.gep(data, [builder.mul(row, stride)])
-            i32 = ir.IntType(32)
-            fnty = ir.FunctionType(ir.VoidType(), [ptr.type, i32, i32, i32])
-            fn = builder.module.declare_intrinsic("llvm.prefetch", [ptr.type], fnty)
-            builder.call(fn, [ptr, i32(0), i32(3), i32(1)])
-            return context.get_dummy_value()
-        return types.void(arr, i), codegen
-    return None
-
-
-@intrinsic
-def copy_row(typingctx, dst, k, src, r):
-    """dst[k] = src[r] for two C-contiguous (n, N_FEAT) arrays of one dtype, as one llvm.memcpy (a few
-    vector moves instead of N_FEAT scalar ones: the bits are copied, nothing is computed)."""
-    if (isinstance(dst, types.Array) and isinstance(src, types.Array) and dst.dtype == src.dtype
-            and dst.ndim == src.ndim == 2 and dst.layout == src.layout == "C"):
-        def codegen(context, builder, signature, args):
-            dty, kty, sty, rty = signature.args
-            d_data, d_stride = array_row(context, builder, dty, args[0])
-            s_data, s_stride = array_row(context, builder, sty, args[2])
-            kk = context.cast(builder, args[1], kty, types.intp)
-            rr = context.cast(builder, args[3], rty, types.intp)
-            d_ptr = builder.gep(d_data, [builder.mul(kk, d_stride)])
-            s_ptr = builder.gep(s_data, [builder.mul(rr, s_stride)])
-            n_bytes = context.get_constant(types.intp, N_FEAT * (dty.dtype.bitwidth // 8))
-            cgutils.raw_memcpy(builder, d_ptr, s_ptr, n_bytes, 1, align=dty.dtype.bitwidth // 8)
-            return context.get_dummy_value()
-        return types.void(dst, k, src, r), codegen
-    return None
-
-
-def array_row(context, builder, aryty, value):
-    """(byte pointer to the data, row stride in bytes) of an array value, for the intrinsics above."""
-    ary = context.make_array(aryty)(context, builder, value)
-    data = builder.bitcast(ary.data, ir.IntType(8).as_pointer())
-    return data, cgutils.unpack_tuple(builder, ary.strides)[0]
-
-
 @njit(cache=True, parallel=True, error_model="numpy")
 def bin_features(order, rects, grid_x, n_tiles, means2d, conics, opacities, colors, depths, slopes):
     """:func:`build_tile_lists` that writes the instance rows directly: feat (n_inst, 15), contiguous
@@ -297,7 +249,7 @@ def bin_features(order, rects, grid_x, n_tiles, means2d, conics, opacities, colo
             for e in range(emit_start[r], emit_start[r + 1]):  # its tiles row by row, without nested loops
                 t = ty * grid_x + tx
                 k = fill[ch, t]
-                copy_row(feat, k, rows, r)
+                copy_row(feat, k, rows, r, N_FEAT)
                 slot[e] = k
                 fill[ch, t] = k + 1
                 tx += 1
@@ -313,16 +265,6 @@ def pixel_range(centre, half, lo, hi):
     p0 = max(F32(lo), np.ceil(centre - HALF - half))
     p1 = min(F32(hi - 1), np.floor(centre - HALF + half))
     return int(p0), int(p1)
-
-
-@intrinsic
-def fma(typingctx, a, b, c):
-    """a * b + c rounded once (llvm.fma): explicit, so forward and backward round alike (no fastmath)."""
-    if isinstance(a, types.Float) and a == b == c:
-        def codegen(context, builder, signature, args):
-            return builder.fma(*args)
-        return a(a, b, c), codegen
-    return None
 
 
 @njit(cache=True, error_model="numpy")
