@@ -96,10 +96,11 @@ def scripted_poses(sim: Simulator, steps: int, seed: int) -> tuple[list[np.ndarr
 def episode_poses(episode_dir: Path, steps: int | None,
                   sim_overrides: dict | None = None) -> tuple[Simulator, list[np.ndarray], list[bool]]:
     episode = read_episode(episode_dir)
-    from activesplat.eval.evaluate import _sim_config
+    from activesplat.eval.evaluate import recorded_sim_config
 
     scene = load_scene(episode.meta["scene"], z_up=bool(episode.meta.get("z_up", False)))
-    sim = Simulator(scene, start=episode.start_pose, config=_sim_config(episode.meta, sim_overrides))
+    sim = Simulator(scene, start=episode.start_pose, config=recorded_sim_config(episode.meta, sim_overrides,
+                                                                             episode.dir / "episode.json"))
     n = len(episode.actions) if steps is None else min(steps, len(episode.actions))
     dense = [True] + [a != "move_forward" for a in episode.actions[:n]]
     return sim, list(episode.poses[: n + 1]), dense

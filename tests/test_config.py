@@ -380,6 +380,24 @@ def test_an_old_episode_reruns_with_the_values_of_its_version_for_later_fields(t
     assert load_run_config(partial) == RunConfig(seed=2)
 
 
+def test_an_old_episode_is_evaluated_against_the_camera_it_recorded_with(tmp_path):
+    """evaluate / render-eval rebuild the simulator of episode.json: a field younger than the file takes the
+    value its version ran with (texture_filter "nearest" before the area filter), not today's default."""
+    from activesplat.eval.evaluate import recorded_sim_config
+
+    ep = _old_episode(tmp_path, lambda d: d["sim"].pop("texture_filter"))
+    meta = json.loads((ep / "episode.json").read_text())
+    with pytest.warns(UserWarning, match="sim.texture_filter=\"nearest\""):
+        assert recorded_sim_config(meta, source=ep).texture_filter == "nearest"
+    with pytest.warns(UserWarning):  # overrides still win
+        assert recorded_sim_config(meta, {"texture_filter": "area"}, ep).texture_filter == "area"
+    meta["config"]["sim"]["texture_filter"] = "area"  # a file that records the field: no warning
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert recorded_sim_config(meta, source=ep).texture_filter == "area"
+    assert recorded_sim_config({}, source=ep) == SimConfig()  # no recorded config: today's defaults
+
+
 FIRST_RECORDED = Path(__file__).with_name("first_recorded_config.json")
 """The configuration an episode.json of the first version that recorded one (2026-11-23) holds: its defaults,
 with a 1000-step budget."""

@@ -29,15 +29,19 @@ def parse_sim_overrides(items: list[str]) -> dict:
     return out
 
 
-def _sim_config(meta: dict, overrides: dict | None = None):
-    """The SimConfig an episode was recorded with (episode.json's config.sim; fields it lacks take the
-    defaults of today, e.g. texture_filter "area" for episodes recorded before it existed), with
-    ``overrides`` on top."""
+def recorded_sim_config(meta: dict, overrides: dict | None = None, source: str | Path = "episode.json"):
+    """The SimConfig an episode was recorded with (episode.json's config.sim), with ``overrides`` on top.
+    A field younger than the file takes the value its version ran with (`activesplat.config.ADDED`, e.g.
+    texture_filter "nearest" for an episode recorded before the area filter), with a warning naming
+    ``source``: the map was trained on that camera's images, so its renders are compared with them."""
+    from activesplat.config_history import fill_added
     from activesplat.sim import SimConfig
 
-    saved = meta.get("config", {}).get("sim", {})
+    saved = meta.get("config", {}).get("sim")
+    if isinstance(saved, dict):
+        saved = fill_added({"sim": saved}, Path(source), only="sim.")["sim"]
     fields = SimConfig.__dataclass_fields__
-    kwargs = {k: tuple(v) if isinstance(v, list) else v for k, v in saved.items() if k in fields}
+    kwargs = {k: tuple(v) if isinstance(v, list) else v for k, v in (saved or {}).items() if k in fields}
     return SimConfig(**{**kwargs, **(overrides or {})})
 
 
@@ -63,8 +67,9 @@ def replay_episode(episode: Episode, **options) -> dict:
     scene = simulated_scene(meta, episode.dir)
     cov = meta.get("config", {}).get("coverage", {})
     cfg = CoverageConfig(**{k: v for k, v in cov.items() if k in CoverageConfig.__dataclass_fields__})
+    sim_config = recorded_sim_config(meta, source=episode.dir / "episode.json")
     return replay_coverage(scene, episode.start_pose, episode.actions, cfg, expected_poses=episode.poses,
-                           sim_config=_sim_config(meta), **options)
+                           sim_config=sim_config, **options)
 
 
 def evaluate_episode(path: str | Path, write: bool = True) -> dict:

@@ -304,13 +304,14 @@ class _Setup:
 def episode_simulator(episode_dir: str | Path, sim_overrides: dict | None = None):
     """(episode, simulator) of a simulated episode: its scene, start pose and SimConfig (with
     ``sim_overrides`` on top, e.g. another image size). EpisodeError when episode.json names no scene."""
-    from activesplat.eval.evaluate import _sim_config, simulated_scene
+    from activesplat.eval.evaluate import recorded_sim_config, simulated_scene
     from activesplat.sim import Simulator
 
     episode = read_episode(episode_dir)
     meta = episode.meta
     scene = simulated_scene(meta, episode_dir)
-    return episode, Simulator(scene, start=episode.start_pose, config=_sim_config(meta, sim_overrides))
+    config = recorded_sim_config(meta, sim_overrides, episode.dir / "episode.json")
+    return episode, Simulator(scene, start=episode.start_pose, config=config)
 
 
 def _simulated_setup(episode_dir: Path, cfg: RenderEvalConfig, sim_overrides: dict | None = None) -> _Setup:
