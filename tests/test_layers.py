@@ -8,10 +8,11 @@ from pathlib import Path
 import activesplat
 
 ROOT = Path(activesplat.__file__).parent
-BASE = ("errors", "geometry", "timing", "episode", "env")
-"""Top-level helpers every layer may use."""
+BASE = ("errors", "geometry", "timing", "episode", "env", "config_history")
+"""Top-level helpers every layer may use (config_history: the fields added and removed since, which
+evaluation reads to rebuild an old episode's simulator)."""
 LAYERS = [BASE, ("sim",), ("splat",), ("workspace",), ("planning",), ("eval", "refine"), ("viz",),
-          ("config", "config_history", "explore", "explore_setup", "live_completion", "explore_summary",
+          ("config", "explore", "explore_setup", "live_completion", "explore_summary",
            "bench", "cli", "cli_options", "__main__", "robot")]
 
 
