@@ -181,7 +181,7 @@ def test_fused_loss_passes_are_the_plain_loops_bit_for_bit(window):
     """The numba passes (registers over the taps for the default 11-tap window, plain loops otherwise, a
     zero border for the transposed blurs) add the same float32 products in the same order as plain loops:
     every intermediate and gradient is the same bit for bit, also where pixels are invalid."""
-    from activesplat.splat._mapper_numba import loss_grad_rows, loss_rows, ssim_columns
+    from activesplat.splat._loss_numba import loss_grad_rows, loss_rows, ssim_columns
     from activesplat.splat.losses import SSIM_C1, SSIM_C2, ssim_window
 
     arrays = [t.numpy() for t in _loss_case(window, 37, 45)]

@@ -6,7 +6,7 @@ pixels with valid observed depth (docs/protocol.md §2). SSIM is pytorch-msssim'
 zeroed in both prediction and observation so that they do not contribute a difference.
 
 On the CPU (float32 images at least as large as the window) :func:`mapping_loss` computes the value and
-its gradient in three fused numba passes (``_mapper_numba.loss_rows`` / ``ssim_columns`` /
+its gradient in three fused numba passes (``_loss_numba.loss_rows`` / ``ssim_columns`` /
 ``loss_grad_rows``): the same formulas as the torch path (pytorch-msssim's separable valid blur, C1 =
 0.01^2, C2 = 0.03^2, the masked L1 means), with the SSIM gradient written out by hand instead of going
 through autograd. Elsewhere (other devices, float64, tiny images) it runs the torch reference.
@@ -97,7 +97,7 @@ def _fused_applies(rgb, depth, obs_rgb, obs_depth, window: int) -> bool:
 def _fused_mapping_loss(rgb, depth, obs_rgb, obs_depth, cfg) -> LossTerms:
     """:func:`mapping_loss` by the numba passes; the gradient is computed with the value when rgb or depth
     needs one, and handed to autograd by :class:`_KnownGradient`."""
-    from activesplat.splat._mapper_numba import loss_grad_rows, loss_rows, ssim_columns
+    from activesplat.splat._loss_numba import loss_grad_rows, loss_rows, ssim_columns
 
     arrays = [np.ascontiguousarray(t.detach().numpy()) for t in (rgb, depth, obs_rgb, obs_depth)]
     win = ssim_window(cfg.ssim_window)
