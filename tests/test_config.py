@@ -262,6 +262,9 @@ def test_benchmark_refuses_a_root_run_with_other_settings(capsys, tmp_path, monk
     assert len(err.strip().splitlines()) == 1
     code, out_text, err = _run(capsys, *argv, "--mapper.pixel-stride", "3")  # the same settings: complete
     assert "1 already complete, 0 to run" in out_text, (out_text, err)
+    # the refine group takes no part in a benchmark's runs: another refine setting is the same run
+    code, out_text, err = _run(capsys, *argv, "--mapper.pixel-stride", "3", "--refine.lambda-dssim", "0.3")
+    assert "1 already complete, 0 to run" in out_text, (out_text, err)
     recorded = config.to_dict()  # a run older than an option: the option at its default is the same run
     del recorded["mapper"]["init_capped_fill"]
     (out / "episode.json").write_text(json.dumps({"config": recorded}))

@@ -159,7 +159,8 @@ def check_configs(specs: Sequence[RunSpec], config) -> None:
 
     A setting the recorded config lacks (an option added after the run) ran as its version's code did: the
     value `activesplat.config.ADDED` gives it (a field whose default changed what runs do), else the
-    default (an option added off keeps the old behaviour)."""
+    default (an option added off keeps the old behaviour). The ``refine`` group is not compared: a benchmark
+    explores and evaluates, and offline refinement (`activesplat refine`) is never part of its runs."""
     from activesplat.config import ADDED
 
     defaults = _flat(type(config)().to_dict())
@@ -174,7 +175,7 @@ def check_configs(specs: Sequence[RunSpec], config) -> None:
         want = config.replace(scene=spec.scene, policy=spec.policy, seed=spec.seed,
                               steps=recorded.get("steps")).to_dict()
         was, now = _flat(recorded), _flat(want)
-        differ = [k for k in now if was.get(k, ran_as.get(k)) != now[k]]
+        differ = [k for k in now if was.get(k, ran_as.get(k)) != now[k] and not k.startswith("refine.")]
         if differ:
             key = differ[0]
             then = (f"with {key} = {was[key]!r}" if key in was
