@@ -58,6 +58,21 @@ def _to_u8(x, shade):
     return np.uint8(min(max((x * shade) * scale + half, zero), scale))
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def _store_rgb(i, f, r, g, bl, a, b, has_rgb, has_base, face_rgb, face_base, face_shade, rgb_out):
+    """Pixel i's colour (r, g, bl) of face f, times the vertex colours interpolated at barycentrics (a, b)
+    (or the face's base colour), times the face shading, stored to rgb_out[i] as uint8."""
+    if has_rgb:
+        w0 = np.float32(1.0) - a - b
+        r = r * _mix3(w0, a, b, face_rgb[f, 0, 0], face_rgb[f, 1, 0], face_rgb[f, 2, 0])
+        g = g * _mix3(w0, a, b, face_rgb[f, 0, 1], face_rgb[f, 1, 1], face_rgb[f, 2, 1])
+        bl = bl * _mix3(w0, a, b, face_rgb[f, 0, 2], face_rgb[f, 1, 2], face_rgb[f, 2, 2])
+    elif has_base:
+        r, g, bl = r * face_base[f, 0], g * face_base[f, 1], bl * face_base[f, 2]
+    s = face_shade[f]
+    rgb_out[i, 0], rgb_out[i, 1], rgb_out[i, 2] = _to_u8(r, s), _to_u8(g, s), _to_u8(bl, s)
+
+
 @numba.njit(cache=True, nogil=True)
 def shade_pixels(prim, tfar, u, v, max_depth, textured, pow2, planes, face_tex, texels, texel_divisor,
                  face_rgb, face_base, face_shade, rgb_out, depth_out):
@@ -87,16 +102,7 @@ def shade_pixels(prim, tfar, u, v, max_depth, textured, pow2, planes, face_tex, 
             # uint8 texels are divided by 255 here, float32 ones (already / 255) by 1: exact
             r, g, bl = np.float32(texels[k, 0]) / texel_divisor, np.float32(texels[k, 1]) / texel_divisor, \
                 np.float32(texels[k, 2]) / texel_divisor
-        # times the interpolated vertex colours (or the base colour), times the face shading
-        if has_rgb:
-            w0 = one - a - b
-            r = r * _mix3(w0, a, b, face_rgb[f, 0, 0], face_rgb[f, 1, 0], face_rgb[f, 2, 0])
-            g = g * _mix3(w0, a, b, face_rgb[f, 0, 1], face_rgb[f, 1, 1], face_rgb[f, 2, 1])
-            bl = bl * _mix3(w0, a, b, face_rgb[f, 0, 2], face_rgb[f, 1, 2], face_rgb[f, 2, 2])
-        elif has_base:
-            r, g, bl = r * face_base[f, 0], g * face_base[f, 1], bl * face_base[f, 2]
-        s = face_shade[f]
-        rgb_out[i, 0], rgb_out[i, 1], rgb_out[i, 2] = _to_u8(r, s), _to_u8(g, s), _to_u8(bl, s)
+        _store_rgb(i, f, r, g, bl, a, b, has_rgb, has_base, face_rgb, face_base, face_shade, rgb_out)
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
@@ -237,13 +243,4 @@ def shade_pixels_area(prim, tfar, u, v, dirs, dx, dy, max_depth, pow2, planes, f
             r += wk * c0
             g += wk * c1
             bl += wk * c2
-        if has_rgb:
-            a, b = u[i], v[i]
-            w0_ = one - a - b
-            r = r * _mix3(w0_, a, b, face_rgb[f, 0, 0], face_rgb[f, 1, 0], face_rgb[f, 2, 0])
-            g = g * _mix3(w0_, a, b, face_rgb[f, 0, 1], face_rgb[f, 1, 1], face_rgb[f, 2, 1])
-            bl = bl * _mix3(w0_, a, b, face_rgb[f, 0, 2], face_rgb[f, 1, 2], face_rgb[f, 2, 2])
-        elif has_base:
-            r, g, bl = r * face_base[f, 0], g * face_base[f, 1], bl * face_base[f, 2]
-        s = face_shade[f]
-        rgb_out[i, 0], rgb_out[i, 1], rgb_out[i, 2] = _to_u8(r, s), _to_u8(g, s), _to_u8(bl, s)
+        _store_rgb(i, f, r, g, bl, u[i], v[i], has_rgb, has_base, face_rgb, face_base, face_shade, rgb_out)
