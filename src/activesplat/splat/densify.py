@@ -11,7 +11,7 @@ import torch
 
 from activesplat.geometry import backproject, in_sorted, voxel_groups, voxel_keys
 from activesplat.splat.config import MapperConfig
-from activesplat.splat.gaussians import GaussianMap, camera_points
+from activesplat.splat.gaussians import GaussianMap, camera_points, sigmoid
 
 
 def opacity_test_mask(alpha: torch.Tensor, obs_depth: torch.Tensor, cfg: MapperConfig) -> torch.Tensor:
@@ -318,7 +318,7 @@ def prune_mask(raw: dict[str, torch.Tensor], cfg: MapperConfig) -> torch.Tensor:
     """Gaussians to keep among the raw parameters ``raw`` (any subset of rows): drop near-transparent
     (opacity < prune_opacity) and oversized (largest scale > prune_max_scale_m) ones, as 3DGS."""
     with torch.no_grad():
-        opacity = torch.sigmoid(raw["opacity_logits"].detach())
+        opacity = sigmoid(raw["opacity_logits"].detach())
         largest = torch.exp(raw["log_scales"].detach().max(dim=1).values)
         return (opacity >= cfg.prune_opacity) & (largest <= cfg.prune_max_scale_m)
 

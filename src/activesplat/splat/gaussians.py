@@ -24,6 +24,44 @@ PARAM_NAMES = ("means", "quats", "log_scales", "opacity_logits", "f_dc")
 PARAM_WIDTHS = {"means": 3, "quats": 4, "log_scales": 3, "opacity_logits": 0, "f_dc": 3}
 
 
+# ATen splits an elementwise op over more than 32768 elements (its grain size) among its threads, and
+# torch.sigmoid computes the last few elements of each thread's share with a scalar formula that can
+# differ from its SIMD one by an ulp: the opacities, and so the whole run, changed with the thread count.
+# Blocks of this size run on one thread each and end on a whole SIMD step (a multiple of 32 floats).
+SIGMOID_BLOCK = 16384
+
+
+def _sigmoid_blocks(x: torch.Tensor) -> torch.Tensor:
+    out = torch.empty_like(x)
+    flat_x, flat_out = x.view(-1), out.view(-1)
+    for start in range(0, flat_x.numel(), SIGMOID_BLOCK):
+        torch.sigmoid(flat_x[start:start + SIGMOID_BLOCK], out=flat_out[start:start + SIGMOID_BLOCK])
+    return out
+
+
+class _BlockedSigmoid(torch.autograd.Function):
+    @staticmethod
+    def forward(ctx, x: torch.Tensor) -> torch.Tensor:
+        y = _sigmoid_blocks(x)
+        ctx.save_for_backward(y)
+        return y
+
+    @staticmethod
+    def backward(ctx, grad: torch.Tensor) -> torch.Tensor:
+        (y,) = ctx.saved_tensors
+        return torch.ops.aten.sigmoid_backward(grad, y)  # what torch.sigmoid's own backward computes
+
+
+def sigmoid(x: torch.Tensor) -> torch.Tensor:
+    """``torch.sigmoid`` with the same bits whatever the number of CPU threads: the bits of one thread.
+    Differentiable. Large contiguous CPU tensors are done in blocks of ``SIGMOID_BLOCK`` elements (see
+    the comment above it); anything else is torch.sigmoid itself."""
+    if (x.device.type != "cpu" or x.numel() < 2 * SIGMOID_BLOCK or not x.is_contiguous()
+            or torch.get_num_threads() == 1):
+        return torch.sigmoid(x)
+    return _BlockedSigmoid.apply(x) if x.requires_grad and torch.is_grad_enabled() else _sigmoid_blocks(x)
+
+
 def rgb_to_f_dc(rgb: torch.Tensor) -> torch.Tensor:
     """3DGS convention: f_dc = (rgb - 0.5) / C0."""
     return (rgb - 0.5) / SH_C0
@@ -133,7 +171,7 @@ class GaussianMap:
     @property
     def opacities(self) -> torch.Tensor:
         """Opacities in [0,1], sigmoid of the logits."""
-        return torch.sigmoid(self.params["opacity_logits"])
+        return sigmoid(self.params["opacity_logits"])
 
     @property
     def colors(self) -> torch.Tensor:
@@ -215,7 +253,7 @@ def activate(raw: dict[str, torch.Tensor]) -> tuple[torch.Tensor, ...]:
     :class:`GaussianMap`."""
     q = raw["quats"]
     return (raw["means"], q / q.norm(dim=1, keepdim=True).clamp_min(1e-12), torch.exp(raw["log_scales"]),
-            torch.sigmoid(raw["opacity_logits"]), f_dc_to_rgb(raw["f_dc"]))
+            sigmoid(raw["opacity_logits"]), f_dc_to_rgb(raw["f_dc"]))
 
 
 def frustum_rows(means: torch.Tensor, log_scales: torch.Tensor, pose, K, width: int, height: int,

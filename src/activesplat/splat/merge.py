@@ -18,7 +18,7 @@ import numpy as np
 import torch
 
 from activesplat.geometry import voxel_groups, voxel_keys
-from activesplat.splat.gaussians import f_dc_to_rgb, is_flat
+from activesplat.splat.gaussians import f_dc_to_rgb, is_flat, sigmoid
 from activesplat.splat.kernels import quat_normal, quat_to_rotmat, rotmat_to_quat
 
 
@@ -63,7 +63,7 @@ def merge_alike(raw: dict[str, torch.Tensor], voxel_m: float, normal_deg: float,
     lead = torch.from_numpy(leader_np[~is_leader]).to(dev)
     pair = torch.cat([cand, lead])  # the tests below on the candidates (first half) and their leaders
     log_s = raw["log_scales"].detach()[pair]
-    opac = torch.sigmoid(raw["opacity_logits"].detach()[pair])
+    opac = sigmoid(raw["opacity_logits"].detach()[pair])
     normal = quat_normal(raw["quats"].detach()[pair])
     rgb = f_dc_to_rgb(raw["f_dc"].detach()[pair])
     radius = torch.maximum(log_s[:, 0], log_s[:, 1])
@@ -83,7 +83,7 @@ def merge_alike(raw: dict[str, torch.Tensor], voxel_m: float, normal_deg: float,
 
     m = len(leaders)
     s = torch.exp(raw["log_scales"].detach()[rows]).to(torch.float64)
-    w = torch.sigmoid(raw["opacity_logits"].detach()[rows]).to(torch.float64) * s[:, 0] * s[:, 1]
+    w = sigmoid(raw["opacity_logits"].detach()[rows]).to(torch.float64) * s[:, 0] * s[:, 1]
     total = torch.zeros(m, dtype=torch.float64, device=dev).index_add_(0, slot, w)
 
     def group_mean(x: torch.Tensor) -> torch.Tensor:
