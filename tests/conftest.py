@@ -33,3 +33,21 @@ def registry(monkeypatch):
     policies._entry_points.cache_clear()
     yield
     policies._entry_points.cache_clear()
+
+
+@pytest.fixture
+def threads():
+    """``threads(n)`` sets torch's and numba's CPU thread counts (numba's at most its pool's size); both are
+    restored afterwards."""
+    import numba
+    import torch
+
+    saved_torch, saved_numba = torch.get_num_threads(), numba.get_num_threads()
+
+    def set_threads(n: int) -> None:
+        torch.set_num_threads(n)
+        numba.set_num_threads(min(n, numba.config.NUMBA_NUM_THREADS))
+
+    yield set_threads
+    torch.set_num_threads(saved_torch)
+    numba.set_num_threads(saved_numba)

@@ -125,6 +125,26 @@ def test_same_seed_same_actions(episode, tmp_path):
     assert (again / "actions.txt").read_text() == (out / "actions.txt").read_text()
 
 
+def test_one_thread_and_two_give_the_same_run(tmp_path, threads):
+    """A run does not depend on the CPU thread count (docs/protocol.md §8): the whole loop, with a map past
+    the 32768 elements from which torch splits an elementwise op among its threads. Whether an ulp at a
+    split changes a run is a matter of luck (this run did not change with torch.sigmoid itself), so
+    tests/splat/test_threads.py checks the opacities and a render directly."""
+    import numba
+
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("numba's thread pool has one thread on this machine")
+    tiny = {**TINY, "sim_config": SimConfig(width=160, height=160)}
+    runs = []
+    for n in (1, 2):
+        threads(n)
+        runs.append(tmp_path / f"threads{n}")
+        metrics = run_exploration("small-0", policy="activesplat", steps=90, seed=1, out=runs[-1], **tiny)
+    assert metrics["n_gaussians"] > 32768
+    for name in ("actions.txt", "poses.txt", "gaussians.ply"):
+        assert (runs[0] / name).read_bytes() == (runs[1] / name).read_bytes(), name
+
+
 def test_live_evaluation_on_a_worker_thread_gives_the_same_numbers(episode, tmp_path):
     import numba
 
