@@ -71,9 +71,29 @@ def test_the_progress_bar_goes_to_stderr_and_starts_where_a_resumed_run_is(capsy
 
     assert progress_bar(10, "job", "it", enabled=False) is None  # --no-progress
     bar = progress_bar(10, "job", "it", initial=3)
-    assert bar.n == 3 and bar.mininterval == 0.5
+    assert bar.n == 3
     bar.update(7)
     bar.close()
     captured = capsys.readouterr()
     assert captured.out == "" and "job: " in captured.err and "3/10" in captured.err
     assert "10/10" in captured.err
+
+
+def test_the_progress_bar_redraws_seldom_where_stderr_is_a_log(capsys, monkeypatch):
+    """On a terminal it redraws twice a second; into a log file or a pipe each redraw is a line of the log,
+    so it redraws every 30 s, and a postfix set without a refresh waits for the next redraw."""
+    import sys
+
+    from activesplat.timing import PROGRESS_INTERVAL_LOG_S, PROGRESS_INTERVAL_S, progress_bar
+
+    bar = progress_bar(1000, "run", "step")  # capsys: stderr is not a terminal
+    assert bar.mininterval == PROGRESS_INTERVAL_LOG_S == 30.0
+    for i in range(1000):
+        bar.set_postfix_str(f"completion {i / 10:.1f}%", refresh=False)
+        bar.update(1)
+    bar.close()
+    err = capsys.readouterr().err
+    assert err.count("run: ") <= 3  # the first draw, the close, at most one on the way
+    assert "1000/1000" in err and "completion 99.9%" in err
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True, raising=False)
+    assert progress_bar(10, "job", "it").mininterval == PROGRESS_INTERVAL_S == 0.5

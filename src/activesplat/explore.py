@@ -307,12 +307,14 @@ class _Exploration:
         """The progress bar: completion so far (where there is ground truth), time per step, map size."""
         if self.bar is None:
             return
-        self.bar.update(1)
-        elapsed = time.perf_counter() - self.t_start
         point = self.evaluator.latest() if self.evaluator is not None else None
+        self.bar.set_postfix_str(self._progress_text(step, point), refresh=False)
+        self.bar.update(1)
+
+    def _progress_text(self, step: int, point: dict | None) -> str:
+        elapsed = time.perf_counter() - self.t_start
         done = f"completion {point['completion_ratio_pct']:.1f}% | " if point else ""
-        self.bar.set_postfix_str(f"{done}{1000 * elapsed / step:.0f} ms/step | "
-                                 f"{len(self.mapper.gaussians)} gaussians")
+        return f"{done}{1000 * elapsed / step:.0f} ms/step | {len(self.mapper.gaussians)} gaussians"
 
     def end(self) -> None:
         """After the last action: its observation is mapped too, as every other one (the map's train views);
@@ -324,6 +326,9 @@ class _Exploration:
         if self.evaluator is not None:
             self.add_curve_point(self.steps)
             self.curve = self.timers.time("evaluation", self.evaluator.finish)
+        if self.bar is not None:  # its last line shows the final completion, not the last point it had
+            self.bar.set_postfix_str(self._progress_text(self.steps, self.curve[-1] if self.curve else None),
+                                     refresh=False)
 
     # ------------------------------------------------------------------ the end of the episode
     def interrupted(self) -> Interrupted:

@@ -9,17 +9,33 @@ import time
 from collections import defaultdict
 from collections.abc import Callable
 
+PROGRESS_INTERVAL_S = 0.5
+"""Seconds between two redraws of a progress bar on a terminal."""
+PROGRESS_INTERVAL_LOG_S = 30.0
+"""Seconds between two redraws when stderr is not a terminal (a log file, a pipe, a batch job): each redraw
+is a line of the log there, so a 2000-step run writes tens of them, not thousands."""
+
 
 def progress_bar(total: int, desc: str, unit: str, enabled: bool = True, initial: int = 0, **kwargs):
-    """The progress bar every long command shows on stderr (tqdm, at most two updates a second, as wide as
-    the terminal), `total` `unit`s long, starting at `initial` (a resumed run); None when `enabled` is off
-    (``--no-progress``). Other keyword arguments go to tqdm."""
+    """The progress bar every long command shows on stderr (tqdm, as wide as the terminal), `total` `unit`s
+    long, starting at `initial` (a resumed run); None when `enabled` is off (``--no-progress``). It redraws
+    at most every `PROGRESS_INTERVAL_S` on a terminal and every `PROGRESS_INTERVAL_LOG_S` elsewhere; callers
+    set the postfix with ``refresh=False`` so that it waits for the next redraw. Other keyword arguments go
+    to tqdm."""
     if not enabled:
         return None
     from tqdm import tqdm
 
+    interval = PROGRESS_INTERVAL_S if _is_terminal(sys.stderr) else PROGRESS_INTERVAL_LOG_S
     return tqdm(total=total, desc=desc, unit=unit, initial=initial, dynamic_ncols=True, file=sys.stderr,
-                mininterval=0.5, **kwargs)
+                mininterval=interval, **kwargs)
+
+
+def _is_terminal(stream) -> bool:
+    try:
+        return bool(stream.isatty())
+    except (AttributeError, ValueError):  # a replaced or closed stream
+        return False
 
 
 class Timers:

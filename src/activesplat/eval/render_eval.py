@@ -245,8 +245,8 @@ def render_eval(episode_dir: str | Path, gaussians_path: str | Path | None = Non
                 grid.append({"label": _grid_label(split, views[split][-1]), "gt": gt_rgb, "rgb": rgb,
                              "error_cm": np.where(gt_depth > 0, 100.0 * np.abs(depth - gt_depth), np.nan)})
             if bar is not None:
+                bar.set_postfix_str(f"{split} PSNR {m['psnr']:.1f} dB", refresh=False)
                 bar.update(1)
-                bar.set_postfix_str(f"{split} PSNR {m['psnr']:.1f} dB")
     if bar is not None:
         bar.close()
     wall = time.perf_counter() - t0
