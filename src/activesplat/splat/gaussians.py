@@ -160,8 +160,7 @@ class GaussianMap:
     @property
     def quats(self) -> torch.Tensor:
         """Unit quaternions wxyz."""
-        q = self.params["quats"]
-        return q / q.norm(dim=1, keepdim=True).clamp_min(1e-12)
+        return unit_quats(self.params["quats"])
 
     @property
     def scales(self) -> torch.Tensor:
@@ -251,9 +250,13 @@ def activate(raw: dict[str, torch.Tensor]) -> tuple[torch.Tensor, ...]:
     """The renderer's inputs from raw parameters (any subset of rows, differentiable): means, unit
     quaternions, linear scales, opacities in [0,1], RGB; the same maps as the properties of
     :class:`GaussianMap`."""
-    q = raw["quats"]
-    return (raw["means"], q / q.norm(dim=1, keepdim=True).clamp_min(1e-12), torch.exp(raw["log_scales"]),
+    return (raw["means"], unit_quats(raw["quats"]), torch.exp(raw["log_scales"]),
             sigmoid(raw["opacity_logits"]), f_dc_to_rgb(raw["f_dc"]))
+
+
+def unit_quats(q: torch.Tensor) -> torch.Tensor:
+    """(N, 4) quaternions scaled to unit length (a zero row stays zero)."""
+    return q / q.norm(dim=1, keepdim=True).clamp_min(1e-12)
 
 
 def frustum_rows(means: torch.Tensor, log_scales: torch.Tensor, pose, K, width: int, height: int,
