@@ -88,7 +88,8 @@ def _build(tmp_path: Path) -> tuple[Path, Path]:
     tree = tmp_path / "tree"
     ignore = shutil.ignore_patterns(*CACHES, *CACHE_FILES, "*.egg-info", "runs", "build", "dist", ".venv")
     tree.mkdir()
-    for name in ("pyproject.toml", "MANIFEST.in", "README.md", "LICENSE", "constraints.txt"):
+    for name in ("pyproject.toml", "MANIFEST.in", "README.md", "LICENSE", "constraints.txt",
+                 "constraints-oldest.txt"):
         shutil.copy2(ROOT / name, tree / name)
     for name in ("src", "tests", "docs", "benchmarks"):
         shutil.copytree(ROOT / name, tree / name, ignore=ignore)
@@ -140,6 +141,40 @@ def test_the_sdist_holds_the_tests_docs_benchmarks_and_pinned_versions(dists):
         names = {n.removeprefix(top + "/") for n in tar.getnames()}
     want = {p.relative_to(ROOT).as_posix() for folder in (PACKAGE, ROOT / "tests", ROOT / "docs",
                                                           ROOT / "benchmarks") for p in _files(folder)}
-    want |= {"pyproject.toml", "README.md", "LICENSE", "constraints.txt"}
+    want |= {"pyproject.toml", "README.md", "LICENSE", "constraints.txt", "constraints-oldest.txt"}
     assert not want - names, f"missing from the sdist: {sorted(want - names)}"
     assert not [n for n in names if "__pycache__" in n or n.endswith((".pyc", ".nbi", ".nbc"))]
+
+
+def _pins(path: Path) -> dict[str, str]:
+    """name -> version of a constraints file's ``name==version`` lines (names lower-case)."""
+    lines = (line.split("#")[0].strip() for line in path.read_text().splitlines())
+    return {name.strip().lower(): version.strip() for name, version in
+            (line.split("==") for line in lines if line)}
+
+
+def _release(version: str) -> tuple[int, ...]:
+    """The leading numbers of a version ("2.17.7.post6" -> (2, 17, 7))."""
+    parts = []
+    for part in version.split("."):
+        if not part.isdigit():
+            break
+        parts.append(int(part))
+    return tuple(parts)
+
+
+def test_constraints_oldest_holds_every_lower_bound_of_pyproject():
+    """constraints-oldest.txt installs the lowest version of every ``>=`` range of pyproject.toml (the
+    dependencies and the dev extra), the versions the suite was last run with at the bottom of those ranges:
+    a bound raised or added without it fails here."""
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    bounds = {}
+    for requirement in [*project["dependencies"], *project["optional-dependencies"]["dev"]]:
+        if ">=" in requirement:
+            name, rest = requirement.split(">=")
+            bounds[name.strip().lower()] = rest.split(",")[0].strip()
+    oldest = _pins(ROOT / "constraints-oldest.txt")
+    assert set(bounds) == set(oldest), (sorted(set(bounds) - set(oldest)), sorted(set(oldest) - set(bounds)))
+    for name, bound in bounds.items():
+        low = _release(bound)
+        assert _release(oldest[name])[:len(low)] == low, (name, bound, oldest[name])
