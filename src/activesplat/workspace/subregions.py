@@ -17,7 +17,7 @@ def path_length_matrix(graph: nx.Graph) -> np.ndarray:
     """(V, V) shortest-path lengths over edge weights, node order 0..V-1; inf between components."""
     nodes = sorted(graph.nodes)
     adjacency = nx.to_scipy_sparse_array(graph, nodelist=nodes, weight="weight", format="csr")
-    # csgraph's kernels take 32-bit indices; scipy before 1.12 refuses the 64-bit ones networkx may build
+    # csgraph's kernels take 32-bit indices; older scipy (1.11) refuses the 64-bit ones networkx may build
     adjacency.indices = adjacency.indices.astype(np.int32)
     adjacency.indptr = adjacency.indptr.astype(np.int32)
     return shortest_path(adjacency, method="D", directed=False)
